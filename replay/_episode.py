@@ -1,0 +1,399 @@
+"""Replay one logged episode: simulator + goals + budgets + classification -> rows.
+
+This is the inner loop of `vge replay`. It is pure: the same machine, task, log and lambda
+always give the same rows.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from dataclasses import dataclass
+
+from ._classify import Classifier
+from ._errors import TaskError
+from ._machine import Machine
+from ._parse import ParsedAction, action_from_record, parse_action
+from ._plan import Plan, c_opt_dynamic, plan_goals
+from ._records import EpisodeLog, LogStep, Task
+from ._rows import EpisodeRow, GoalRow, StepRow
+from ._step import reset, step
+from ._vocab import DASHBOARD, FEEDBACK_KINDS
+
+_NO_ACTION = ParsedAction(False, None, "no_action", "", "")
+
+
+@dataclass(frozen=True, slots=True)
+class EpisodeSetup:
+    """Everything about an episode that does not depend on the log (cacheable per task)."""
+
+    goals: tuple[int, ...]
+    initial_state: int
+    reset_states: tuple[int, ...]
+    start_state: int
+    initial_view: str
+    plan: Plan
+
+
+def setup_episode(machine: Machine, task: Task) -> EpisodeSetup:
+    """Resolve and check a task against its machine; raises TaskError with a clear message."""
+    where = f"episode {task.episode_id!r}: "
+    if not task.goals:
+        raise TaskError(f"{where}no goals")
+    unknown = [g for g in task.goals if g not in machine.state_index]
+    if unknown:
+        raise TaskError(f"{where}unknown goal state(s) {', '.join(map(repr, unknown))}")
+    init_name = task.initial_state or machine.states[machine.initial]
+    if init_name not in machine.state_index:
+        raise TaskError(f"{where}unknown initial_state {init_name!r}")
+    view = task.initial_view.lower()
+    if view not in machine.views or view == DASHBOARD:
+        offered = ", ".join(v for v in machine.views if v != DASHBOARD)
+        raise TaskError(f"{where}initial_view {task.initial_view!r} is not one of: {offered}")
+    goals = tuple(machine.state_index[g] for g in task.goals)
+    init = machine.state_index[init_name]
+    sim, reset_states = reset(machine, init, view)
+    plan = plan_goals(machine, sim.state, view, False, goals, where=where)
+    return EpisodeSetup(goals, init, reset_states, sim.state, view, plan)
+
+
+@dataclass(slots=True)
+class EpisodeResult:
+    steps: list[StepRow]
+    episode: EpisodeRow
+    goals: list[GoalRow]
+
+
+def timestamp_seconds(value: float | str | None) -> float | None:
+    """Recorded timestamp -> seconds since the epoch (ISO strings without zone are UTC)."""
+    if value is None:
+        return None
+    if isinstance(value, (int, float)):
+        return float(value)
+    try:
+        parsed = _dt.datetime.fromisoformat(value.strip().replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    if parsed.tzinfo is None:
+        parsed = parsed.replace(tzinfo=_dt.UTC)
+    return parsed.timestamp()
+
+
+def parse_log_step(log_step: LogStep) -> ParsedAction:
+    """The action of a log step: raw text is parsed, a structured action is checked."""
+    if log_step.output is not None:
+        return parse_action(log_step.output)
+    if log_step.action is not None:
+        a = log_step.action
+        return action_from_record(a.type, a.coord, a.params)
+    return _NO_ACTION
+
+
+def _first_visit_order(states: list[int]) -> list[int]:
+    seen: dict[int, None] = {}
+    for s in states:
+        seen.setdefault(s, None)
+    return list(seen)
+
+
+def replay_episode(
+    machine: Machine,
+    task: Task,
+    log: EpisodeLog,
+    *,
+    lam: float,
+    run_id: str,
+    model: str,
+    agent_kind: str,
+    setup: EpisodeSetup | None = None,
+) -> EpisodeResult:
+    """Re-execute a logged episode (SPEC 3-5) and return its step, episode and goal rows."""
+    if setup is None:
+        setup = setup_episode(machine, task)
+    names = machine.states
+    goals = setup.goals
+    n_goals = len(goals)
+    plan = setup.plan
+    c_opt = plan.c_opt
+    lam = float(lam)
+    budget_global = lam * sum(c_opt)
+    budget_local = lam * c_opt[0]
+
+    sim, _ = reset(machine, setup.initial_state, setup.initial_view)
+    visited: list[int] = list(setup.reset_states)
+    classifier = Classifier(machine)
+
+    # Per-goal bookkeeping.
+    started = [None] * n_goals
+    completed_at: list[int | None] = [None] * n_goals
+    steps_used = [0] * n_goals
+    switches = [0] * n_goals
+    dyn: list[int | None] = [None] * n_goals
+    started[0] = 0
+    dyn[0] = c_opt_dynamic(machine, sim.state, sim.view, sim.unlocked, goals[0])
+
+    current = 0
+    taken = 0
+    termination: str | None = None
+    n_switches = 0
+    diverged_steps = 0
+    truncated_steps = 0
+    rows: list[StepRow] = []
+    common = {
+        "run_id": run_id,
+        "model": model,
+        "agent_kind": agent_kind,
+        "episode_id": task.episode_id,
+        "device_id": machine.device_id,
+        "category": machine.category,
+    }
+
+    for k, log_step in enumerate(log.steps):
+        parsed = parse_log_step(log_step)
+        action = parsed.action
+        ts = timestamp_seconds(log_step.timestamp)
+        if termination is not None:
+            truncated_steps += 1
+            rows.append(
+                StepRow(
+                    **common,
+                    step=k,
+                    goal_index=None,
+                    goal_state=None,
+                    view_before=None,
+                    view_after=None,
+                    dashboard_unlocked=None,
+                    action_type=action.type if action else None,
+                    action_raw=parsed.action_text,
+                    thinking=parsed.thinking or None,
+                    output=log_step.output,
+                    x=action.coord[0] if action and action.coord else None,
+                    y=action.coord[1] if action and action.coord else None,
+                    params=list(action.params) if action else [],
+                    parse_ok=parsed.ok,
+                    parse_detail=parsed.detail,
+                    feedback_kind=None,
+                    feedback_text=None,
+                    state_before=None,
+                    state_after=None,
+                    states_entered=[],
+                    transition_component=None,
+                    dangerous=None,
+                    is_interaction=None,
+                    is_switch=None,
+                    hit_component=None,
+                    hit_target=None,
+                    hit_components=[],
+                    nearest_target=None,
+                    progress=None,
+                    completed_goals=None,
+                    dist_before=None,
+                    dist_after=None,
+                    error_type=None,
+                    error_detail=None,
+                    error_group=None,
+                    switch_class=None,
+                    repetitive=None,
+                    eer_valid=None,
+                    distance=None,
+                    weight=None,
+                    budget_global_left=None,
+                    budget_local_left=None,
+                    truncated=True,
+                    recorded_feedback=log_step.feedback,
+                    recorded_state=log_step.state,
+                    recorded_view=log_step.view,
+                    diverged=None,
+                    diverged_fields=[],
+                    timestamp=ts,
+                )
+            )
+            continue
+
+        before = sim
+        goal_index = current
+        goal = goals[current]
+        sim, outcome = step(machine, sim, parsed)
+
+        completed = 0
+        for s in outcome.entered:
+            visited.append(s)
+            if current < n_goals and s == goals[current]:
+                completed_at[current] = k
+                if current != goal_index:
+                    started[current] = k  # became current and completed in this step
+                current += 1
+                completed += 1
+        if completed and current < n_goals:
+            started[current] = k + 1
+        taken += 1
+        steps_used[goal_index] += 1
+        if outcome.switched:
+            n_switches += 1
+            switches[goal_index] += 1
+        budget_local -= 1
+        if completed:
+            for c in range(goal_index + 1, min(current + 1, n_goals)):
+                budget_local = max(budget_local, lam * c_opt[c])
+            for c in range(goal_index + 1, current):
+                dyn[c] = 0  # completed in the same step it became current
+            if current < n_goals:
+                dyn[current] = c_opt_dynamic(
+                    machine, sim.state, sim.view, sim.unlocked, goals[current]
+                )
+
+        cls = classifier.classify(goal_index, goal, before, parsed, outcome, sim, completed)
+
+        if current >= n_goals:
+            termination = "success"
+        elif taken >= budget_global:
+            termination = "budget_global"
+        elif budget_local <= 0:
+            termination = "budget_local"
+
+        state_after = names[sim.state]
+        diverged_fields = []
+        if log_step.feedback is not None:
+            recorded = log_step.feedback
+            mine = outcome.kind if recorded in FEEDBACK_KINDS else outcome.text
+            if recorded != mine:
+                diverged_fields.append("feedback")
+        if log_step.state is not None and log_step.state != state_after:
+            diverged_fields.append("state")
+        if log_step.view is not None and log_step.view.lower() != sim.view:
+            diverged_fields.append("view")
+        recorded_any = (
+            log_step.feedback is not None or log_step.state is not None or log_step.view is not None
+        )
+        if diverged_fields:
+            diverged_steps += 1
+
+        tr = outcome.transition
+        rows.append(
+            StepRow(
+                **common,
+                step=k,
+                goal_index=goal_index,
+                goal_state=names[goal],
+                view_before=before.view,
+                view_after=sim.view,
+                dashboard_unlocked=sim.unlocked if machine.dashboard_regions else None,
+                action_type=action.type if action else None,
+                action_raw=parsed.action_text,
+                thinking=parsed.thinking or None,
+                output=log_step.output,
+                x=action.coord[0] if action and action.coord else None,
+                y=action.coord[1] if action and action.coord else None,
+                params=list(action.params) if action else [],
+                parse_ok=parsed.ok,
+                parse_detail=parsed.detail,
+                feedback_kind=outcome.kind,
+                feedback_text=outcome.text,
+                state_before=names[before.state],
+                state_after=state_after,
+                states_entered=[names[s] for s in outcome.entered],
+                transition_component=tr.component if tr is not None else None,
+                dangerous=outcome.dangerous,
+                is_interaction=cls.is_interaction,
+                is_switch=outcome.switched,
+                hit_component=cls.hit_component,
+                hit_target=cls.hit_target,
+                hit_components=cls.hit_components,
+                nearest_target=cls.nearest_target,
+                progress=cls.progress,
+                completed_goals=completed,
+                dist_before=cls.dist_before,
+                dist_after=cls.dist_after,
+                error_type=cls.error_type,
+                error_detail=cls.error_detail,
+                error_group=cls.error_group,
+                switch_class=cls.switch_class,
+                repetitive=cls.repetitive,
+                eer_valid=cls.eer_valid,
+                distance=cls.distance,
+                weight=cls.weight,
+                budget_global_left=budget_global - taken,
+                budget_local_left=budget_local,
+                truncated=False,
+                recorded_feedback=log_step.feedback,
+                recorded_state=log_step.state,
+                recorded_view=log_step.view,
+                diverged=bool(diverged_fields) if recorded_any else None,
+                diverged_fields=diverged_fields,
+                timestamp=ts,
+            )
+        )
+
+    if termination is None:
+        termination = "log_ended"
+    goals_completed = current
+    success = goals_completed == n_goals
+    l_opt = sum(c_opt)
+    l_act = taken
+    spl = (l_opt / max(l_act, l_opt) if l_opt else 1.0) if success else 0.0
+    visited_set = set(visited)
+    optimal_list = list(setup.reset_states) + list(plan.states)
+    optimal_set = set(optimal_list)
+    state_f1 = 2.0 * len(visited_set & optimal_set) / (len(visited_set) + len(optimal_set))
+    vsps_switches = sum(switches[g] for g in range(n_goals) if completed_at[g] is not None)
+    vsps = vsps_switches / goals_completed if goals_completed else None
+
+    episode = EpisodeRow(
+        **common,
+        n_goals=n_goals,
+        goals_completed=goals_completed,
+        success=success,
+        termination=termination,
+        L_opt=l_opt,
+        L_act=l_act,
+        spl=spl,
+        state_f1=state_f1,
+        n_switches=n_switches,
+        vsps_switches=vsps_switches,
+        vsps=vsps,
+        n_steps=len(log.steps),
+        truncated_steps=truncated_steps,
+        diverged_steps=diverged_steps,
+        lam=lam,
+        budget_global=budget_global,
+        initial_state=names[setup.initial_state],
+        initial_view=setup.initial_view,
+        goals=[names[g] for g in goals],
+        c_opt=list(c_opt),
+        c_opt_stated=list(task.c_opt) if task.c_opt is not None else None,
+        visited_states=[names[s] for s in _first_visit_order(visited)],
+        optimal_states=[names[s] for s in _first_visit_order(optimal_list)],
+    )
+    instructions = task.instructions
+    goal_rows = [
+        GoalRow(
+            **common,
+            n_goals=n_goals,
+            goal_index=g,
+            goal_state=names[goals[g]],
+            instruction=instructions[g] if g < len(instructions) else None,
+            c_opt=c_opt[g],
+            c_opt_dyn=dyn[g],
+            reached=started[g] is not None,
+            completed=completed_at[g] is not None,
+            started_step=started[g],
+            completed_step=completed_at[g],
+            steps_used=steps_used[g],
+            switches=switches[g],
+            perfect=(
+                completed_at[g] is not None and dyn[g] is not None and steps_used[g] <= dyn[g]
+            ),
+        )
+        for g in range(n_goals)
+    ]
+    return EpisodeResult(rows, episode, goal_rows)
+
+
+__all__ = [
+    "EpisodeResult",
+    "EpisodeSetup",
+    "TaskError",
+    "parse_log_step",
+    "replay_episode",
+    "setup_episode",
+    "timestamp_seconds",
+]

@@ -1,0 +1,51 @@
+"""Every error the engine raises, in one hierarchy.
+
+The CLI turns any `VGEError` into a one-line message naming the file (and line) involved.
+"""
+
+from __future__ import annotations
+
+
+class VGEError(Exception):
+    """Base class of every error the project raises on purpose."""
+
+
+class InputError(VGEError):
+    """A problem with an input file: names the file and, where known, the line."""
+
+    def __init__(self, path: str, message: str, line: int | None = None) -> None:
+        self.path = str(path)
+        self.line = line
+        self.message = message
+        where = f"{self.path}:{line}" if line is not None else self.path
+        super().__init__(f"{where}: {message}")
+
+
+class Problem(VGEError):
+    """One validation problem; `where` locates it (file, state, component...)."""
+
+    def __init__(self, path: str, where: str, message: str, severity: str = "error") -> None:
+        self.path = str(path)
+        self.where = where
+        self.message = message
+        self.severity = severity
+        loc = f"{self.path} [{where}]" if where else self.path
+        super().__init__(f"{loc}: {message}")
+
+
+class SSMError(VGEError):
+    """A state machine failed validation; carries every problem found, not just the first."""
+
+    def __init__(self, problems: list[Problem]) -> None:
+        self.problems = problems
+        first = problems[0] if problems else None
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        super().__init__(f"{first}{more}" if first else "invalid state machine")
+
+
+class TaskError(VGEError):
+    """A task cannot be played on its device (bad goals, unplannable, bad view)."""
+
+
+class ConfigError(VGEError):
+    """Bad options or arguments (unknown metric, bad lambda, missing directory...)."""

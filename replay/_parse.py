@@ -1,0 +1,263 @@
+"""The action grammar (SPEC 2): raw model text -> a typed action or a typed failure.
+
+Grammar (case-insensitive names, whitespace anywhere between tokens)::
+
+    response   := [ "Thinking:" text ] entry
+    entry      := label call trailer          -- exactly one entry per response
+    label      := line-start decoration* "Action" decoration* ":"   (decoration: * _ # > ` - space)
+    call       := fence? bold? NAME "(" [ arg ( "," arg )* [","] ] ")" bold? fence? ["." | ";"]
+    arg        := ("coord" | "coords" | "coordinate") "=" list
+                | ("params" | "param" | "parameters") "=" ( list | item )
+    list       := "[" [ item ( "," item )* [","] ] "]"  |  "(" ... ")"
+    item       := NUMBER | QUOTED | WORD | "*"
+
+A response without a line-start label may still carry one mid-line (`Thinking: ... Action:
+Press(...)`); it is then found anywhere. Text after the call is ignored unless it holds
+another call of a known action (`multiple_actions`). Parsing never raises.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from ._vocab import ACTION_NAMES, DISPLAY_NAMES, normalize_param
+
+PARSE_DETAILS = ("no_action", "multiple_actions", "unknown_action", "malformed")
+
+_LABEL_LINE = re.compile(r"^[ \t>*_#`\-]*action[ \t*_`]*:", re.IGNORECASE | re.MULTILINE)
+_LABEL_ANY = re.compile(r"\baction[ \t*_`]*:", re.IGNORECASE)
+_THINKING = re.compile(r"^[ \t>*_#`\-]*thinking[ \t*_`]*:", re.IGNORECASE | re.MULTILINE)
+_LEAD = re.compile(r"[\s*_`]*(?:```[A-Za-z0-9_+-]*[ \t]*\n?)?[\s*_`]*")
+_NAME = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\s*\(")
+# A second call in the same entry; no space before "(" so prose like "press (gently)" passes.
+_KNOWN_CALL = re.compile(
+    r"\b(?:press|rotate|push|pull|grasp|switch_view|timed_wait)\(", re.IGNORECASE
+)
+_NUMBER = re.compile(r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?")
+_WORD = re.compile(r"[A-Za-z0-9_*.+\-]+")
+_KEY = re.compile(r"([A-Za-z_]+)\s*=\s*")
+_COORD_KEYS = frozenset({"coord", "coords", "coordinate", "coordinates"})
+_PARAM_KEYS = frozenset({"params", "param", "parameters", "parameter"})
+_KNOWN = {name: name for name in ACTION_NAMES}
+
+
+@dataclass(frozen=True, slots=True)
+class Action:
+    """A well-formed action: `type` is a lowercase name from SPEC 2."""
+
+    type: str
+    coord: tuple[float, float] | None = None
+    params: tuple[str, ...] = ()
+
+    def to_text(self) -> str:
+        """Canonical call text, e.g. `Press(coord=[500, 300], params=[0])`."""
+        parts = []
+        if self.coord is not None:
+            parts.append(f"coord=[{_num(self.coord[0])}, {_num(self.coord[1])}]")
+        if self.params or self.type != "timed_wait":
+            parts.append("params=[" + ", ".join(self.params) + "]")
+        return f"{DISPLAY_NAMES.get(self.type, self.type)}({', '.join(parts)})"
+
+
+@dataclass(frozen=True, slots=True)
+class ParsedAction:
+    """Result of parsing one response: `action` when `ok`, else a `detail` code."""
+
+    ok: bool
+    action: Action | None
+    detail: str | None  # one of PARSE_DETAILS when not ok
+    action_text: str  # the text of the Action entry (or the whole text if none)
+    thinking: str  # the Thinking part, stripped ('' when absent)
+
+
+def _num(v: float) -> str:
+    return str(int(v)) if v == int(v) else repr(v)
+
+
+class _Malformed(Exception):
+    pass
+
+
+def parse_action(text: str) -> ParsedAction:
+    """Parse a model response (SPEC 2). Never raises."""
+    if not isinstance(text, str):
+        return ParsedAction(False, None, "malformed", "", "")
+    labels = list(_LABEL_LINE.finditer(text))
+    if not labels:
+        labels = list(_LABEL_ANY.finditer(text))
+    thinking = _thinking(text, labels[0].start() if labels else len(text))
+    if not labels:
+        return ParsedAction(False, None, "no_action", "", thinking)
+    if len(labels) > 1:
+        entry = text[labels[0].end() : labels[1].start()].strip()
+        return ParsedAction(False, None, "multiple_actions", entry, thinking)
+    entry = text[labels[0].end() :]
+    return _parse_entry(entry, thinking)
+
+
+def _thinking(text: str, end: int) -> str:
+    head = text[:end]
+    m = _THINKING.search(head)
+    return head[m.end() :].strip() if m else head.strip()
+
+
+def _parse_entry(entry: str, thinking: str) -> ParsedAction:
+    lead = _LEAD.match(entry)
+    pos = lead.end() if lead else 0
+    shown = entry.strip()
+    m = _NAME.match(entry, pos)
+    if m is None:
+        return ParsedAction(False, None, "malformed", shown, thinking)
+    name = m.group(1)
+    close = _matching_paren(entry, m.end() - 1)
+    if close < 0:
+        known = name.lower() in _KNOWN
+        return ParsedAction(
+            False, None, "malformed" if known else "unknown_action", shown, thinking
+        )
+    call_text = entry[pos : close + 1]
+    trailer = entry[close + 1 :]
+    if _KNOWN_CALL.search(trailer):
+        return ParsedAction(False, None, "multiple_actions", shown, thinking)
+    kind = _KNOWN.get(name.lower())
+    if kind is None:
+        return ParsedAction(False, None, "unknown_action", call_text, thinking)
+    try:
+        coord, params = _parse_args(entry[m.end() : close])
+    except _Malformed:
+        return ParsedAction(False, None, "malformed", call_text, thinking)
+    return ParsedAction(True, Action(kind, coord, params), None, call_text, thinking)
+
+
+def _matching_paren(text: str, open_at: int) -> int:
+    depth = 0
+    quote = ""
+    for i in range(open_at, len(text)):
+        ch = text[i]
+        if quote:
+            if ch == quote:
+                quote = ""
+            continue
+        if ch in "'\"":
+            quote = ch
+        elif ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+            if depth == 0:
+                return i
+    return -1
+
+
+def _parse_args(args: str) -> tuple[tuple[float, float] | None, tuple[str, ...]]:
+    coord: tuple[float, float] | None = None
+    params: tuple[str, ...] = ()
+    seen: set[str] = set()
+    pos = _skip_ws(args, 0)
+    while pos < len(args):
+        km = _KEY.match(args, pos)
+        if km is None:
+            raise _Malformed
+        key = km.group(1).lower()
+        if key in _COORD_KEYS:
+            slot = "coord"
+        elif key in _PARAM_KEYS:
+            slot = "params"
+        else:
+            raise _Malformed
+        if slot in seen:
+            raise _Malformed
+        seen.add(slot)
+        pos = km.end()
+        if pos < len(args) and args[pos] in "[(":
+            items, pos = _parse_list(args, pos)
+        elif slot == "params":
+            item, pos = _parse_item(args, pos)
+            items = [item]
+        else:
+            raise _Malformed
+        if slot == "coord":
+            coord = _to_coord(items)
+        else:
+            params = tuple(normalize_param(v) for v in items)
+        pos = _skip_ws(args, pos)
+        if pos < len(args):
+            if args[pos] != ",":
+                raise _Malformed
+            pos = _skip_ws(args, pos + 1)
+    return coord, params
+
+
+def _skip_ws(text: str, pos: int) -> int:
+    while pos < len(text) and text[pos].isspace():
+        pos += 1
+    return pos
+
+
+def _parse_list(text: str, pos: int) -> tuple[list[str], int]:
+    closing = "]" if text[pos] == "[" else ")"
+    pos = _skip_ws(text, pos + 1)
+    items: list[str] = []
+    if pos < len(text) and text[pos] == closing:
+        return items, pos + 1
+    while True:
+        item, pos = _parse_item(text, pos)
+        items.append(item)
+        pos = _skip_ws(text, pos)
+        if pos >= len(text):
+            raise _Malformed
+        if text[pos] == closing:
+            return items, pos + 1
+        if text[pos] != ",":
+            raise _Malformed
+        pos = _skip_ws(text, pos + 1)
+        if pos < len(text) and text[pos] == closing:  # trailing comma
+            return items, pos + 1
+
+
+def _parse_item(text: str, pos: int) -> tuple[str, int]:
+    pos = _skip_ws(text, pos)
+    if pos >= len(text):
+        raise _Malformed
+    ch = text[pos]
+    if ch in "'\"":
+        end = text.find(ch, pos + 1)
+        if end < 0:
+            raise _Malformed
+        return text[pos + 1 : end], end + 1
+    m = _WORD.match(text, pos)
+    if m is None:
+        raise _Malformed
+    return m.group(0), m.end()
+
+
+def _to_coord(items: list[str]) -> tuple[float, float]:
+    if len(items) != 2:
+        raise _Malformed
+    values = []
+    for item in items:
+        s = item.strip()
+        if not _NUMBER.fullmatch(s):
+            raise _Malformed
+        values.append(float(s))
+    return values[0], values[1]
+
+
+def action_from_record(type_: str, coord: list[float] | None, params: list) -> ParsedAction:
+    """A structured `action` of a log step (SPEC 1.4), checked like parsed text."""
+    text = (
+        f"{type_}(coord={coord}, params={params})"
+        if coord is not None
+        else f"{type_}(params={params})"
+    )
+    kind = _KNOWN.get(str(type_).strip().lower())
+    if kind is None:
+        return ParsedAction(False, None, "unknown_action", text, "")
+    point: tuple[float, float] | None = None
+    if coord is not None:
+        if len(coord) != 2 or any(v != v or v in (float("inf"), float("-inf")) for v in coord):
+            return ParsedAction(False, None, "malformed", text, "")
+        point = (float(coord[0]), float(coord[1]))
+    action = Action(kind, point, tuple(normalize_param(p) for p in params))
+    return ParsedAction(True, action, None, action.to_text(), "")

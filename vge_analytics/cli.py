@@ -1,0 +1,76 @@
+"""The `vge` command line: a thin router over the command modules.
+
+Each command lives in `vge_analytics/commands/<name>.py` and exposes `register(app)`.
+Errors derived from `replay.VGEError` become one-line messages (exit 1) unless `--debug`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import typer
+
+from replay import VGEError
+
+# Command modules, in the order `vge --help` lists them.
+COMMAND_MODULES = (
+    "validate",
+)
+
+app = typer.Typer(
+    name="vge",
+    help="VGE Analytics: replay, score and explore VGEBench-style agent logs.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+_state = {"debug": False}
+
+
+@app.callback()
+def _root(
+    debug: bool = typer.Option(False, "--debug", help="Show full tracebacks on errors."),
+) -> None:
+    _state["debug"] = debug
+
+
+def _register_all() -> None:
+    for name in COMMAND_MODULES:
+        module = importlib.import_module(f"vge_analytics.commands.{name}")
+        module.register(app)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `vge` console script."""
+    _register_all()
+    args = sys.argv[1:] if argv is None else argv
+    _state["debug"] = "--debug" in args
+    try:
+        app(args=args, standalone_mode=False)
+    except VGEError as exc:
+        if _state["debug"]:
+            raise
+        typer.echo(f"error: {exc}", err=True)
+        return 1
+    except typer.Exit as exc:
+        return exc.exit_code
+    except (typer.Abort, KeyboardInterrupt):
+        typer.echo("aborted", err=True)
+        return 130
+    except Exception as exc:  # click usage errors and the like
+        import click
+
+        if isinstance(exc, click.ClickException):
+            exc.show()
+            return exc.exit_code
+        if _state["debug"]:
+            raise
+        typer.echo(f"error: {type(exc).__name__}: {exc} (run with --debug for details)", err=True)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
