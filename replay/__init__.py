@@ -160,3 +160,7 @@ __all__ = [
     "rect_contains",
     "rect_distance",
 ]
+
+from ._tables import TABLE_ROWS, arrow_schema, rows_to_table  # noqa: E402
+
+__all__ += ["TABLE_ROWS", "arrow_schema", "rows_to_table"]
