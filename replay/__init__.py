@@ -164,3 +164,7 @@ __all__ = [
 from ._tables import TABLE_ROWS, arrow_schema, rows_to_table  # noqa: E402
 
 __all__ += ["TABLE_ROWS", "arrow_schema", "rows_to_table"]
+
+from ._schemas import schema_documents, write_schemas  # noqa: E402
+
+__all__ += ["schema_documents", "write_schemas"]

@@ -245,13 +245,18 @@ def _check_coordinate(coord: list[float], where: str, err) -> None:
     if len(coord) != 6:
         err(where, f"coordinate must be [x, y, w, h, W, H], got {len(coord)} numbers")
         return
-    x, y, w, h, width, height = coord
-    if width <= 0 or height <= 0:
+    x, y, w, h, width, height = (f"{v:g}" for v in coord)
+    if coord[4] <= 0 or coord[5] <= 0:
         err(where, f"image size W x H must be positive, got {width} x {height}")
         return
-    if w <= 0 or h <= 0:
+    if coord[2] <= 0 or coord[3] <= 0:
         err(where, f"bbox with non-positive size w={w}, h={h}")
-    if x < 0 or y < 0 or x + w > width or y + h > height:
+    if (
+        coord[0] < 0
+        or coord[1] < 0
+        or coord[0] + coord[2] > coord[4]
+        or coord[1] + coord[3] > coord[5]
+    ):
         err(where, f"bbox [{x}, {y}, {w}, {h}] outside its {width} x {height} image")
 
 

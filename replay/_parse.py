@@ -28,7 +28,7 @@ PARSE_DETAILS = ("no_action", "multiple_actions", "unknown_action", "malformed")
 _LABEL_LINE = re.compile(r"^[ \t>*_#`\-]*action[ \t*_`]*:", re.IGNORECASE | re.MULTILINE)
 _LABEL_ANY = re.compile(r"\baction[ \t*_`]*:", re.IGNORECASE)
 _THINKING = re.compile(r"^[ \t>*_#`\-]*thinking[ \t*_`]*:", re.IGNORECASE | re.MULTILINE)
-_LEAD = re.compile(r"[\s*_`]*(?:```[A-Za-z0-9_+-]*[ \t]*\n?)?[\s*_`]*")
+_LEAD = re.compile(r"[\s*_]*(?:```[A-Za-z0-9_+-]*[ \t]*\n|```)?[\s*_`]*")
 _NAME = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\s*\(")
 # A second call in the same entry; no space before "(" so prose like "press (gently)" passes.
 _KNOWN_CALL = re.compile(

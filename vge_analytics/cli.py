@@ -14,9 +14,7 @@ import typer
 from replay import VGEError
 
 # Command modules, in the order `vge --help` lists them.
-COMMAND_MODULES = (
-    "validate",
-)
+COMMAND_MODULES = ("validate",)
 
 app = typer.Typer(
     name="vge",
@@ -48,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     _state["debug"] = "--debug" in args
     try:
-        app(args=args, standalone_mode=False)
+        result = app(args=args, standalone_mode=False)
     except VGEError as exc:
         if _state["debug"]:
             raise
@@ -69,7 +67,9 @@ def main(argv: list[str] | None = None) -> int:
             raise
         typer.echo(f"error: {type(exc).__name__}: {exc} (run with --debug for details)", err=True)
         return 1
-    return 0
+    # Without standalone mode, click returns the exit code of `typer.Exit` (or the command's
+    # return value).
+    return result if isinstance(result, int) else 0
 
 
 if __name__ == "__main__":

@@ -1,0 +1,45 @@
+"""JSON Schemas of every input and output record, generated from the record classes.
+
+`python -m replay.schemas [DIR]` (re)writes `schemas/`; a test fails when the committed files
+differ from what the classes generate, so the schemas cannot drift.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import msgspec
+
+from ._records import INPUT_RECORDS
+from ._rows import OUTPUT_RECORDS
+
+
+def schema_documents() -> dict[str, bytes]:
+    """File name -> pretty JSON bytes, for every record type."""
+    docs: dict[str, bytes] = {}
+    for name, record in {
+        **INPUT_RECORDS,
+        **{f"{k}_row": v for k, v in OUTPUT_RECORDS.items()},
+    }.items():
+        schema = msgspec.json.schema(record)
+        schema = {
+            "$schema": "https://json-schema.org/draft/2020-12/schema",
+            "title": name,
+            **schema,
+        }
+        docs[f"{name}.schema.json"] = (
+            msgspec.json.format(msgspec.json.encode(schema), indent=2) + b"\n"
+        )
+    return docs
+
+
+def write_schemas(directory: str | Path) -> list[Path]:
+    """Write every schema into `directory`; returns the paths written."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, data in sorted(schema_documents().items()):
+        path = directory / name
+        path.write_bytes(data)
+        written.append(path)
+    return written

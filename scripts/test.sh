@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Set up a fresh virtual environment from the repo's own files and run the test suite.
+# Used verbatim by the README and by CI (.ci/run).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+VENV="${VGE_VENV:-.venv}"
+PY="${PYTHON:-python3}"
+if [ ! -x "$VENV/bin/python" ]; then
+  "$PY" -m venv "$VENV"
+fi
+"$VENV/bin/python" -m pip install --quiet --upgrade pip
+"$VENV/bin/python" -m pip install --quiet -e '.[test]'
+"$VENV/bin/ruff" check replay vge_analytics app tests benchmarks
+"$VENV/bin/python" -m pytest -n 2 -p no:cacheprovider "$@"

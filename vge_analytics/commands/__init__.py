@@ -1,0 +1,1 @@
+"""`vge` subcommands: one module per command, each exposing `register(app)`."""

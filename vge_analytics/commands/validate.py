@@ -1,0 +1,51 @@
+"""`vge validate BENCH [RUN...]`: report every problem of a benchmark and its runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from replay import Benchmark, Problem, validate_benchmark, validate_run
+
+
+def _report(console: Console, problems: list[Problem]) -> tuple[int, int]:
+    errors = warnings = 0
+    for p in problems:
+        if p.severity == "error":
+            errors += 1
+            tag = "[bold red]error[/]  "
+        else:
+            warnings += 1
+            tag = "[yellow]warning[/]"
+        console.print(f"{tag} {escape(str(p))}", highlight=False, soft_wrap=True)
+    return errors, warnings
+
+
+def validate(
+    bench: Path = typer.Argument(..., help="Benchmark directory (ssm/, tasks.jsonl, ...)."),
+    runs: list[Path] = typer.Argument(None, help="Run directories to check against it."),
+) -> None:
+    """Check SSMs, UCSMs, tasks and run logs; exit 1 with a report if anything is wrong."""
+    console = Console(highlight=False)
+    problems = validate_benchmark(bench)
+    opened = Benchmark.open(bench)
+    for run in runs or []:
+        problems.extend(validate_run(run, opened))
+    errors, warnings = _report(console, problems)
+    n_ssm = len(opened.ssm_paths)
+    n_tasks = len(opened.tasks)
+    summary = (
+        f"{n_ssm} SSM(s), {n_tasks} task(s), {len(runs or [])} run(s): "
+        f"{errors} error(s), {warnings} warning(s)"
+    )
+    if errors:
+        console.print(f"[bold red]FAILED[/] {summary}")
+        raise typer.Exit(1)
+    console.print(f"[bold green]OK[/] {summary}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("validate")(validate)
