@@ -7,7 +7,6 @@ needs (repetition keys, failed attempts per nearest target).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from math import floor
 
 from ._machine import Machine, rect_distance
@@ -30,24 +29,9 @@ from ._vocab import (
 _INTERACTIONS = frozenset(INTERACTIONS)
 
 
-@dataclass(slots=True)
-class Classification:
-    is_interaction: bool
-    hit_component: bool | None
-    hit_target: bool | None
-    hit_components: list[str]
-    nearest_target: str | None
-    progress: bool
-    dist_before: int | None
-    dist_after: int | None
-    error_type: str | None
-    error_detail: str | None
-    error_group: str | None
-    switch_class: str | None
-    repetitive: bool
-    eer_valid: bool | None
-    distance: float | None
-    weight: int | None
+Classification = tuple
+"""The values of `CLASSIFICATION_FIELDS` (replay._rows), in that order: a plain tuple
+because the replay loop splices it straight into the step row."""
 
 
 class Classifier:
@@ -165,23 +149,23 @@ class Classifier:
                 and not repetitive
             )
 
-        return Classification(
-            is_interaction=is_interaction,
-            hit_component=hit_component,
-            hit_target=hit_target,
-            hit_components=sorted(set(hits)),
-            nearest_target=nearest,
-            progress=progress,
-            dist_before=None if d_before >= INF else d_before,
-            dist_after=None if d_after >= INF else d_after,
-            error_type=error_type,
-            error_detail=error_detail,
-            error_group=ERROR_GROUPS.get(error_type) if error_type else None,
-            switch_class=switch_class,
-            repetitive=repetitive,
-            eer_valid=eer_valid,
-            distance=distance,
-            weight=weight,
+        return (
+            is_interaction,
+            hit_component,
+            hit_target,
+            sorted(set(hits)) if len(hits) > 1 else hits,
+            nearest,
+            progress,
+            None if d_before >= INF else d_before,
+            None if d_after >= INF else d_after,
+            error_type,
+            error_detail,
+            ERROR_GROUPS.get(error_type) if error_type else None,
+            switch_class,
+            repetitive,
+            eer_valid,
+            distance,
+            weight,
         )
 
     def _switch_class(self, s: int, goal: int, start: str, end: str) -> str | None:

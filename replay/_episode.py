@@ -15,11 +15,14 @@ from ._machine import Machine
 from ._parse import ParsedAction, action_from_record, parse_action
 from ._plan import Plan, c_opt_dynamic, plan_goals
 from ._records import EpisodeLog, LogStep, Task
-from ._rows import EpisodeRow, GoalRow, StepRow
+from ._rows import CLASSIFICATION_FIELDS, EpisodeRow, GoalRow, StepRow
 from ._step import reset, step
 from ._vocab import DASHBOARD, FEEDBACK_KINDS
 
 _NO_ACTION = ParsedAction(False, None, "no_action", "", "")
+_HITS_AT = CLASSIFICATION_FIELDS.index("hit_components")
+_UNCLASSIFIED_HEAD = (None,) * _HITS_AT
+_UNCLASSIFIED_TAIL = (None,) * (len(CLASSIFICATION_FIELDS) - _HITS_AT - 1)
 
 
 @dataclass(frozen=True, slots=True)
@@ -56,11 +59,23 @@ def setup_episode(machine: Machine, task: Task) -> EpisodeSetup:
     return EpisodeSetup(goals, init, reset_states, sim.state, view, plan)
 
 
-@dataclass(slots=True)
 class EpisodeResult:
-    steps: list[StepRow]
-    episode: EpisodeRow
-    goals: list[GoalRow]
+    """Rows of one replayed episode. Step rows are kept as tuples in `StepRow` field order
+    (the fast path to Arrow); `steps` builds the typed rows on first use."""
+
+    __slots__ = ("step_tuples", "episode", "goals", "_steps")
+
+    def __init__(self, step_tuples: list[tuple], episode: EpisodeRow, goals: list[GoalRow]) -> None:
+        self.step_tuples = step_tuples
+        self.episode = episode
+        self.goals = goals
+        self._steps: list[StepRow] | None = None
+
+    @property
+    def steps(self) -> list[StepRow]:
+        if self._steps is None:
+            self._steps = [StepRow(*t) for t in self.step_tuples]
+        return self._steps
 
 
 def timestamp_seconds(value: float | str | None) -> float | None:
@@ -121,9 +136,11 @@ def replay_episode(
     sim, _ = reset(machine, setup.initial_state, setup.initial_view)
     visited: list[int] = list(setup.reset_states)
     classifier = Classifier(machine)
+    classify = classifier.classify
+    has_dashboard = bool(machine.dashboard_regions)
 
     # Per-goal bookkeeping.
-    started = [None] * n_goals
+    started: list[int | None] = [None] * n_goals
     completed_at: list[int | None] = [None] * n_goals
     steps_used = [0] * n_goals
     switches = [0] * n_goals
@@ -137,75 +154,35 @@ def replay_episode(
     n_switches = 0
     diverged_steps = 0
     truncated_steps = 0
-    rows: list[StepRow] = []
-    common = {
-        "run_id": run_id,
-        "model": model,
-        "agent_kind": agent_kind,
-        "episode_id": task.episode_id,
-        "device_id": machine.device_id,
-        "category": machine.category,
-    }
+    rows: list[tuple] = []
+    head = (run_id, model, agent_kind, task.episode_id, machine.device_id, machine.category)
 
     for k, log_step in enumerate(log.steps):
         parsed = parse_log_step(log_step)
         action = parsed.action
-        ts = timestamp_seconds(log_step.timestamp)
+        if action is not None:
+            coord = action.coord
+            x, y = coord if coord is not None else (None, None)
+            action_type = action.type
+            params = list(action.params)
+        else:
+            x = y = action_type = None
+            params = []
+        ts = log_step.timestamp
+        if ts is not None:
+            ts = timestamp_seconds(ts)
         if termination is not None:
             truncated_steps += 1
+            # Field order: StepRow (see _rows.py); nothing after termination is scored.
             rows.append(
-                StepRow(
-                    **common,
-                    step=k,
-                    goal_index=None,
-                    goal_state=None,
-                    view_before=None,
-                    view_after=None,
-                    dashboard_unlocked=None,
-                    action_type=action.type if action else None,
-                    action_raw=parsed.action_text,
-                    thinking=parsed.thinking or None,
-                    output=log_step.output,
-                    x=action.coord[0] if action and action.coord else None,
-                    y=action.coord[1] if action and action.coord else None,
-                    params=list(action.params) if action else [],
-                    parse_ok=parsed.ok,
-                    parse_detail=parsed.detail,
-                    feedback_kind=None,
-                    feedback_text=None,
-                    state_before=None,
-                    state_after=None,
-                    states_entered=[],
-                    transition_component=None,
-                    dangerous=None,
-                    is_interaction=None,
-                    is_switch=None,
-                    hit_component=None,
-                    hit_target=None,
-                    hit_components=[],
-                    nearest_target=None,
-                    progress=None,
-                    completed_goals=None,
-                    dist_before=None,
-                    dist_after=None,
-                    error_type=None,
-                    error_detail=None,
-                    error_group=None,
-                    switch_class=None,
-                    repetitive=None,
-                    eer_valid=None,
-                    distance=None,
-                    weight=None,
-                    budget_global_left=None,
-                    budget_local_left=None,
-                    truncated=True,
-                    recorded_feedback=log_step.feedback,
-                    recorded_state=log_step.state,
-                    recorded_view=log_step.view,
-                    diverged=None,
-                    diverged_fields=[],
-                    timestamp=ts,
-                )
+                head
+                + (k, None, None, None, None, None, action_type, parsed.action_text)
+                + (parsed.thinking or None, log_step.output, x, y, params, parsed.ok, parsed.detail)
+                + (None, None, None, None, [], None, None, None, None)
+                + _UNCLASSIFIED_HEAD
+                + ([],)
+                + _UNCLASSIFIED_TAIL
+                + (None, None, True, log_step.feedback, log_step.state, log_step.view, None, [], ts)
             )
             continue
 
@@ -223,15 +200,16 @@ def replay_episode(
                     started[current] = k  # became current and completed in this step
                 current += 1
                 completed += 1
-        if completed and current < n_goals:
-            started[current] = k + 1
         taken += 1
         steps_used[goal_index] += 1
-        if outcome.switched:
+        switched = outcome.switched
+        if switched:
             n_switches += 1
             switches[goal_index] += 1
         budget_local -= 1
         if completed:
+            if current < n_goals:
+                started[current] = k + 1
             for c in range(goal_index + 1, min(current + 1, n_goals)):
                 budget_local = max(budget_local, lam * c_opt[c])
             for c in range(goal_index + 1, current):
@@ -241,7 +219,7 @@ def replay_episode(
                     machine, sim.state, sim.view, sim.unlocked, goals[current]
                 )
 
-        cls = classifier.classify(goal_index, goal, before, parsed, outcome, sim, completed)
+        cls = classify(goal_index, goal, before, parsed, outcome, sim, completed)
 
         if current >= n_goals:
             termination = "success"
@@ -252,75 +230,57 @@ def replay_episode(
 
         state_after = names[sim.state]
         diverged_fields = []
-        if log_step.feedback is not None:
-            recorded = log_step.feedback
-            mine = outcome.kind if recorded in FEEDBACK_KINDS else outcome.text
-            if recorded != mine:
-                diverged_fields.append("feedback")
-        if log_step.state is not None and log_step.state != state_after:
-            diverged_fields.append("state")
-        if log_step.view is not None and log_step.view.lower() != sim.view:
-            diverged_fields.append("view")
-        recorded_any = (
-            log_step.feedback is not None or log_step.state is not None or log_step.view is not None
-        )
-        if diverged_fields:
-            diverged_steps += 1
+        recorded_feedback = log_step.feedback
+        recorded_state = log_step.state
+        recorded_view = log_step.view
+        diverged = None
+        if recorded_feedback is not None or recorded_state is not None or recorded_view is not None:
+            if recorded_feedback is not None:
+                mine = outcome.kind if recorded_feedback in FEEDBACK_KINDS else outcome.text
+                if recorded_feedback != mine:
+                    diverged_fields.append("feedback")
+            if recorded_state is not None and recorded_state != state_after:
+                diverged_fields.append("state")
+            if recorded_view is not None and recorded_view.lower() != sim.view:
+                diverged_fields.append("view")
+            diverged = bool(diverged_fields)
+            if diverged:
+                diverged_steps += 1
 
         tr = outcome.transition
+        # Field order: StepRow (see _rows.py).
         rows.append(
-            StepRow(
-                **common,
-                step=k,
-                goal_index=goal_index,
-                goal_state=names[goal],
-                view_before=before.view,
-                view_after=sim.view,
-                dashboard_unlocked=sim.unlocked if machine.dashboard_regions else None,
-                action_type=action.type if action else None,
-                action_raw=parsed.action_text,
-                thinking=parsed.thinking or None,
-                output=log_step.output,
-                x=action.coord[0] if action and action.coord else None,
-                y=action.coord[1] if action and action.coord else None,
-                params=list(action.params) if action else [],
-                parse_ok=parsed.ok,
-                parse_detail=parsed.detail,
-                feedback_kind=outcome.kind,
-                feedback_text=outcome.text,
-                state_before=names[before.state],
-                state_after=state_after,
-                states_entered=[names[s] for s in outcome.entered],
-                transition_component=tr.component if tr is not None else None,
-                dangerous=outcome.dangerous,
-                is_interaction=cls.is_interaction,
-                is_switch=outcome.switched,
-                hit_component=cls.hit_component,
-                hit_target=cls.hit_target,
-                hit_components=cls.hit_components,
-                nearest_target=cls.nearest_target,
-                progress=cls.progress,
-                completed_goals=completed,
-                dist_before=cls.dist_before,
-                dist_after=cls.dist_after,
-                error_type=cls.error_type,
-                error_detail=cls.error_detail,
-                error_group=cls.error_group,
-                switch_class=cls.switch_class,
-                repetitive=cls.repetitive,
-                eer_valid=cls.eer_valid,
-                distance=cls.distance,
-                weight=cls.weight,
-                budget_global_left=budget_global - taken,
-                budget_local_left=budget_local,
-                truncated=False,
-                recorded_feedback=log_step.feedback,
-                recorded_state=log_step.state,
-                recorded_view=log_step.view,
-                diverged=bool(diverged_fields) if recorded_any else None,
-                diverged_fields=diverged_fields,
-                timestamp=ts,
+            head
+            + (
+                k,
+                goal_index,
+                names[goal],
+                before.view,
+                sim.view,
+                sim.unlocked if has_dashboard else None,
             )
+            + (
+                action_type,
+                parsed.action_text,
+                parsed.thinking or None,
+                log_step.output,
+                x,
+                y,
+                params,
+            )
+            + (
+                parsed.ok,
+                parsed.detail,
+                outcome.kind,
+                outcome.text,
+                names[before.state],
+                state_after,
+            )
+            + ([names[s] for s in outcome.entered], tr.component if tr is not None else None)
+            + (outcome.dangerous, switched, completed)
+            + cls
+            + (budget_global - taken, budget_local, False)
+            + (recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts)
         )
 
     if termination is None:
@@ -337,6 +297,13 @@ def replay_episode(
     vsps_switches = sum(switches[g] for g in range(n_goals) if completed_at[g] is not None)
     vsps = vsps_switches / goals_completed if goals_completed else None
 
+    common = dict(
+        zip(
+            ("run_id", "model", "agent_kind", "episode_id", "device_id", "category"),
+            head,
+            strict=True,
+        )
+    )
     episode = EpisodeRow(
         **common,
         n_goals=n_goals,

@@ -22,8 +22,13 @@ def _d(text: str) -> Meta:
     return Meta(description=text)
 
 
-class StepRow(msgspec.Struct, kw_only=True):
-    """One logged step (truncated steps included, flagged)."""
+class StepRow(msgspec.Struct):
+    """One logged step (truncated steps included, flagged).
+
+    Positional construction follows the field order below; the replay loop builds rows as
+    tuples in this order (see `_episode.py`), and `CLASSIFICATION_FIELDS` is the contiguous
+    block the classifier fills.
+    """
 
     run_id: Annotated[str, _d("Run identifier")]
     model: Annotated[str, _d("Model name from run.json")]
@@ -55,8 +60,9 @@ class StepRow(msgspec.Struct, kw_only=True):
     states_entered: Annotated[list[str], _d("States entered by the step, transient ones included")]
     transition_component: Annotated[OptStr, _d("Component whose transition fired")]
     dangerous: Annotated[OptBool, _d("The step entered an error state")]
-    is_interaction: Annotated[OptBool, _d("Counts in the EIR/TIR denominator (SPEC 5)")]
     is_switch: Annotated[OptBool, _d("A successful Switch_view")]
+    completed_goals: Annotated[OptInt, _d("Goals completed by this step")]
+    is_interaction: Annotated[OptBool, _d("Counts in the EIR/TIR denominator (SPEC 5)")]
     hit_component: Annotated[OptBool, _d("Interaction inside a bbox of any component (any state)")]
     hit_target: Annotated[OptBool, _d("Interaction inside a bbox of a target component")]
     hit_components: Annotated[
@@ -64,7 +70,6 @@ class StepRow(msgspec.Struct, kw_only=True):
     ]
     nearest_target: Annotated[OptStr, _d("Target component nearest to the click")]
     progress: Annotated[OptBool, _d("Completed a goal or lowered dist(state, current goal)")]
-    completed_goals: Annotated[OptInt, _d("Goals completed by this step")]
     dist_before: Annotated[OptInt, _d("dist(state_before, current goal)")]
     dist_after: Annotated[OptInt, _d("dist(state_after, that goal)")]
     error_type: Annotated[OptStr, _d("SPEC 5 error type, null for progress and neutral steps")]
@@ -151,5 +156,25 @@ class GoalRow(msgspec.Struct, kw_only=True):
     switches: Annotated[int, _d("Successful switches taken while the goal was current")]
     perfect: Annotated[bool, _d("Completed in <= c_opt_dyn steps (PSR)")]
 
+
+CLASSIFICATION_FIELDS = (
+    "is_interaction",
+    "hit_component",
+    "hit_target",
+    "hit_components",
+    "nearest_target",
+    "progress",
+    "dist_before",
+    "dist_after",
+    "error_type",
+    "error_detail",
+    "error_group",
+    "switch_class",
+    "repetitive",
+    "eer_valid",
+    "distance",
+    "weight",
+)
+"""The StepRow columns computed by `Classifier.classify`, in order (a contiguous block)."""
 
 OUTPUT_RECORDS: dict[str, type] = {"step": StepRow, "episode": EpisodeRow, "goal": GoalRow}

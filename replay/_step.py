@@ -6,8 +6,9 @@ outcome elsewhere (`_episode.py`, `_classify.py`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple
+
+import msgspec
 
 from . import _feedback as fb
 from ._machine import CompiledTransition, Machine
@@ -35,8 +36,7 @@ class SimState(NamedTuple):
     unlocked: bool  # dashboard unlocked (meaningless without a dashboard)
 
 
-@dataclass(frozen=True, slots=True)
-class Outcome:
+class Outcome(msgspec.Struct, frozen=True):
     """What one step did; everything scoring needs from the simulator."""
 
     kind: str  # SPEC 3 feedback kind

@@ -51,19 +51,20 @@ def arrow_schema(row_type: type) -> pa.Schema:
     return pa.schema(fields, metadata={b"vge_schema_version": str(SCHEMA_VERSION).encode()})
 
 
-@cache
-def _attribute_names(row_type: type) -> tuple[str, ...]:
-    return row_type.__struct_fields__
-
-
 def rows_to_table(rows: list, row_type: type) -> pa.Table:
-    """Build an Arrow table from row structs of one class (an empty list gives 0 rows)."""
+    """Build an Arrow table from rows of one class: structs, or tuples in field order (the
+    replay loop's fast path). An empty list gives a table with 0 rows and the full schema."""
     schema = arrow_schema(row_type)
-    names = _attribute_names(row_type)
     if rows:
-        columns = list(zip(*(msgspec.structs.astuple(r) for r in rows), strict=True))
+        if not isinstance(rows[0], tuple):
+            rows = [msgspec.structs.astuple(r) for r in rows]
+        columns = list(zip(*rows, strict=True))
+        if len(columns) != len(schema):
+            raise ValueError(
+                f"{row_type.__name__} rows have {len(columns)} values, schema has {len(schema)}"
+            )
     else:
-        columns = [() for _ in names]
+        columns = [() for _ in schema]
     arrays = [pa.array(col, type=field.type) for col, field in zip(columns, schema, strict=True)]
     return pa.Table.from_arrays(arrays, schema=schema)
 

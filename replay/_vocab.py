@@ -69,7 +69,22 @@ TERMINATIONS = ("success", "budget_global", "budget_local", "log_ended")
 DEFAULT_LAMBDA = 5.0
 
 
+_NORMALIZED: dict[str, str] = {}
+
+
 def normalize_param(value: object) -> str:
+    """Canonical string of a parameter value, memoised for strings (a small vocabulary)."""
+    if type(value) is str:
+        got = _NORMALIZED.get(value)
+        if got is None:
+            got = _normalize_param(value)
+            if len(_NORMALIZED) < 65536:
+                _NORMALIZED[value] = got
+        return got
+    return _normalize_param(value)
+
+
+def _normalize_param(value: object) -> str:
     """Canonical string of a parameter value: trimmed, unquoted, lowercase, numbers canonical.
 
     `"1.0"`, `1`, `"01"`, `" '1' "` all become `"1"`; `"*"` stays `"*"`.

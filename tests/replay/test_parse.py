@@ -142,6 +142,11 @@ CASES: list[tuple[str, str, Action | None]] = [
     ("Action: Press(coord=[1, 2] params=[0])", "malformed", None),
     ("Action: Press(coord=[1, 2], params=['0)", "malformed", None),
     ("Action:", "malformed", None),
+    ("Action: Press(,)", "malformed", None),
+    ("Action: Press(coord=[1, 2], params=[,])", "malformed", None),
+    ("Action: Press(coord=[1, 2], params=[ ])", OK, Action("press", (1.0, 2.0), ())),
+    ("Action: Press(coord=[1, 2],, params=[0])", "malformed", None),
+    ("Action: Rotate(coord=[1, 2], params=[0,,1])", "malformed", None),
 ]
 
 
@@ -254,3 +259,49 @@ def test_never_raises_on_action_like_text(text: str) -> None:
             "switch_view",
             "timed_wait",
         }
+
+
+_COORD = st.one_of(
+    st.integers(-20, 1020).map(str), st.floats(-20, 1020, allow_nan=False).map(lambda f: f"{f:.2f}")
+)
+_PARAM = st.sampled_from(
+    ["0", "1", "2", "4", "*", "top", "dashboard", "1.0", "01", "-1", "back_bottom", "", " ", "a b"]
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.sampled_from(
+        ["Press", "rotate", "PUSH", "Pull", "Grasp", "Switch_view", "Timed_wait", "Click"]
+    ),
+    st.none() | st.tuples(_COORD, _COORD),
+    st.none() | st.lists(_PARAM, max_size=3),
+    st.sampled_from(["", " ", ", ", "  ,  "]),
+    st.sampled_from(["", ".", " .", "\n", " \n\n"]),
+)
+def test_fast_path_agrees_with_the_full_grammar(name, coord, params, sep, tail) -> None:
+    from replay._parse import _parse_entry, _parse_entry_full
+
+    args = []
+    if coord is not None:
+        args.append(f"coord=[{coord[0]}, {coord[1]}]")
+    if params is not None:
+        args.append("params=[" + ", ".join(params) + "]")
+    entry = " " + f"{name}(" + sep.join(args) + ")" + tail
+    assert _parse_entry(entry, "") == _parse_entry_full(entry, "")
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    st.lists(
+        _ACTIONISH
+        | st.sampled_from(["ACTION", "x", "_action:", "Actions:", "İ", "\t", "-"])
+        | st.text(max_size=4),
+        max_size=30,
+    ).map("".join)
+)
+def test_label_scanner_matches_the_regexes(text: str) -> None:
+    from replay._parse import _LABEL_ANY, _LABEL_LINE, _find_labels
+
+    found = list(_LABEL_LINE.finditer(text)) or list(_LABEL_ANY.finditer(text))
+    assert _find_labels(text) == [(m.start(), m.end()) for m in found]
