@@ -168,3 +168,22 @@ __all__ += ["TABLE_ROWS", "arrow_schema", "rows_to_table"]
 from ._schemas import schema_documents, write_schemas  # noqa: E402
 
 __all__ += ["schema_documents", "write_schemas"]
+
+# --- replay runner (vge replay): batches, workers, quarantine, manifest, MCAP
+from ._manifest import Manifest, ManifestFile, RunEntry, read_manifest  # noqa: E402
+from ._mcap import BenchImages, ImageSource, write_episode_mcap  # noqa: E402
+from ._quarantine import QUARANTINE_KINDS, QuarantineRecord  # noqa: E402
+from ._runner import replay_runs  # noqa: E402
+
+__all__ += [
+    "BenchImages",
+    "ImageSource",
+    "Manifest",
+    "ManifestFile",
+    "QUARANTINE_KINDS",
+    "QuarantineRecord",
+    "RunEntry",
+    "read_manifest",
+    "replay_runs",
+    "write_episode_mcap",
+]

@@ -14,7 +14,10 @@ import typer
 from replay import VGEError
 
 # Command modules, in the order `vge --help` lists them.
-COMMAND_MODULES = ("validate",)
+COMMAND_MODULES = (
+    "validate",
+    "replay",
+)
 
 app = typer.Typer(
     name="vge",

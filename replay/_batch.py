@@ -1,0 +1,275 @@
+"""The worker side of `replay_runs`: one batch of episode lines -> rows and outcomes.
+
+A batch is a fixed number of consecutive lines of one episodes file. The same function runs
+in the main process (`workers=1`) and in worker processes, so the output cannot depend on
+the number of workers. Each worker opens the benchmark once (machines compile lazily) and
+caches the episode setup (planning) per task.
+
+Duplicates are not decided here: only the main process sees every line of a run in order.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+from urllib.parse import quote
+
+import msgspec
+import pyarrow as pa
+
+from ._episode import EpisodeSetup, replay_episode, setup_episode
+from ._errors import TaskError, VGEError
+from ._load import Benchmark, episode_decoder
+from ._machine import Machine
+from ._mcap import ImageSource, ImageTuple, write_episode_mcap
+from ._quarantine import classify_decode_error, one_line
+from ._records import Task
+from ._rows import EpisodeRow, GoalRow, StepRow
+from ._tables import rows_to_table
+from ._vocab import DEFAULT_LAMBDA
+
+_SAFE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9._+@-]{0,199}$")
+
+
+def safe_file_name(name: str) -> str:
+    """A file name for an id: unchanged when harmless, else percent-encoded."""
+    if _SAFE.match(name):
+        return name
+    encoded = quote(name, safe="")
+    return "%2E" + encoded[1:] if encoded.startswith(".") else encoded
+
+
+@dataclass(frozen=True)
+class RunContext:
+    """What a worker needs to know about the run a batch belongs to (picklable)."""
+
+    run_id: str
+    model: str
+    agent_kind: str
+    run_lambda: float | None
+    option_lambda: float | None
+    file: str
+    mcap_dir: str | None = None
+    mcap_episodes: frozenset[str] | None = None
+    image_source: ImageSource | None = None
+    library: str = ""
+
+    def wants_mcap(self, episode_id: str) -> bool:
+        return self.mcap_dir is not None and (
+            self.mcap_episodes is None or episode_id in self.mcap_episodes
+        )
+
+
+class LineOutcome(NamedTuple):
+    """What happened to one line: replayed (`kind` None) or quarantined."""
+
+    line: int
+    episode_id: str | None
+    decoded: bool  # the line is a well-formed episode record (takes part in duplicates)
+    kind: str | None
+    reason: str | None
+    n_steps: int = 0
+    n_goals: int = 0
+    mcap_tmp: str | None = None  # file name in the run's MCAP staging directory
+
+
+@dataclass
+class BatchResult:
+    outcomes: list[LineOutcome]
+    steps: pa.Table
+    episodes: pa.Table
+    goals: pa.Table
+
+
+@dataclass(frozen=True)
+class BatchFailure:
+    """An unexpected error inside a batch, carried back as plain data."""
+
+    line: int | None
+    message: str
+    details: str
+
+
+_IMAGE_CACHE_SIZE = 128
+
+
+@dataclass
+class WorkerState:
+    """Per-process caches: the benchmark, episode setups, SSM bytes and view images."""
+
+    bench: Benchmark
+    setups: dict[str, EpisodeSetup | TaskError] = field(default_factory=dict)
+    ssm_bytes: dict[str, bytes] = field(default_factory=dict)
+    images: dict[tuple[str, str], ImageTuple | None] = field(default_factory=dict)
+
+    def setup(self, machine: Machine, task: Task) -> EpisodeSetup:
+        got = self.setups.get(task.episode_id)
+        if got is None:
+            try:
+                got = setup_episode(machine, task)
+            except TaskError as exc:
+                got = exc
+            self.setups[task.episode_id] = got
+        if isinstance(got, TaskError):
+            raise got
+        return got
+
+    def image(self, source: ImageSource, machine: Machine, view: str) -> ImageTuple | None:
+        key = (machine.device_id, view)
+        if key not in self.images:
+            if len(self.images) >= _IMAGE_CACHE_SIZE:
+                del self.images[next(iter(self.images))]
+            self.images[key] = source(machine, view)
+        return self.images[key]
+
+    def ssm(self, machine: Machine) -> bytes:
+        got = self.ssm_bytes.get(machine.device_id)
+        if got is None:
+            try:
+                got = Path(machine.source).read_bytes()
+            except OSError:
+                got = msgspec.json.encode(machine.ssm)
+            self.ssm_bytes[machine.device_id] = got
+        return got
+
+
+def episode_lambda(ctx: RunContext, task: Task) -> float:
+    """Lambda precedence: replay option > task > run.json > 5."""
+    for value in (ctx.option_lambda, task.lam, ctx.run_lambda):
+        if value is not None:
+            return float(value)
+    return DEFAULT_LAMBDA
+
+
+def process_batch(
+    state: WorkerState, ctx: RunContext, lines: list[tuple[int, bytes]]
+) -> BatchResult:
+    """Decode, check and replay each line of a batch, in order."""
+    outcomes: list[LineOutcome] = []
+    steps: list[StepRow] = []
+    episodes: list[EpisodeRow] = []
+    goals: list[GoalRow] = []
+    for number, raw in lines:
+        try:
+            _process_line(state, ctx, number, raw, outcomes, steps, episodes, goals)
+        except Exception as exc:
+            exc.vge_line = number  # type: ignore[attr-defined]
+            raise
+    return BatchResult(
+        outcomes,
+        rows_to_table(steps, StepRow),
+        rows_to_table(episodes, EpisodeRow),
+        rows_to_table(goals, GoalRow),
+    )
+
+
+def _process_line(
+    state: WorkerState,
+    ctx: RunContext,
+    number: int,
+    raw: bytes,
+    outcomes: list[LineOutcome],
+    steps: list[StepRow],
+    episodes: list[EpisodeRow],
+    goals: list[GoalRow],
+) -> None:
+    bench = state.bench
+    try:
+        log = episode_decoder.decode(raw)
+    except msgspec.DecodeError as exc:
+        kind, reason, episode_id = classify_decode_error(raw, exc)
+        outcomes.append(LineOutcome(number, episode_id, False, kind, reason))
+        return
+    eid = log.episode_id
+    entry = bench.tasks.get(eid)
+    if entry is None:
+        reason = f"episode {eid!r} is not in {bench.tasks_path.name}"
+        outcomes.append(LineOutcome(number, eid, True, "unknown_episode", reason))
+        return
+    task = entry.task
+    device = task.device_id
+    if device not in bench.ssm_paths:
+        reason = (
+            f"device {device!r} (tasks.jsonl line {entry.line}) has no SSM file ssm/{device}.json"
+        )
+        outcomes.append(LineOutcome(number, eid, True, "unknown_device", reason))
+        return
+    try:
+        machine = bench.machine(device)
+    except VGEError as exc:
+        reason = one_line(f"SSM of device {device!r} does not load: {exc}")
+        outcomes.append(LineOutcome(number, eid, True, "invalid_ssm", reason))
+        return
+    try:
+        setup = state.setup(machine, task)
+    except TaskError as exc:
+        reason = one_line(f"{exc} (tasks.jsonl line {entry.line})")
+        outcomes.append(LineOutcome(number, eid, True, "task_error", reason))
+        return
+    result = replay_episode(
+        machine,
+        task,
+        log,
+        lam=episode_lambda(ctx, task),
+        run_id=ctx.run_id,
+        model=ctx.model,
+        agent_kind=ctx.agent_kind,
+        setup=setup,
+    )
+    mcap_tmp = None
+    if ctx.wants_mcap(eid):
+        mcap_tmp = f"{safe_file_name(eid)}.L{number}.mcap.tmp"
+        source = ctx.image_source
+
+        def image(view: str, m: Machine = machine) -> ImageTuple | None:
+            return None if source is None else state.image(source, m, view)
+
+        with open(os.path.join(ctx.mcap_dir or "", mcap_tmp), "wb") as fh:
+            write_episode_mcap(
+                fh,
+                machine,
+                result,
+                ssm_bytes=state.ssm(machine),
+                image=image,
+                library=ctx.library,
+            )
+    steps.extend(result.steps)
+    episodes.append(result.episode)
+    goals.extend(result.goals)
+    outcomes.append(
+        LineOutcome(number, eid, True, None, None, len(result.steps), len(result.goals), mcap_tmp)
+    )
+
+
+# ------------------------------------------------------------------ worker processes
+
+_worker_state: WorkerState | None = None
+
+
+def init_worker(bench_dir: str) -> None:
+    """Pool initializer: open the benchmark once per worker process."""
+    global _worker_state
+    _worker_state = WorkerState(Benchmark.open(bench_dir))
+
+
+def run_batch(ctx: RunContext, lines: list[tuple[int, bytes]]) -> BatchResult | BatchFailure:
+    """Pool task: like `process_batch`, but every error comes back as data."""
+    assert _worker_state is not None, "init_worker was not called"
+    return guarded_batch(_worker_state, ctx, lines)
+
+
+def guarded_batch(
+    state: WorkerState, ctx: RunContext, lines: list[tuple[int, bytes]]
+) -> BatchResult | BatchFailure:
+    try:
+        return process_batch(state, ctx, lines)
+    except Exception as exc:  # a bug or an I/O error: fatal, reported by the main process
+        return BatchFailure(
+            getattr(exc, "vge_line", None),
+            one_line(f"replay failed: {type(exc).__name__}: {exc}"),
+            traceback.format_exc(),
+        )

@@ -1,0 +1,111 @@
+"""`vge replay RUN... --bench BENCH --out OUT`: rescore logs into Parquet (and MCAP).
+
+Exit codes: 0 every record replayed; 2 something was quarantined (see OUT/quarantine.jsonl);
+1 fatal error (one-line message naming the file; `vge --debug` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+from pathlib import Path
+
+import typer
+from rich import box
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from replay import BenchImages, ConfigError, ImageSource, Manifest, replay_runs
+
+
+def image_source(bench: Path) -> ImageSource:
+    """`vge_analytics._images.view_image` bound to the benchmark when available, else the
+    plain file lookup `BENCH/images/<device_id>/<view>.png|jpg` (SPEC 1.1)."""
+    try:
+        from vge_analytics._images import view_image  # type: ignore[import-not-found]
+    except ImportError:
+        return BenchImages(str(bench))
+    if len(inspect.signature(view_image).parameters) == 3:
+        return functools.partial(view_image, bench)
+    return BenchImages(str(bench))
+
+
+def _episode_list(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    ids = [part.strip() for part in text.split(",") if part.strip()]
+    if not ids:
+        raise ConfigError("--mcap-episodes: no episode id given")
+    return ids
+
+
+def _summary(manifest: Manifest) -> Table:
+    table = Table(box=box.SIMPLE_HEAD, pad_edge=False)
+    for name in ("run", "status", "replayed", "quarantined", "steps", "truncated", "diverged"):
+        table.add_column(name, justify="left" if name in ("run", "status") else "right")
+    skipped = set(manifest.skipped)
+    totals = [0] * 5
+    for run_id in manifest.requested:
+        c = manifest.run(run_id).counts
+        values = [c.replayed, c.quarantined, c.steps, c.truncated_steps, c.diverged_steps]
+        totals = [a + b for a, b in zip(totals, values, strict=True)]
+        status = "skipped" if run_id in skipped else "replayed"
+        style = "yellow" if c.quarantined else None
+        table.add_row(escape(run_id), status, *(f"{v:,}" for v in values), style=style)
+    if len(manifest.requested) > 1:
+        table.add_row("total", "", *(f"{v:,}" for v in totals), style="bold")
+    return table
+
+
+def replay_command(
+    runs: list[Path] = typer.Argument(
+        ..., help="Run directories (run.json + episodes.jsonl[.gz])."
+    ),
+    bench: Path = typer.Option(..., "--bench", help="Benchmark directory (ssm/, tasks.jsonl)."),
+    out: Path = typer.Option(..., "--out", help="Output directory (tables, manifest, MCAP)."),
+    lam: float | None = typer.Option(
+        None, "--lambda", help="Budget factor; overrides task and run.json lambda."
+    ),
+    mcap: bool = typer.Option(False, "--mcap", help="Also write one MCAP file per episode."),
+    mcap_episodes: str | None = typer.Option(
+        None,
+        "--mcap-episodes",
+        help="Comma-separated episode ids to write MCAP for (implies --mcap).",
+    ),
+    workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
+    force: bool = typer.Option(False, "--force", help="Replay runs even when up to date."),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
+) -> None:
+    """Replay logged episodes against the SSMs and write the tables of SPEC 7.
+
+    Exit code 0 when every record replayed, 2 when some were quarantined, 1 on fatal errors.
+    """
+    console = Console(highlight=False)
+    manifest = replay_runs(
+        runs,
+        bench,
+        out,
+        lam=lam,
+        workers=workers,
+        mcap=mcap,
+        mcap_episodes=_episode_list(mcap_episodes),
+        force=force,
+        progress=progress,
+        image_source=image_source(bench),
+    )
+    console.print(_summary(manifest))
+    for run_id in manifest.skipped:
+        console.print(f"{escape(run_id)}: up to date, skipped (--force redoes it)", soft_wrap=True)
+    console.print(f"wrote {escape(str(out))} (manifest.json)", soft_wrap=True)
+    if manifest.quarantined:
+        console.print(
+            f"[yellow]{manifest.quarantined:,} record(s) quarantined[/]: "
+            f"see {escape(str(out / 'quarantine.jsonl'))}",
+            soft_wrap=True,
+        )
+        raise typer.Exit(2)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("replay")(replay_command)
