@@ -17,6 +17,7 @@ from replay import VGEError
 COMMAND_MODULES = (
     "validate",
     "replay",
+    "synth",
 )
 
 app = typer.Typer(

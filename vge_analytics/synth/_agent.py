@@ -1,0 +1,678 @@
+"""A simulated agent: plays one task through the pure simulator (`replay.reset`/`replay.step`)
+and returns the log steps (SPEC 1.4).
+
+The agent knows, as a simulation, which transitions make progress (`replay.progressing`),
+and a `Profile` decides how often it acts on that knowledge: whether it finds the view that
+shows the target, picks the right component, action and parameters, aims well, waits when
+a process runs, keeps to the output format, and remembers within its history window what
+failed (so it does not repeat it, corrects its aim, and changes its action after an
+'operational_error'). It plays until the episode terminates under the lambda budgets
+(SPEC 3), so a replay of its log ends exactly at the last step.
+"""
+
+from __future__ import annotations
+
+import random
+from collections import deque
+from dataclasses import dataclass
+
+import replay
+
+from ._catalog import Catalog
+from ._profiles import Profile
+from ._tasks import TaskRecord
+from ._thinking import (
+    SLIP_KINDS,
+    action_text,
+    describe,
+    intent_text,
+    slip_text,
+    verb_phrase,
+)
+
+AXONOMETRIC = ("front_top", "back_bottom")
+DASHBOARD = "dashboard"
+INTERACTIONS = ("press", "rotate", "push", "pull", "grasp")
+KIND_ACTIONS: dict[str, tuple[str, ...]] = {
+    "button": ("press", "push"),
+    "touch_pad": ("press",),
+    "key": ("press",),
+    "trigger": ("press", "pull"),
+    "shutter_button": ("press",),
+    "knob": ("rotate", "press", "pull", "push"),
+    "dial": ("rotate", "press"),
+    "wheel": ("rotate", "push"),
+    "ring": ("rotate",),
+    "crank": ("rotate",),
+    "lens": ("rotate", "push", "pull"),
+    "slider": ("push", "pull"),
+    "switch": ("push", "press"),
+    "rocker": ("press", "push"),
+    "lever": ("push", "pull", "press"),
+    "door": ("pull", "push"),
+    "lid": ("pull", "push", "press"),
+    "cover": ("pull", "push"),
+    "drawer": ("pull", "push"),
+    "basket": ("pull", "push"),
+    "tank": ("pull", "push"),
+    "tray": ("pull", "push"),
+    "cap": ("pull", "push", "rotate"),
+    "head": ("pull", "push", "rotate"),
+    "nozzle": ("pull", "push", "rotate"),
+    "attachment": ("pull", "push"),
+    "port": ("push", "pull"),
+    "plug": ("push", "pull"),
+    "cable": ("push", "pull"),
+    "handle": ("grasp", "pull", "push"),
+    "grip": ("grasp", "press"),
+    "handset": ("grasp", "pull"),
+    "body": ("grasp", "press"),
+    "platform": ("press", "push"),
+    "blade": ("pull", "push"),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Decision:
+    """What the agent does at one step (before formatting)."""
+
+    action: replay.Action
+    thinking: str
+    component: str | None = None
+    """The component the agent means to operate (None: a view switch, a wait, empty space)."""
+
+
+@dataclass(slots=True)
+class _Event:
+    step: int
+    goal_index: int
+    state: int
+    view: str
+    component: str | None
+    action: replay.Action
+    kind: str
+    progress: bool
+    moved_away: bool
+
+
+@dataclass(frozen=True, slots=True)
+class AgentStep:
+    """One logged step with what the simulator did (for the recorded fields)."""
+
+    decision: Decision
+    output: str | None
+    record: dict | None
+    outcome: replay.Outcome
+    view: str
+    state: str
+
+
+class BudgetTracker:
+    """SPEC 3 budgets and goal completion, step by step (docs/SEMANTICS.md order)."""
+
+    def __init__(self, c_opt: tuple[int, ...], goals: tuple[int, ...], lam: float) -> None:
+        self.c_opt = c_opt
+        self.goals = goals
+        self.lam = float(lam)
+        self.global_budget = self.lam * sum(c_opt)
+        self.local = self.lam * c_opt[0]
+        self.taken = 0
+        self.current = 0
+        self.termination: str | None = None
+
+    def advance(self, entered: tuple[int, ...]) -> int:
+        """Account one step; returns the number of goals it completed."""
+        goal_index = self.current
+        completed = 0
+        for s in entered:
+            if self.current < len(self.goals) and s == self.goals[self.current]:
+                self.current += 1
+                completed += 1
+        self.taken += 1
+        self.local -= 1
+        if completed:
+            for c in range(goal_index + 1, min(self.current + 1, len(self.goals))):
+                self.local = max(self.local, self.lam * self.c_opt[c])
+        if self.current >= len(self.goals):
+            self.termination = "success"
+        elif self.taken >= self.global_budget:
+            self.termination = "budget_global"
+        elif self.local <= 0:
+            self.termination = "budget_local"
+        return completed
+
+
+class Agent:
+    """The policy of one profile on one episode."""
+
+    def __init__(
+        self,
+        machine: replay.Machine,
+        catalog: Catalog,
+        profile: Profile,
+        task: TaskRecord,
+        rng: random.Random,
+    ) -> None:
+        self.m = machine
+        self.catalog = catalog
+        self.p = profile
+        self.task = task
+        self.rng = rng
+        self.events: deque[_Event] = deque()
+        self.step_index = 0
+        self.regions = tuple(v for v in machine.views if v in machine.dashboard_regions)
+        self.switch_views = tuple(v for v in machine.views if v != DASHBOARD)
+
+    # ------------------------------------------------------------------ memory
+
+    def _recent(self) -> list[_Event]:
+        h = self.p.history_length
+        if h is None:
+            return list(self.events)
+        if h <= 0:
+            return []
+        return [e for e in self.events if e.step >= self.step_index - h]
+
+    def _remembers(self) -> bool:
+        return self.rng.random() < self.p.memory
+
+    def _failed(
+        self, recent: list[_Event], state: int, comp: str | None, action: replay.Action
+    ) -> bool:
+        for e in recent:
+            if (
+                e.state == state
+                and e.component == comp
+                and e.action.type == action.type
+                and e.action.params == action.params
+                and not e.progress
+                and e.kind in ("null_effect", "operational_error", "transition", "invalid_action")
+            ):
+                return True
+        return False
+
+    def _misses(self, recent: list[_Event], comp: str) -> int:
+        return sum(1 for e in recent if e.component == comp and e.kind == "null_effect")
+
+    def _bad_components(self, recent: list[_Event], state: int, goal_index: int) -> set[str]:
+        """Components that reacted to the agent without progress (tried, not the way)."""
+        return {
+            e.component
+            for e in recent
+            if e.component is not None
+            and e.state == state
+            and e.goal_index == goal_index
+            and (e.moved_away or (e.kind == "transition" and not e.progress))
+        }
+
+    # ------------------------------------------------------------------ helpers
+
+    def _spec(self, comp: str | None):
+        return self.catalog.components.get(comp) if comp else None
+
+    def _rects_in(self, state: int, view: str, comp: str) -> tuple:
+        per = self.m.state_component_rects.get((state, view), {})
+        if comp in per:
+            return per[comp]
+        return tuple(r for c, r in self.m.component_rects.get(view, ()) if c == comp)
+
+    def _visible_components(self, view: str) -> list[str]:
+        seen: dict[str, None] = {}
+        for c, _ in self.m.component_rects.get(view, ()):
+            seen.setdefault(c, None)
+        return list(seen)
+
+    def _aim(self, rect: tuple, misses: int) -> tuple[float, float]:
+        rng = self.rng
+        if rng.random() < self.p.gross_miss * (self.p.reground**misses):
+            return float(rng.randint(40, 960)), float(rng.randint(40, 960))
+        cx = (rect[0] + rect[2]) / 2.0
+        cy = (rect[1] + rect[3]) / 2.0
+        sigma = self.p.sigma * (self.p.reground**misses)
+        x = cx + rng.gauss(0.0, sigma)
+        y = cy + rng.gauss(0.0, sigma)
+        return float(min(1000, max(0, round(x)))), float(min(1000, max(0, round(y))))
+
+    def _params_for(self, action_type: str, rng: random.Random) -> tuple[str, ...]:
+        if action_type == "press":
+            return (rng.choice(("0", "0", "0", "1", "2")),)
+        if action_type == "rotate":
+            return (rng.choice(("0", "1")), str(rng.choice((1, 1, 2, 3, 4))))
+        if action_type in ("push", "pull"):
+            return (rng.choice(("0", "1", "2", "3", "4")),)
+        if action_type == "grasp":
+            return (rng.choice(("0", "0", "1")),)
+        return ()
+
+    @staticmethod
+    def _concrete(tr: replay.CompiledTransition, rng: random.Random) -> tuple[str, ...]:
+        if not tr.params:
+            return ("0",) if tr.action in ("press", "grasp") else ()
+        out = []
+        for i, p in enumerate(tr.params):
+            if p != "*":
+                out.append(p)
+            elif tr.action == "rotate" and i == 1:
+                out.append(str(rng.choice((1, 2, 3))))
+            else:
+                out.append("0")
+        return tuple(out)
+
+    # ------------------------------------------------------------------ deciding
+
+    def decide(self, sim: replay.SimState, goal_index: int, goal: int) -> Decision:
+        rng = self.rng
+        p = self.p
+        m = self.m
+        recent = self._recent()
+        s, view = sim.state, sim.view
+        instruction = (
+            self.task.instructions[goal_index] if goal_index < len(self.task.instructions) else ""
+        )
+        intent = intent_text(instruction)
+        targets = replay.progressing(m, s, goal)
+        real = [t for t in targets if t.action is not None]
+        wait_needed = any(t.action is None for t in targets)
+
+        if wait_needed and (not real or rng.random() < 0.75):
+            if rng.random() < p.wait_knowledge:
+                return Decision(
+                    replay.Action("timed_wait"),
+                    f"{intent} The {self.catalog.device_noun} is still working; the process "
+                    "needs time to finish, so I will wait for it to complete.",
+                )
+        elif not wait_needed and rng.random() < p.spurious_wait:
+            return Decision(
+                replay.Action("timed_wait"),
+                f"{intent} The {self.catalog.device_noun} may need a moment to respond to the "
+                "last operation. I will wait.",
+            )
+
+        if view in AXONOMETRIC:
+            axo_seen = any(
+                e.kind == "invalid_action" and e.view == view and e.action.type in INTERACTIONS
+                for e in recent
+            )
+            if rng.random() < p.axo_mistake and not (axo_seen and self._remembers()):
+                comps = self._visible_components("front")
+                rect = None
+                comp = None
+                if real and rng.random() < 0.5:
+                    tr = rng.choice(real)
+                    comp = tr.component
+                    rects = self._rects_in(s, next(iter(tr.rects)), comp)
+                    rect = rects[0] if rects else None
+                elif comps:
+                    comp = rng.choice(comps)
+                    rects = self._rects_in(s, "front", comp)
+                    rect = rects[0] if rects else None
+                point = self._aim(rect, 0) if rect else (500.0, 500.0)
+                action = replay.Action("press", point, ("0",))
+                text = (
+                    f"{intent} In this overview I can see {describe(self._spec(comp), None, view)}. "
+                    f"I will {verb_phrase(action)}."
+                )
+                return Decision(action, text, comp)
+            return self._navigate(sim, goal_index, real, recent, intent, reason="axonometric")
+
+        visible = [t for t in real if view in t.rects]
+        if not visible:
+            comps_here = self._visible_components(view)
+            if comps_here and rng.random() < p.explore_here:
+                return self._interact_wrong(sim, goal_index, comps_here, recent, intent)
+            return self._navigate(sim, goal_index, real, recent, intent, reason="missing")
+
+        if rng.random() < p.wander:
+            options = [v for v in self.switch_views if v != view]
+            target = rng.choice(options)
+            return Decision(
+                replay.Action("switch_view", None, (target,)),
+                f"{intent} Before acting I want to check the {target.replace('_', ' ')} view "
+                "for other controls.",
+            )
+
+        # Hypothesis refinement: the last attempt hit the right component the wrong way.
+        last = recent[-1] if recent else None
+        if (
+            last is not None
+            and last.kind == "operational_error"
+            and last.state == s
+            and last.view == view
+            and last.component is not None
+            and rng.random() < p.feedback_use
+        ):
+            comp = last.component
+            same = [t for t in visible if t.component == comp]
+            if same:
+                return self._interact(
+                    sim, goal_index, rng.choice(same), recent, intent, refine=True
+                )
+            return self._interact_component(sim, goal_index, comp, recent, intent, refine=True)
+
+        bad = self._bad_components(recent, s, goal_index) if self._remembers() else set()
+        knowledge = p.component_knowledge
+        if bad:
+            knowledge = min(0.95, knowledge + 0.15 * len(bad))
+        if rng.random() < knowledge:
+            return self._interact(sim, goal_index, rng.choice(visible), recent, intent)
+        comps_here = [c for c in self._visible_components(view) if c not in bad]
+        return self._interact_wrong(sim, goal_index, comps_here, recent, intent)
+
+    def _navigate(
+        self,
+        sim: replay.SimState,
+        goal_index: int,
+        real: list,
+        recent: list[_Event],
+        intent: str,
+        reason: str,
+    ) -> Decision:
+        rng = self.rng
+        p = self.p
+        view = sim.view
+        target_views = sorted(
+            {w for t in real for w in t.rects if w not in AXONOMETRIC},
+            key=lambda w: replay.VIEW_ORDER.index(w) if w in replay.VIEW_ORDER else 99,
+        )
+        here = view.replace("_", " ")
+        lead = (
+            f"{intent} This is an angled overview; I cannot operate anything from here."
+            if reason == "axonometric"
+            else f"{intent} I cannot find a control for this in the {here} view."
+        )
+        if target_views and set(target_views) == {DASHBOARD} and not sim.unlocked:
+            if view in self.regions:
+                region = self.m.dashboard_regions[view][0]
+                x = rng.random()
+                failed_plain = any(
+                    e.kind == "invalid_action"
+                    and e.action.type == "switch_view"
+                    and e.action.coord is None
+                    and e.action.params == (DASHBOARD,)
+                    for e in recent
+                )
+                skill = p.dashboard_skill
+                if failed_plain and self._remembers():
+                    skill = max(skill, 0.9)
+                point = self._aim(region, 2)
+                if x < skill:
+                    return Decision(
+                        replay.Action("switch_view", point, (DASHBOARD,)),
+                        f"{intent} The control panel is too small to read from here. I will zoom in "
+                        "on it by switching to the dashboard view at the panel.",
+                    )
+                if x < skill + (1.0 - skill) / 2.0:
+                    action = replay.Action("press", point, ("0",))
+                    return Decision(
+                        action,
+                        f"{intent} The control I need should be on the small panel "
+                        f"{_where(region)}. I will press it.",
+                    )
+                return Decision(
+                    replay.Action("switch_view", None, (DASHBOARD,)),
+                    f"{intent} The controls are tiny; I will switch to the dashboard view.",
+                )
+            if rng.random() < p.nav_skill:
+                target = self.regions[0]
+            else:
+                target = self._random_view(view, recent, goal_index)
+            return self._switch(target, lead)
+        options = [w for w in target_views if w != DASHBOARD or sim.unlocked]
+        if options and rng.random() < p.nav_skill:
+            target = rng.choice(options)
+        else:
+            target = self._random_view(view, recent, goal_index)
+        return self._switch(target, lead)
+
+    def _random_view(self, view: str, recent: list[_Event], goal_index: int) -> str:
+        rng = self.rng
+        options = [v for v in self.switch_views if v != view]
+        if self._remembers():
+            tried = {e.view for e in recent if e.goal_index == goal_index}
+            fresh = [v for v in options if v not in tried]
+            if fresh:
+                options = fresh
+        return rng.choice(options)
+
+    def _switch(self, target: str, lead: str) -> Decision:
+        hint = (
+            "Its panel should be visible there."
+            if target == DASHBOARD
+            else f"The control may be on the {target.replace('_', ' ')} side."
+        )
+        return Decision(
+            replay.Action("switch_view", None, (target,)),
+            f"{lead} {hint} I will switch to the {target.replace('_', ' ')} view.",
+        )
+
+    def _interact(
+        self,
+        sim: replay.SimState,
+        goal_index: int,
+        tr: replay.CompiledTransition,
+        recent: list[_Event],
+        intent: str,
+        refine: bool = False,
+    ) -> Decision:
+        """Operate a target component, with the profile's action and parameter knowledge."""
+        rng = self.rng
+        p = self.p
+        comp = tr.component
+        correct = replay.Action(tr.action, None, self._concrete(tr, rng))
+        spec = self._spec(comp)
+        kinds = KIND_ACTIONS.get(spec.kind, INTERACTIONS) if spec else INTERACTIONS
+        remember = self._remembers()
+        chosen = None
+        for _ in range(6):
+            if rng.random() < p.action_knowledge:
+                a_type = correct.type
+            else:
+                others = [a for a in kinds if a != correct.type] or [
+                    a for a in INTERACTIONS if a != correct.type
+                ]
+                a_type = rng.choice(others)
+            if a_type == correct.type and rng.random() < p.param_knowledge:
+                params = correct.params
+            else:
+                params = self._params_for(a_type, rng)
+            cand = replay.Action(a_type, None, params)
+            if remember and self._failed(recent, sim.state, comp, cand):
+                continue
+            chosen = cand
+            break
+        if chosen is None:
+            chosen = (
+                correct
+                if rng.random() < 0.5
+                else replay.Action(
+                    rng.choice(kinds), None, self._params_for(rng.choice(kinds), rng)
+                )
+            )
+        rects = tr.rects[sim.view]
+        rect = rects[0]
+        misses = self._misses(recent, comp) if remember else 0
+        point = self._aim(rect, misses)
+        action = replay.Action(chosen.type, point, chosen.params)
+        where = describe(spec, rect, sim.view)
+        if refine:
+            text = (
+                f"{intent} The last attempt on {where} showed it can be operated, but not in "
+                f"that way. I will try to {verb_phrase(action)} instead."
+            )
+        elif misses:
+            text = (
+                f"{intent} My previous click seems to have missed {where}. I will aim more "
+                f"carefully and {verb_phrase(action)}."
+            )
+        else:
+            text = f"{intent} I can see {where}; it looks like the right control. I will {verb_phrase(action)}."
+        return Decision(action, text, comp)
+
+    def _interact_component(
+        self,
+        sim: replay.SimState,
+        goal_index: int,
+        comp: str,
+        recent: list[_Event],
+        intent: str,
+        refine: bool = False,
+    ) -> Decision:
+        """Operate a (non-target) component by guessing its action from its look."""
+        rng = self.rng
+        spec = self._spec(comp)
+        kinds = KIND_ACTIONS.get(spec.kind, INTERACTIONS) if spec else INTERACTIONS
+        remember = self._remembers()
+        cand = None
+        for _ in range(6):
+            a_type = kinds[0] if rng.random() < 0.6 else rng.choice(kinds)
+            cand = replay.Action(a_type, None, self._params_for(a_type, rng))
+            if not (remember and self._failed(recent, sim.state, comp, cand)):
+                break
+        assert cand is not None
+        rects = self._rects_in(sim.state, sim.view, comp)
+        if not rects:
+            return self._interact_empty(sim, intent)
+        rect = rects[0]
+        misses = self._misses(recent, comp) if remember else 0
+        point = self._aim(rect, misses)
+        action = replay.Action(cand.type, point, cand.params)
+        where = describe(spec, rect, sim.view)
+        if refine:
+            text = (
+                f"{intent} {where[0].upper() + where[1:]} reacted but not in that way. "
+                f"I will try to {verb_phrase(action)}."
+            )
+        else:
+            text = f"{intent} I think {where} might control this. I will {verb_phrase(action)}."
+        return Decision(action, text, comp)
+
+    def _interact_wrong(
+        self,
+        sim: replay.SimState,
+        goal_index: int,
+        comps: list[str],
+        recent: list[_Event],
+        intent: str,
+    ) -> Decision:
+        rng = self.rng
+        if comps and rng.random() < 0.8:
+            return self._interact_component(sim, goal_index, rng.choice(comps), recent, intent)
+        return self._interact_empty(sim, intent)
+
+    def _interact_empty(self, sim: replay.SimState, intent: str) -> Decision:
+        rng = self.rng
+        point = (float(rng.randint(60, 940)), float(rng.randint(60, 940)))
+        a_type = rng.choice(("press", "press", "rotate", "push", "pull"))
+        action = replay.Action(a_type, point, self._params_for(a_type, rng))
+        return Decision(
+            action,
+            f"{intent} There seems to be a control {_where((point[0], point[1], point[0], point[1]))}. "
+            f"I will {verb_phrase(action)}.",
+        )
+
+    # ------------------------------------------------------------------ observing
+
+    def observe(
+        self,
+        decision: Decision,
+        parsed: replay.ParsedAction,
+        before: replay.SimState,
+        after: replay.SimState,
+        outcome: replay.Outcome,
+        goal_index: int,
+        goal: int,
+        completed: int,
+    ) -> None:
+        dist = replay.distances(self.m, goal)
+        progress = completed > 0 or dist[after.state] < dist[before.state]
+        moved_away = outcome.dangerous or dist[after.state] > dist[before.state]
+        # A format slip says nothing about the action the agent meant.
+        kind = outcome.kind if parsed.ok else "slip"
+        self.events.append(
+            _Event(
+                self.step_index,
+                goal_index,
+                before.state,
+                before.view,
+                decision.component,
+                decision.action,
+                kind,
+                progress,
+                moved_away,
+            )
+        )
+        self.step_index += 1
+
+
+def _where(rect: tuple) -> str:
+    from ._thinking import position_words
+
+    return position_words(rect)
+
+
+def play_episode(
+    machine: replay.Machine,
+    catalog: Catalog,
+    profile: Profile,
+    task: TaskRecord,
+    rng: random.Random,
+    lam: float = replay.DEFAULT_LAMBDA,
+) -> list[AgentStep]:
+    """Run the agent until the episode terminates (success or a budget)."""
+    setup = replay.setup_episode(machine, task.to_task())
+    sim, _ = replay.reset(machine, setup.initial_state, setup.initial_view)
+    tracker = BudgetTracker(setup.plan.c_opt, setup.goals, lam)
+    agent = Agent(machine, catalog, profile, task, rng)
+    steps: list[AgentStep] = []
+    while tracker.termination is None:
+        goal_index = tracker.current
+        goal = setup.goals[goal_index]
+        decision = agent.decide(sim, goal_index, goal)
+        output, record, parsed = _format(decision, profile, rng, sim)
+        before = sim
+        sim, outcome = replay.step(machine, sim, parsed)
+        completed = tracker.advance(outcome.entered)
+        agent.observe(decision, parsed, before, sim, outcome, goal_index, goal, completed)
+        steps.append(
+            AgentStep(decision, output, record, outcome, sim.view, machine.states[sim.state])
+        )
+    return steps
+
+
+def _format(
+    decision: Decision, profile: Profile, rng: random.Random, sim: replay.SimState
+) -> tuple[str | None, dict | None, replay.ParsedAction]:
+    """The logged form of a decision and what the engine will parse from it."""
+    action = decision.action
+    if profile.agent_kind == "human":
+        record = {
+            "type": _DISPLAY[action.type],
+            "coord": [round(action.coord[0]), round(action.coord[1])] if action.coord else None,
+            "params": list(action.params),
+        }
+        parsed = replay.action_from_record(record["type"], record["coord"], record["params"])
+        return None, record, parsed
+    if rng.random() < profile.slip:
+        kind = rng.choice(SLIP_KINDS)
+        alternative = replay.Action("switch_view", None, (rng.choice(("left", "right", "top")),))
+        text = slip_text(kind, decision.thinking, action, alternative)
+    else:
+        text = f"Thinking: {decision.thinking}\n{action_text(action, rng, profile.decorated)}"
+    return text, None, replay.parse_action(text)
+
+
+_DISPLAY = {
+    "press": "Press",
+    "rotate": "Rotate",
+    "push": "Push",
+    "pull": "Pull",
+    "grasp": "Grasp",
+    "switch_view": "Switch_view",
+    "timed_wait": "Timed_wait",
+}
+
+
+def think_seconds(profile: Profile, rng: random.Random) -> float:
+    """Seconds the agent takes for one step (for the synthetic timestamps)."""
+    mean, spread = profile.seconds
+    return max(0.8, rng.gauss(mean, spread))
