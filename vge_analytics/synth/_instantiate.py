@@ -200,6 +200,19 @@ def geometry_matches(ssm, geometry: Geometry) -> bool:
     return regions == geometry.regions()
 
 
+def scene_of(ssm, device_id: str) -> Geometry | None:
+    """The layout that produced a loaded SSM (`replay.StateMachine`), or None when the SSM is
+    not exactly what the layout gives (hand-made, edited, or from another layout version)."""
+    inp = layout_input_from_ssm(ssm, device_id)
+    if inp is None:
+        return None
+    try:
+        geometry = layout(inp)
+    except LayoutError:
+        return None
+    return geometry if geometry_matches(ssm, geometry) else None
+
+
 def dump_ssm(ssm: dict) -> str:
     """The SSM as JSON text: one transition per line (readable, compact, deterministic)."""
 

@@ -517,7 +517,7 @@ def _place_panel(
     if face in ("front", "back", "left", "right") and rng.random() < 0.35:
         region_faces = (face, "top")
     w = fw * rng.uniform(0.3, 0.44) * (1.0 + 0.04 * max(0, n - 4))
-    h = fh * rng.uniform(0.13, 0.22)
+    h = fh * rng.uniform(0.17, 0.27)
     w, h = min(w, fw * 0.75), min(h, fh * 0.4)
     try:
         box, rects = placer.fit_box("dashboard panel", region_faces, w, h)
@@ -525,11 +525,11 @@ def _place_panel(
         raise LayoutError(str(exc), None) from None
 
     u0, v0, u1, v1 = project_box(face, placer.dims, box)
-    pad_u, pad_v = (u1 - u0) * 0.08, (v1 - v0) * 0.12
+    pad_u, pad_v = (u1 - u0) * 0.05, (v1 - v0) * 0.08
     pu0, pv0, pu1, pv1 = u0 - pad_u, v0 - pad_v, u1 + pad_u, v1 + pad_v
     width = rng.randint(1040, 1360)
     aspect = (pu1 - pu0) / (pv1 - pv0)
-    height = max(520, min(980, round(width / aspect)))
+    height = max(440, min(980, round(width / aspect)))
     # Keep one scale on both axes: widen the shown plane rect along the short side.
     want = width / height
     if (pu1 - pu0) / (pv1 - pv0) < want:
@@ -544,8 +544,8 @@ def _place_panel(
     inner = (round(px0), round(py0), round(px1), round(py1))
     iw, ih = inner[2] - inner[0], inner[3] - inner[1]
     pad = round(min(iw, ih) * 0.07)
-    disp_w = round(iw * rng.uniform(0.26, 0.36))
-    disp_h = round(ih * rng.uniform(0.26, 0.36))
+    disp_w = round(iw * rng.uniform(0.22, 0.3))
+    disp_h = round(ih * rng.uniform(0.28, 0.36))
     dx = inner[0] + pad if rng.random() < 0.6 else inner[2] - pad - disp_w
     display = (dx, inner[1] + pad, dx + disp_w, inner[1] + pad + disp_h)
     occupied: list[PixelRect] = [display]
@@ -554,7 +554,7 @@ def _place_panel(
     for name in on_panel:
         spec = catalog.components[name]
         orientation = _orientation(name, spec, machine, rng)
-        frac = {"tiny": 0.2, "small": 0.24, "medium": 0.3, "large": 0.4}.get(spec.size, 0.24)
+        frac = {"tiny": 0.3, "small": 0.34, "medium": 0.4, "large": 0.5}.get(spec.size, 0.34)
         s = base * frac * rng.uniform(0.9, 1.1)
         aspect = KIND_ASPECT.get(spec.kind, 1.0)
         if spec.kind in ORIENTED_KINDS and orientation == "v":

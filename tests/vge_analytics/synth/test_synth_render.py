@@ -1,0 +1,141 @@
+"""Rendered views: deterministic, every component drawn inside its bbox, one image per view at
+the SSM's size, and the image lookup order of `vge_analytics._images.view_image`."""
+
+from __future__ import annotations
+
+import io
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from PIL import Image, ImageChops
+
+import replay
+from vge_analytics._images import view_image
+from vge_analytics.synth import instantiate_device
+from vge_analytics.synth._render import png_bytes, render_view
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+@pytest.fixture(autouse=True)
+def _private_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("VGE_CACHE_DIR", str(tmp_path / "cache"))
+
+
+def _devices():
+    # A dashboard microwave, a cylindrical kettle, and a small handheld device.
+    out = [instantiate_device("Microwave", "Microwave_000", 0)]
+    assert out[0].geometry.panel is not None
+    out.append(instantiate_device("ElectricKettle", "ElectricKettle_001", 0))
+    return out
+
+
+def test_rendering_is_deterministic():
+    device = _devices()[0]
+    for view in ("front", "front_top", "dashboard"):
+        a = png_bytes(render_view(device.geometry, view))
+        b = png_bytes(render_view(device.geometry, view))
+        assert a == b
+
+
+def test_every_view_has_the_ssm_size():
+    for device in _devices():
+        g = device.geometry
+        sizes = {}
+        for per_view in g.bboxes().values():
+            for view, coord in per_view.items():
+                sizes[view] = (coord[4], coord[5])
+        for view in list(g.frames) + list(g.axo_frames) + (["dashboard"] if g.panel else []):
+            img = render_view(g, view)
+            if view in sizes:
+                assert img.size == sizes[view], (device.device_id, view)
+            assert 400 <= img.size[0] <= 1420 and 400 <= img.size[1] <= 1420
+
+
+def test_components_are_drawn_inside_their_bboxes():
+    for device in _devices():
+        g = device.geometry
+        full_views = {}
+        for part in g.parts:
+            for view in part.views:
+                if view not in full_views:
+                    full_views[view] = render_view(g, view)
+                full = full_views[view]
+                without = render_view(g, view, omit=frozenset({part.name}))
+                diff = ImageChops.difference(full, without).getbbox()
+                assert diff is not None, f"{part.name} not drawn in {view}"
+                x0, y0, x1, y1 = g.part_rect(part, view)
+                assert x0 <= diff[0] and y0 <= diff[1] and diff[2] <= x1 and diff[3] <= y1, (
+                    device.device_id,
+                    part.name,
+                    view,
+                    diff,
+                    (x0, y0, x1, y1),
+                )
+
+
+def _bench_with(tmp_path: Path, device) -> tuple[Path, replay.Machine]:
+    from vge_analytics.synth import dump_ssm
+
+    bench = tmp_path / "bench"
+    (bench / "ssm").mkdir(parents=True)
+    path = bench / "ssm" / f"{device.device_id}.json"
+    path.write_text(dump_ssm(device.ssm), encoding="utf-8")
+    return bench, replay.load_machine(path)
+
+
+def test_view_image_renders_and_caches_synthetic_views(tmp_path):
+    device = _devices()[0]
+    bench, machine = _bench_with(tmp_path, device)
+    first = view_image(bench, machine, "front")
+    assert first is not None and first.format == "png"
+    assert (first.width, first.height) == device.geometry.view_size("front")
+    cached = list((tmp_path / "cache").rglob("front.png"))
+    assert len(cached) == 1
+    again = view_image(bench, machine, "front")
+    assert again == first
+    with Image.open(io.BytesIO(first.data)) as img:
+        assert img.size == (first.width, first.height)
+
+
+def test_view_image_prefers_files_then_the_images_extension(tmp_path):
+    device = _devices()[1]
+    bench, machine = _bench_with(tmp_path, device)
+    # SPEC 1.1 file wins.
+    folder = bench / "images" / device.device_id
+    folder.mkdir(parents=True)
+    buf = io.BytesIO()
+    Image.new("RGB", (64, 48), (1, 2, 3)).save(buf, format="JPEG")
+    (folder / "front.jpg").write_bytes(buf.getvalue())
+    got = view_image(bench, machine, "front")
+    assert got is not None and got.format == "jpeg" and (got.width, got.height) == (64, 48)
+    # The SSM's images extension comes next.
+    raw = json.loads((bench / "ssm" / f"{device.device_id}.json").read_text())
+    Image.new("RGB", (30, 20)).save(bench / "top_custom.png")
+    raw["images"] = {"top": {"path": "top_custom.png", "width": 30, "height": 20}}
+    path = bench / "ssm" / f"{device.device_id}.json"
+    path.write_text(json.dumps(raw))
+    machine = replay.load_machine(path)
+    got = view_image(bench, machine, "top")
+    assert got is not None and (got.width, got.height) == (30, 20)
+    # Views without a file fall back to the synthetic rendering, unknown views to None.
+    assert view_image(bench, machine, "left") is not None
+    assert view_image(bench, machine, "dashboard") is None
+
+
+def test_hand_written_ssm_of_our_category_is_drawn_from_its_bboxes(tmp_path):
+    """The paper's kettle listing: not produced by our layout, drawn at its own bboxes."""
+    machine = replay.load_machine(ROOT / "tests" / "data" / "kettle_ssm.json")
+    got = view_image(tmp_path, machine, "front")
+    assert got is not None and (got.width, got.height) == (1209, 1369)
+    for view in machine.views:
+        assert view_image(tmp_path, machine, view) is not None
+
+
+def test_unknown_category_has_no_image(tmp_path):
+    src = ROOT / "tests" / "data" / "hand_worked" / "dashboard_ssm.json"
+    shutil.copy(src, tmp_path / "oven.json")
+    machine = replay.load_machine(tmp_path / "oven.json")
+    assert view_image(tmp_path, machine, "front") is None
