@@ -170,6 +170,7 @@ from ._schemas import schema_documents, write_schemas  # noqa: E402
 __all__ += ["schema_documents", "write_schemas"]
 
 # --- replay runner (vge replay): batches, workers, quarantine, manifest, MCAP
+from ._errors import WorkerError  # noqa: E402
 from ._manifest import Manifest, ManifestFile, RunEntry, read_manifest  # noqa: E402
 from ._mcap import BenchImages, ImageSource, write_episode_mcap  # noqa: E402
 from ._quarantine import QUARANTINE_KINDS, QuarantineRecord  # noqa: E402
@@ -183,6 +184,7 @@ __all__ += [
     "QUARANTINE_KINDS",
     "QuarantineRecord",
     "RunEntry",
+    "WorkerError",
     "read_manifest",
     "replay_runs",
     "write_episode_mcap",

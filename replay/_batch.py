@@ -123,7 +123,7 @@ class WorkerState:
         if key not in self.images:
             if len(self.images) >= _IMAGE_CACHE_SIZE:
                 del self.images[next(iter(self.images))]
-            self.images[key] = source(machine, view)
+            self.images[key] = as_image_tuple(source(machine, view))
         return self.images[key]
 
     def ssm(self, machine: Machine) -> bytes:
@@ -135,6 +135,14 @@ class WorkerState:
                 got = msgspec.json.encode(machine.ssm)
             self.ssm_bytes[machine.device_id] = got
         return got
+
+
+def as_image_tuple(got: object) -> ImageTuple | None:
+    """An image source's answer as `(bytes, format, width, height)`: a tuple, or an object
+    with `data`, `format`, `width`, `height` attributes (like `vge_analytics._images.ViewImage`)."""
+    if got is None or isinstance(got, tuple):
+        return got  # type: ignore[return-value]
+    return (got.data, got.format, got.width, got.height)  # type: ignore[attr-defined]
 
 
 def episode_lambda(ctx: RunContext, task: Task) -> float:

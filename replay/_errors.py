@@ -49,3 +49,8 @@ class TaskError(VGEError):
 
 class ConfigError(VGEError):
     """Bad options or arguments (unknown metric, bad lambda, missing directory...)."""
+
+
+class WorkerError(VGEError):
+    """A replay worker process died (killed, out of memory, or a script without a
+    `if __name__ == "__main__":` guard started `replay_runs(workers > 1)`)."""

@@ -45,8 +45,9 @@ from ._rows import StepRow
 ImageTuple = tuple[bytes, str, int, int]
 """(encoded image bytes, format `png`/`jpeg`, width, height)."""
 
-ImageSource = Callable[[Machine, str], ImageTuple | None]
-"""`image_source(machine, view)`: the rendered view of a device, or None. Must be picklable
+ImageSource = Callable[[Machine, str], object]
+"""`image_source(machine, view)`: the rendered view of a device as an `ImageTuple` (or an
+object with `data`, `format`, `width`, `height`), or None. Must be picklable
 (a module-level function, a `functools.partial` of one, or an instance like `BenchImages`)
 when `replay_runs` uses worker processes."""
 

@@ -21,6 +21,7 @@ import shutil
 from collections import deque
 from collections.abc import Iterable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, BinaryIO
@@ -40,7 +41,7 @@ from ._batch import (
     run_batch,
     safe_file_name,
 )
-from ._errors import ConfigError, InputError
+from ._errors import ConfigError, InputError, WorkerError
 from ._load import Benchmark, episodes_file, iter_lines, read_run_header
 from ._manifest import (
     Divergence,
@@ -186,6 +187,11 @@ def _ordered_results(
                 yield pending.popleft().result()
         while pending:
             yield pending.popleft().result()
+    except BrokenProcessPool:
+        raise WorkerError(
+            f"{ctx.file}: a replay worker process died (killed or out of memory; a script "
+            "calling replay_runs with workers > 1 needs an `if __name__ == '__main__':` guard)"
+        ) from None
     finally:
         for future in pending:
             future.cancel()

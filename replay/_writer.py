@@ -85,7 +85,7 @@ class PartWriter:
         group, rest = table.slice(0, n), table.slice(n)
         self._pending = [rest] if rest.num_rows else []
         self._pending_rows = rest.num_rows
-        self._write_group(group.combine_chunks())
+        self._write_group(group)
 
     def _open_part(self) -> pq.ParquetWriter:
         name = f"part-{len(self.files):05d}.parquet"

@@ -201,3 +201,12 @@ def replayed(sample: Sample, tmp_path_factory: pytest.TempPathFactory):
         image_source=replay.BenchImages(str(sample.bench)),
     )
     return out, manifest
+
+
+@pytest.fixture
+def vge(monkeypatch: pytest.MonkeyPatch):
+    """`vge` with only the replay command registered (other commands' state is not ours)."""
+    from vge_analytics import cli
+
+    monkeypatch.setattr(cli, "COMMAND_MODULES", ("replay",))
+    return cli.main

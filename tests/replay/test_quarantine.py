@@ -11,7 +11,6 @@ import pyarrow.parquet as pq
 import pytest
 
 import replay
-from vge_analytics.cli import main
 
 from .conftest import Sample, write_lines
 
@@ -52,12 +51,12 @@ def _broken_copy(s: Sample) -> tuple[list[tuple[int, str | None, str]], int]:
 
 
 def test_broken_run_quarantines_exactly_the_bad_records(
-    copy_sample: Sample, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    vge, copy_sample: Sample, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     s = copy_sample
     expected, n_good = _broken_copy(s)
     out = tmp_path / "out"
-    code = main(["replay", str(s.vlm), "--bench", str(s.bench), "--out", str(out)])
+    code = vge(["replay", str(s.vlm), "--bench", str(s.bench), "--out", str(out)])
     assert code == 2
     assert "quarantine.jsonl" in capsys.readouterr().out
 
@@ -94,19 +93,21 @@ def test_broken_run_quarantines_exactly_the_bad_records(
     assert steps.num_rows == c.steps == sum(s.steps_per_episode.values())
 
 
-def test_duplicates_across_batches_with_workers(
+def test_duplicates_across_batches(
     copy_sample: Sample, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Duplicates are decided in the main process, whatever the batch they fall in."""
-    monkeypatch.setattr("replay._runner.BATCH_LINES", 4)
     s = copy_sample
     expected, n_good = _broken_copy(s)
+    monkeypatch.setattr("replay._runner.BATCH_LINES", 4)
+    small = replay.replay_runs([s.vlm], s.bench, tmp_path / "small", progress=False)
+    monkeypatch.setattr("replay._runner.BATCH_LINES", 1000)
     one = replay.replay_runs([s.vlm], s.bench, tmp_path / "one", progress=False)
-    two = replay.replay_runs([s.vlm], s.bench, tmp_path / "two", workers=2, progress=False)
-    assert one.exit_code == two.exit_code == 2
+    assert small.exit_code == one.exit_code == 2
     for name in ("quarantine.jsonl", "manifest.json"):
-        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()
+        assert (tmp_path / "small" / name).read_bytes() == (tmp_path / "one" / name).read_bytes()
     assert one.run("vlm-a").counts.replayed == n_good
+    assert one.run("vlm-a").quarantine["duplicate_episode"] == 2
 
 
 def test_truncated_gzip(copy_sample: Sample, tmp_path: Path) -> None:
@@ -133,7 +134,7 @@ def test_truncated_gzip(copy_sample: Sample, tmp_path: Path) -> None:
 
 
 def test_fatal_errors_are_one_line(
-    sample: Sample, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    vge, sample: Sample, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     bad_run = tmp_path / "badrun"
     bad_run.mkdir()
@@ -146,12 +147,12 @@ def test_fatal_errors_are_one_line(
         ([str(sample.vlm), str(sample.vlm)], str(sample.bench), "vlm-a"),
     ]
     for runs, bench, named in cases:
-        code = main(["replay", *runs, "--bench", bench, "--out", str(tmp_path / "out")])
+        code = vge(["replay", *runs, "--bench", bench, "--out", str(tmp_path / "out")])
         err = capsys.readouterr().err
         assert code == 1, err
         assert err.count("\n") == 1 and named in err and "Traceback" not in err
 
 
-def test_clean_run_exits_zero(sample: Sample, tmp_path: Path) -> None:
+def test_clean_run_exits_zero(vge, sample: Sample, tmp_path: Path) -> None:
     argv = ["replay", str(sample.human), "--bench", str(sample.bench), "--out", str(tmp_path)]
-    assert main([*argv, "--no-progress"]) == 0
+    assert vge([*argv, "--no-progress"]) == 0

@@ -42,8 +42,10 @@ def _episode_list(text: str | None) -> list[str] | None:
 
 def _summary(manifest: Manifest) -> Table:
     table = Table(box=box.SIMPLE_HEAD, pad_edge=False)
-    for name in ("run", "status", "replayed", "quarantined", "steps", "truncated", "diverged"):
-        table.add_column(name, justify="left" if name in ("run", "status") else "right")
+    table.add_column("run", no_wrap=True)
+    table.add_column("status", no_wrap=True)
+    for name in ("episodes", "quarantined", "steps", "truncated", "diverged"):
+        table.add_column(name, justify="right", no_wrap=True, min_width=len(name))
     skipped = set(manifest.skipped)
     totals = [0] * 5
     for run_id in manifest.requested:
@@ -82,6 +84,8 @@ def replay_command(
     Exit code 0 when every record replayed, 2 when some were quarantined, 1 on fatal errors.
     """
     console = Console(highlight=False)
+    if not console.is_terminal:  # logs and pipes: do not squeeze the table into 80 columns
+        console = Console(highlight=False, width=120)
     manifest = replay_runs(
         runs,
         bench,

@@ -1,0 +1,238 @@
+"""Benchmark of `vge replay` (not a test): throughput, bare JSON decoding, peak RSS, MCAP.
+
+Usage (on the full synthetic benchmark):
+
+    vge synth --out /tmp/vge-full --scale full
+    .venv/bin/python benchmarks/bench_replay.py /tmp/vge-full [--workers 1,2] [--profile]
+
+DATA is a directory with `bench/` and `runs/*` (what `vge synth` writes). Measures:
+- bare decoding: the episode files read and decoded line by line with msgspec (typed, into
+  the same `EpisodeLog` records the replay uses), and with orjson (untyped), in-process;
+- end to end (logs -> Parquet, `replay_runs(..., force=True)`) with each worker count, each
+  in a fresh subprocess, with its peak RSS (main process, and the largest worker);
+- MCAP: milliseconds per episode of `write_episode_mcap` on a sample of episodes;
+- with `--profile`: a cProfile of a one-worker replay of the largest run, time split by
+  module (runner code vs core engine vs libraries).
+Prints a Markdown report (the numbers in docs/PERFORMANCE.md come from it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import gzip
+import io
+import json
+import os
+import pstats
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import orjson
+
+import replay
+from replay._load import episode_decoder
+
+RUNNER_MODULES = ("_runner", "_batch", "_writer", "_manifest", "_quarantine", "_mcap")
+
+
+def _episode_files(data: Path) -> list[Path]:
+    return sorted(replay.episodes_file(d) for d in (data / "runs").iterdir() if d.is_dir())
+
+
+def _read(path: Path) -> bytes:
+    raw = path.read_bytes()
+    return gzip.decompress(raw) if path.suffix == ".gz" else raw
+
+
+def bare_decoding(files: list[Path]) -> dict[str, float]:
+    """Seconds to read + decode every line: msgspec typed, orjson untyped; step count."""
+    steps = 0
+    t0 = time.perf_counter()
+    for path in files:
+        for line in _read(path).splitlines():
+            if line.strip():
+                steps += len(episode_decoder.decode(line).steps)
+    t_msgspec = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for path in files:
+        for line in _read(path).splitlines():
+            if line.strip():
+                orjson.loads(line)
+    t_orjson = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for path in files:
+        _read(path)
+    t_read = time.perf_counter() - t0
+    return {"steps": steps, "msgspec_s": t_msgspec, "orjson_s": t_orjson, "read_s": t_read}
+
+
+_CHILD = """
+import json, resource, sys, time
+import replay
+runs, bench, out, workers = json.loads(sys.argv[1])
+t0 = time.perf_counter()
+m = replay.replay_runs(runs, bench, out, workers=workers, force=True, progress=False)
+wall = time.perf_counter() - t0
+print(json.dumps({
+    "wall_s": wall,
+    "steps": m.content.totals.steps,
+    "episodes": m.content.totals.replayed,
+    "quarantined": m.content.totals.quarantined,
+    "main_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    "worker_rss_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
+}))
+"""
+
+
+def end_to_end(data: Path, out: Path, workers: int) -> dict[str, float]:
+    runs = [str(d) for d in sorted((data / "runs").iterdir()) if d.is_dir()]
+    arg = json.dumps([runs, str(data / "bench"), str(out), workers])
+    done = subprocess.run(
+        [sys.executable, "-c", _CHILD, arg], check=True, capture_output=True, text=True
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
+    """Replay `n` episodes of the largest run and time `write_episode_mcap` alone."""
+    bench = replay.Benchmark.open(data / "bench")
+    images = replay.BenchImages(str(data / "bench"))
+    files = _episode_files(data)
+    largest = max(files, key=lambda p: p.stat().st_size)
+    total = 0.0
+    count = 0
+    with_images = 0
+    for line in _read(largest).splitlines()[:n]:
+        log = episode_decoder.decode(line)
+        task = bench.tasks[log.episode_id].task
+        machine = bench.machine(task.device_id)
+        result = replay.replay_episode(
+            machine, task, log, lam=5.0, run_id="r", model="m", agent_kind="vlm"
+        )
+        ssm = Path(machine.source).read_bytes()
+        cache: dict[str, object] = {}
+
+        def image(view: str, machine=machine, cache=cache):
+            if view not in cache:
+                cache[view] = images(machine, view)
+            return cache[view]
+
+        buf = io.BytesIO()
+        t0 = time.perf_counter()
+        replay.write_episode_mcap(buf, machine, result, ssm_bytes=ssm, image=image, library="b")
+        total += time.perf_counter() - t0
+        count += 1
+        with_images += any(v is not None for v in cache.values())
+    return {
+        "episodes": count,
+        "ms_per_episode": 1000 * total / max(count, 1),
+        "episodes_with_images": with_images,
+    }
+
+
+def profile(data: Path, out: Path) -> list[tuple[str, float]]:
+    """cProfile one-worker replay of the largest run; exclusive time by module group."""
+    files = _episode_files(data)
+    largest = max(files, key=lambda p: p.stat().st_size).parent
+    prof = cProfile.Profile()
+    prof.enable()
+    replay.replay_runs([largest], data / "bench", out, force=True, progress=False)
+    prof.disable()
+    stats = pstats.Stats(prof)
+    groups: dict[str, float] = defaultdict(float)
+    for (filename, _, func), (_, _, tottime, _, _) in stats.stats.items():  # type: ignore[attr-defined]
+        groups[_group(filename, func)] += tottime
+    total = sum(groups.values())
+    return sorted(((k, v / total) for k, v in groups.items()), key=lambda kv: -kv[1])
+
+
+def _group(filename: str, func: str) -> str:
+    path = Path(filename)
+    if path.parent.name == "replay":
+        stem = path.stem
+        owner = "runner" if stem in RUNNER_MODULES else "core"
+        return f"{owner}: replay/{path.name}"
+    if "pyarrow" in filename:
+        return "lib: pyarrow"
+    if "msgspec" in filename or "msgspec" in func:
+        return "lib: msgspec"
+    if filename == "~":
+        return f"builtin: {func.split(' of ')[0].strip('<>')[:60]}"
+    return "other: " + (path.parent.name + "/" + path.name if path.name else filename)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("data", type=Path, help="directory with bench/ and runs/")
+    parser.add_argument("--workers", default="1,2")
+    parser.add_argument("--mcap-episodes", type=int, default=200)
+    parser.add_argument("--profile", action="store_true")
+    args = parser.parse_args()
+    data: Path = args.data
+    files = _episode_files(data)
+    size = sum(p.stat().st_size for p in files)
+    print(f"## Replay benchmark on {data}\n")
+    print(
+        f"- {len(files)} runs, {size / 1e6:.1f} MB of episode files, python {sys.version.split()[0]}, "
+        f"{os.cpu_count()} CPUs\n"
+    )
+    bare = bare_decoding(files)
+    steps = bare["steps"]
+    print("| measure | seconds | steps/s |\n|---|---:|---:|")
+    print(f"| read + gunzip only | {bare['read_s']:.2f} | |")
+    print(
+        f"| bare decode, msgspec typed (EpisodeLog) | {bare['msgspec_s']:.2f} | "
+        f"{steps / bare['msgspec_s']:,.0f} |"
+    )
+    print(
+        f"| bare decode, orjson untyped | {bare['orjson_s']:.2f} | {steps / bare['orjson_s']:,.0f} |"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        results = {}
+        for workers in [int(w) for w in args.workers.split(",")]:
+            r = end_to_end(data, Path(tmp) / f"out{workers}", workers)
+            results[workers] = r
+            assert r["steps"] == steps, (r["steps"], steps)
+            print(
+                f"| replay end to end, {workers} worker(s) | {r['wall_s']:.2f} | "
+                f"{r['steps'] / r['wall_s']:,.0f} |"
+            )
+        print()
+        print(
+            "| workers | ratio to bare msgspec decode | peak RSS main (MB) | peak RSS largest worker (MB) |"
+        )
+        print("|---:|---:|---:|---:|")
+        for workers, r in results.items():
+            worker_rss = f"{r['worker_rss_mb']:.0f}" if workers > 1 else "-"
+            print(
+                f"| {workers} | {r['wall_s'] / bare['msgspec_s']:.0f}x | {r['main_rss_mb']:.0f} | {worker_rss} |"
+            )
+        print(
+            f"\n- {steps:,} steps, {next(iter(results.values()))['episodes']:,} episodes, "
+            f"{next(iter(results.values()))['quarantined']} quarantined"
+        )
+        m = mcap_ms_per_episode(data, args.mcap_episodes)
+        print(
+            f"- MCAP: {m['ms_per_episode']:.2f} ms per episode "
+            f"({m['episodes']} episodes, {m['episodes_with_images']} with view images)"
+        )
+        if args.profile:
+            print("\n| profile (1 worker, largest run): exclusive time | share |\n|---|---:|")
+            shares = profile(data, Path(tmp) / "prof")
+            for name, share in shares[:25]:
+                print(f"| {name} | {100 * share:.1f}% |")
+            runner = sum(s for n, s in shares if n.startswith("runner"))
+            core = sum(s for n, s in shares if n.startswith("core"))
+            print(
+                f"\n- runner modules {100 * runner:.1f}%, core modules {100 * core:.1f}%, "
+                f"rest (libraries, builtins) {100 * (1 - runner - core):.1f}%"
+            )
+
+
+if __name__ == "__main__":
+    main()
