@@ -18,6 +18,11 @@ COMMAND_MODULES = (
     "validate",
     "replay",
     "synth",
+    "metrics",
+    "errors",
+    "compare",
+    "sweep",
+    "sql",
 )
 
 app = typer.Typer(

@@ -1,0 +1,130 @@
+"""The commands: formats (json list of objects with SPEC names, latex marks), exit codes and
+one-line errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from vge_analytics.cli import main
+
+SPEC6 = ["SR", "SSR", "SPL", "State-F1", "EIR", "TIR", "VSPS", "GVPE", "EER", "PSR",
+         "AvgDist", "AvgWDist"]  # fmt: skip
+
+
+def run(capsys, *args: str) -> tuple[int, str, str]:
+    code = main([*args])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_metrics_json(capsys, hand_out: Path) -> None:
+    code, out, _ = run(capsys, "metrics", str(hand_out), "--format", "json")
+    assert code == 0
+    rows = json.loads(out)
+    assert isinstance(rows, list) and len(rows) == 2
+    for row in rows:
+        assert list(row) == ["run_id", "model", *SPEC6]
+    assert rows[0]["SR"] == 100 * 4 / 7  # full precision
+
+
+def test_metrics_latex_marks(capsys, hand_out: Path) -> None:
+    # Three groups (n_goals 1, 2, 3) so that both best and second best are marked.
+    code, out, _ = run(
+        capsys, "metrics", str(hand_out), "--by", "n_goals", "--metrics", "SR,SSR,VSPS",
+        "--format", "latex",
+    )  # fmt: skip
+    assert code == 0
+    assert "\\textbf{" in out and "\\underline{" in out
+    assert "SR $\\uparrow$" in out and "VSPS $\\downarrow$" in out
+    assert "\\toprule" in out and "\\bottomrule" in out
+    # SR by n_goals: 1 goal 75.00, 2 goals 71.43, 3 goals 100.00 -> 100 bold, 75 underlined
+    assert "\\textbf{100.00}" in out and "\\underline{75.00}" in out
+    # VSPS is lower-better: 3 goals has 0.00 (kettle c), the best
+    assert "\\textbf{0.00}" in out
+
+
+def test_metrics_latex_table2_shape(capsys, hand_out: Path) -> None:
+    code, out, _ = run(capsys, "metrics", str(hand_out), "--format", "latex")
+    assert code == 0
+    assert "\\multicolumn{2}{c}{Task Performance}" in out
+    assert "\\multicolumn{4}{c}{Visual Grounding and Perception}" in out
+    assert "Model &" in out and "model-k" in out and "kettle-vlm" not in out
+
+
+def test_metrics_markdown_and_csv(capsys, hand_out: Path) -> None:
+    code, out, _ = run(capsys, "metrics", str(hand_out), "--by", "n_goals", "-f", "markdown")
+    assert code == 0
+    assert "| n_goals | SR \u2191 |" in out and "**100.00**" in out and "<u>75.00</u>" in out
+    code, out, _ = run(capsys, "metrics", str(hand_out), "-f", "csv")
+    assert out.splitlines()[0] == ",".join(["run_id", "model", *SPEC6])
+    code, out, _ = run(capsys, "metrics", str(hand_out))
+    assert code == 0 and "SR \u2191" in out and "VSPS \u2193" in out
+
+
+def test_metrics_errors_are_one_line(capsys, hand_out: Path) -> None:
+    code, out, err = run(capsys, "metrics", str(hand_out), "--metrics", "XX")
+    assert code == 1 and err.count("\n") == 1 and "unknown metric 'XX'" in err
+    code, _, err = run(capsys, "metrics", str(hand_out), "--format", "yaml")
+    assert code == 1 and "unknown format" in err
+    code, _, err = run(capsys, "metrics", str(hand_out / "nope"))
+    assert code == 1 and "not found" in err and "Traceback" not in err
+
+
+def test_errors_command(capsys, hand_out: Path) -> None:
+    code, out, _ = run(capsys, "errors", str(hand_out), "-f", "json")
+    assert code == 0
+    doc = json.loads(out)
+    assert set(doc) == {"error_types", "error_groups", "switch_classes"}
+    assert all(isinstance(v, list) for v in doc.values())
+    kettle = [r for r in doc["error_types"] if r["run_id"] == "kettle-vlm"]
+    assert [r["count"] for r in kettle] == [4, 4, 4, 5, 2, 0, 1]
+    code, out, _ = run(capsys, "errors", str(hand_out))
+    assert code == 0 and "Invalid Coord Error" in out and "NP" in out
+
+
+def test_compare_command(capsys, pair_out: Path) -> None:
+    code, out, _ = run(
+        capsys, "compare", str(pair_out), "A", "B", "--resamples", "200", "-f", "json"
+    )
+    assert code == 0
+    doc = json.loads(out)
+    assert set(doc) == {"summary", "metrics", "mcnemar", "errors", "flips"}
+    assert doc["mcnemar"][0]["p_value"] == 0.21875
+    code, out, _ = run(capsys, "compare", str(pair_out), "A", "B", "--resamples", "50")
+    assert code == 0 and "p_value" in out
+    code, _, err = run(capsys, "compare", str(pair_out), "A", "Z")
+    assert code == 1 and "unknown run 'Z'" in err
+
+
+def test_sweep_and_sql_commands(capsys, hand_out: Path) -> None:
+    code, out, _ = run(capsys, "sweep", str(hand_out), "--lambdas", "2,3", "-f", "json")
+    assert code == 0
+    rows = json.loads(out)
+    assert [(r["run_id"], r["lambda"]) for r in rows] == [
+        ("kettle-vlm", 2.0), ("kettle-vlm", 3.0), ("oven-human", 2.0), ("oven-human", 3.0),
+    ]  # fmt: skip
+    code, out, _ = run(
+        capsys, "sql", str(hand_out), "SELECT count(*) AS n FROM goals", "-f", "json"
+    )
+    assert code == 0 and json.loads(out) == [{"n": 21}]
+    code, _, err = run(capsys, "sql", str(hand_out), "DROP VIEW steps")
+    assert code == 1 and "read-only" in err
+    code, _, err = run(capsys, "sql", str(hand_out), "SELECT * FROM read_csv('/etc/passwd')")
+    assert code == 1 and "outside" in err
+
+
+@pytest.mark.parametrize("fmt", ["table", "json", "csv", "markdown", "latex"])
+def test_every_format_everywhere(capsys, hand_out: Path, pair_out: Path, fmt: str) -> None:
+    for args in (
+        ("metrics", str(hand_out)),
+        ("errors", str(hand_out)),
+        ("compare", str(pair_out), "A", "B", "--resamples", "20"),
+        ("sweep", str(hand_out), "--lambdas", "3"),
+        ("sql", str(hand_out), "SELECT run_id, model FROM runs"),
+    ):
+        code, out, err = run(capsys, *args, "--format", fmt)
+        assert code == 0, (args, err)
+        assert out.strip()

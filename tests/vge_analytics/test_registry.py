@@ -1,0 +1,62 @@
+"""The metric registry: names as SPEC 6 writes them, complete metadata, SQL files parsed."""
+
+from __future__ import annotations
+
+import pytest
+
+import vge_analytics as va
+from vge_analytics._store import quote_ident
+
+SPEC6 = ("SR", "SSR", "SPL", "State-F1", "EIR", "TIR", "VSPS", "GVPE", "EER", "PSR",
+         "AvgDist", "AvgWDist")  # fmt: skip
+
+
+def test_names_and_order_are_spec6() -> None:
+    assert va.METRIC_NAMES == SPEC6
+    assert tuple(va.registry()) == SPEC6
+    assert SPEC6[:9] == va.MAIN_TABLE
+
+
+@pytest.mark.parametrize("name", SPEC6)
+def test_metadata(name: str) -> None:
+    m = va.get_metric(name)
+    assert m.name == name
+    assert m.direction in ("higher", "lower")
+    assert m.unit in ("percent", "ratio", "distance")
+    assert m.level in ("episode-mean", "step-ratio", "run-level ratio", "goal-ratio")
+    assert m.grain in ("episodes", "steps", "goals")
+    assert m.version >= 1
+    assert len(m.definition) > 40 and m.null_rule
+    assert m.numerator and m.denominator
+    assert m.source.startswith("vge_analytics/sql/") and m.source.endswith(".sql")
+
+
+def test_directions_and_units_follow_the_paper() -> None:
+    lower = {n for n in SPEC6 if va.get_metric(n).direction == "lower"}
+    assert lower == {"VSPS", "GVPE", "AvgDist", "AvgWDist"}
+    ratios = {n for n in SPEC6 if va.get_metric(n).unit != "percent"}
+    assert ratios == {"VSPS", "GVPE", "AvgDist", "AvgWDist"}
+    assert va.get_metric("SR").scale == 100.0 and va.get_metric("VSPS").scale == 1.0
+    assert va.get_metric("GVPE").level == "run-level ratio"
+    assert va.get_metric("PSR").level == "goal-ratio"
+    assert va.get_metric("EIR").level == "step-ratio"
+
+
+def test_unknown_names() -> None:
+    for bad in ("sr", "F1", "", "SR;DROP"):
+        with pytest.raises(va.UnknownMetricError):
+            va.get_metric(bad)
+    with pytest.raises(va.UnknownMetricError, match="did you mean State-F1"):
+        va.get_metric("state-f1")
+
+
+def test_metric_table() -> None:
+    table = va.metric_table()
+    assert table["metric"].to_list() == list(SPEC6)
+    assert {"direction", "unit", "level", "version", "definition"} <= set(table.columns)
+
+
+def test_quote_ident() -> None:
+    assert quote_ident("model") == '"model"'
+    assert quote_ident('a"b') == '"a""b"'
+    assert quote_ident('x" ; DROP VIEW steps; --') == '"x"" ; DROP VIEW steps; --"'

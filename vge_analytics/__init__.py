@@ -1,0 +1,111 @@
+"""VGE Analytics: metrics, error taxonomy, comparisons and sweeps over replay output.
+
+Every function takes `out`, a replay output directory (SPEC 7; the views are opened once per
+directory and cached), and returns polars DataFrames with stable column names.
+
+Metrics (SPEC 6, one registry, SQL in `vge_analytics/sql/`):
+    metrics(out, by=("run_id", "model"), metrics=None, where=None)
+    episode_terms(out, metrics=None, where=None)   per-episode numerators/denominators
+    polars_metrics(out, by=..., metrics=...)       the same numbers computed with polars
+    metric_table(), registry(), get_metric(name), METRIC_NAMES, MAIN_TABLE
+
+Error taxonomy and navigation (SPEC 5):
+    error_distribution(out, by, where), error_groups(out, by, where),
+    switch_classes(out, by, where)
+
+Comparisons and budgets:
+    compare(out, run_a, run_b, seed=0, resamples=2000) -> Comparison
+    sweep(out, lambdas=(2, 3, 4, 5), runs=None, metrics=("SR", "SSR"))
+
+Rows for a dashboard:
+    runs(out), facets(out), episodes(out, where), goals(out, where), steps(out, where),
+    episode_steps(out, run_id, episode_id), steps_with_error(out, error_type, where)
+
+Read-only SQL:
+    sql(out, "SELECT ...")     views steps, episodes, goals, runs
+
+`where` filters are `{column: value or list of values}` over columns of runs/episodes (and
+of steps/goals where the result is computed from them); `by` lists grouping columns.
+Errors are `replay.VGEError` subclasses with one-line messages.
+"""
+
+from ._browse import episode_steps, episodes, facets, goals, runs, steps, steps_with_error
+from ._compare import Comparison, compare, mcnemar_exact
+from ._errors import (
+    AnalyticsError,
+    OutputDirError,
+    QueryError,
+    QueryRefused,
+    SweepInputError,
+    SweepRefused,
+    UnknownColumnError,
+    UnknownMetricError,
+    UnknownRunError,
+)
+from ._format import FORMATS, render, render_latex, render_markdown
+from ._metrics import episode_terms, metric_table, metrics
+from ._polars import polars_metrics
+from ._registry import MAIN_TABLE, METRIC_NAMES, Metric, get_metric, registry
+from ._scope import DEFAULT_BY, groupable_columns
+from ._sql import sql
+from ._store import clear_cache, open_store, table_columns
+from ._sweep import parse_lambdas, sweep
+from ._taxonomy import (
+    ERROR_GROUPS,
+    ERROR_LABELS,
+    ERROR_TYPES,
+    SWITCH_CLASSES,
+    error_distribution,
+    error_groups,
+    switch_classes,
+)
+
+__all__ = [
+    "DEFAULT_BY",
+    "ERROR_GROUPS",
+    "ERROR_LABELS",
+    "ERROR_TYPES",
+    "FORMATS",
+    "MAIN_TABLE",
+    "METRIC_NAMES",
+    "SWITCH_CLASSES",
+    "AnalyticsError",
+    "Comparison",
+    "Metric",
+    "OutputDirError",
+    "QueryError",
+    "QueryRefused",
+    "SweepInputError",
+    "SweepRefused",
+    "UnknownColumnError",
+    "UnknownMetricError",
+    "UnknownRunError",
+    "clear_cache",
+    "compare",
+    "episode_steps",
+    "episode_terms",
+    "episodes",
+    "error_distribution",
+    "error_groups",
+    "facets",
+    "get_metric",
+    "goals",
+    "groupable_columns",
+    "mcnemar_exact",
+    "metric_table",
+    "metrics",
+    "open_store",
+    "parse_lambdas",
+    "polars_metrics",
+    "registry",
+    "render",
+    "render_latex",
+    "render_markdown",
+    "runs",
+    "sql",
+    "steps",
+    "steps_with_error",
+    "sweep",
+    "switch_classes",
+    "table_columns",
+]

@@ -1,0 +1,57 @@
+"""Errors the analytics raise on purpose, all `replay.VGEError` subclasses.
+
+The CLI prints any of them as a one-line message (exit 1); the Python API lets them propagate.
+"""
+
+from __future__ import annotations
+
+from replay import ConfigError, VGEError
+
+
+class AnalyticsError(VGEError):
+    """Base class of the analytics errors."""
+
+
+class OutputDirError(AnalyticsError):
+    """OUT is not a readable replay output directory (SPEC 7)."""
+
+
+class UnknownMetricError(ConfigError, AnalyticsError):
+    """A metric name that is not in the registry."""
+
+
+class UnknownColumnError(ConfigError, AnalyticsError):
+    """A grouping or filter column that is not a (usable) column of the tables."""
+
+
+class UnknownRunError(ConfigError, AnalyticsError):
+    """A run id that is not in OUT."""
+
+
+class QueryRefused(AnalyticsError):
+    """`vge sql` refused a statement (writing, or reaching outside OUT)."""
+
+
+class QueryError(AnalyticsError):
+    """A read-only query failed (syntax, unknown column, ...)."""
+
+
+class SweepRefused(AnalyticsError):
+    """A lambda sweep cannot be computed from the logs that exist."""
+
+
+class SweepInputError(AnalyticsError):
+    """The inputs recorded in OUT/manifest.json cannot be found or read."""
+
+
+__all__ = [
+    "AnalyticsError",
+    "OutputDirError",
+    "QueryError",
+    "QueryRefused",
+    "SweepInputError",
+    "SweepRefused",
+    "UnknownColumnError",
+    "UnknownMetricError",
+    "UnknownRunError",
+]

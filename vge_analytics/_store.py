@@ -1,0 +1,242 @@
+"""A replay output directory (SPEC 7) opened as DuckDB views, cached per directory.
+
+`open_store(out)` returns one `Store` per OUT directory (re-opened when the directory's
+contents change): an in-memory DuckDB connection with the views `steps episodes goals runs`
+reading the Parquet files directly, plus the column catalogue used to validate every
+grouping or filter column before it is quoted into a query.
+
+The connection is locked down as soon as the views exist: file access is limited to OUT
+(`allowed_directories`, then `enable_external_access = false`), extensions cannot be
+installed or loaded, and `lock_configuration = true` makes those settings final. Every query,
+ours or a user's (`vge sql`), runs on a cursor of that connection.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import threading
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import duckdb
+import pyarrow as pa
+
+import replay
+
+from ._errors import OutputDirError
+
+TABLES: tuple[str, ...] = ("steps", "episodes", "goals", "runs")
+PARTITIONED: tuple[str, ...] = ("steps", "episodes", "goals")
+
+RUN_COLUMNS_FIXED: tuple[str, ...] = ("run_id", "model", "agent_kind", "lambda")
+"""Columns every runs table has (meta facets add `meta_<key>` columns and `meta`)."""
+
+_SCALAR_TYPES = (
+    "BOOLEAN",
+    "TINYINT",
+    "SMALLINT",
+    "INTEGER",
+    "BIGINT",
+    "HUGEINT",
+    "UTINYINT",
+    "USMALLINT",
+    "UINTEGER",
+    "UBIGINT",
+    "FLOAT",
+    "DOUBLE",
+    "VARCHAR",
+    "DATE",
+    "TIMESTAMP",
+)
+
+
+def quote_ident(name: str) -> str:
+    """Quote a column name as a DuckDB identifier.
+
+    Only ever applied to names that were checked to be existing columns (see
+    `Store.check_column`) or to the fixed metric names of the registry. Inside double quotes
+    the parser reads everything up to the next unescaped `"` as one identifier, and every `"`
+    in the name is doubled, so the name cannot end the identifier early: whatever characters a
+    meta facet key holds, the result is one identifier naming that existing column, never SQL.
+    """
+    return '"' + name.replace('"', '""') + '"'
+
+
+def _empty_runs() -> pa.Table:
+    return pa.table(
+        {
+            "run_id": pa.array([], pa.string()),
+            "model": pa.array([], pa.string()),
+            "agent_kind": pa.array([], pa.string()),
+            "lambda": pa.array([], pa.float64()),
+            "meta": pa.array([], pa.string()),
+        }
+    )
+
+
+def _signature(out: Path) -> tuple:
+    """Cheap fingerprint of OUT: changes when a replay rewrites it."""
+    parts = []
+    for name in ("manifest.json", "runs", *PARTITIONED):
+        p = out / name
+        try:
+            st = p.stat()
+            parts.append((name, st.st_mtime_ns, st.st_size))
+        except OSError:
+            parts.append((name, None, None))
+        if p.is_dir() and name != "runs":
+            with contextlib.suppress(OSError):
+                parts.append(tuple(sorted(c.name for c in p.iterdir())))
+    return tuple(parts)
+
+
+@dataclass
+class Store:
+    """An opened OUT directory: DuckDB connection, column catalogue, manifest."""
+
+    out: Path
+    con: duckdb.DuckDBPyConnection
+    columns: dict[str, dict[str, str]]
+    """table -> {column: DuckDB type}, in table order."""
+    manifest: dict
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def cursor(self) -> duckdb.DuckDBPyConnection:
+        """A cursor for one query (cursors of one connection may run in different threads)."""
+        with self._lock:
+            return self.con.cursor()
+
+    def has_column(self, table: str, name: str) -> bool:
+        return name in self.columns[table]
+
+    def is_scalar(self, table: str, name: str) -> bool:
+        return self.columns[table][name].upper() in _SCALAR_TYPES
+
+    @property
+    def meta_columns(self) -> list[str]:
+        """Run facet columns (`meta_<key>`) of the runs table."""
+        return [c for c in self.columns["runs"] if c.startswith("meta_")]
+
+    def run_ids(self) -> list[str]:
+        rows = self.cursor().execute("SELECT DISTINCT run_id FROM runs ORDER BY run_id").fetchall()
+        return [r[0] for r in rows]
+
+
+def _files(root: Path) -> list[str]:
+    return sorted(str(p) for p in root.rglob("*.parquet") if p.is_file())
+
+
+def _create_views(con: duckdb.DuckDBPyConnection, out: Path) -> None:
+    for table in PARTITIONED:
+        root = out / table
+        if _files(root):
+            # run_id is a column of every file; the directory name (`run_id=<id>`, possibly
+            # percent-encoded by the writer) is not read back.
+            rel = con.read_parquet(
+                str(root / "**" / "*.parquet"), hive_partitioning=False, union_by_name=True
+            )
+        else:
+            schema = replay.arrow_schema(replay.TABLE_ROWS[table])
+            rel = con.from_arrow(schema.empty_table())
+        rel.create_view(table)
+    runs_root = out / "runs"
+    if _files(runs_root):
+        rel = con.read_parquet(str(runs_root / "*.parquet"), union_by_name=True)
+    else:
+        rel = con.from_arrow(_empty_runs())
+    rel.create_view("runs")
+
+
+def _secure(con: duckdb.DuckDBPyConnection, out: Path) -> None:
+    # Order matters: allowed_directories can only be set while external access is on, and
+    # lock_configuration must come last (it freezes every setting, including itself).
+    con.execute("SET allowed_directories = ?", [[str(out) + "/"]])
+    con.execute("SET enable_external_access = false")
+    con.execute("SET autoinstall_known_extensions = false")
+    con.execute("SET autoload_known_extensions = false")
+    con.execute("SET lock_configuration = true")
+
+
+def _read_manifest(out: Path) -> dict:
+    path = out / "manifest.json"
+    if not path.exists():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
+    return data if isinstance(data, dict) else {}
+
+
+def _open(out: Path) -> Store:
+    if not out.is_dir():
+        raise OutputDirError(f"{out}: replay output directory not found")
+    missing = [t for t in PARTITIONED if not (out / t).is_dir()]
+    if missing:
+        raise OutputDirError(
+            f"{out}: not a replay output directory (no {'/, '.join(missing)}/); "
+            "run `vge replay ... --out` first"
+        )
+    con = duckdb.connect(":memory:", config={"threads": 2})
+    con.execute("SET parquet_metadata_cache = true")
+    try:
+        _create_views(con, out)
+    except duckdb.Error as exc:
+        con.close()
+        raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
+    columns: dict[str, dict[str, str]] = {}
+    for table in TABLES:
+        rows = con.execute(f"DESCRIBE {table}").fetchall()  # table names are constants
+        columns[table] = {r[0]: str(r[1]) for r in rows}
+    _secure(con, out)
+    return Store(out=out, con=con, columns=columns, manifest=_read_manifest(out))
+
+
+_CACHE: dict[str, tuple[tuple, Store]] = {}
+_CACHE_LOCK = threading.Lock()
+
+
+def open_store(out: str | Path | Store) -> Store:
+    """The `Store` of an OUT directory, cached per directory (re-opened if it changed)."""
+    if isinstance(out, Store):
+        return out
+    path = Path(out).resolve()
+    sig = _signature(path)
+    key = str(path)
+    with _CACHE_LOCK:
+        hit = _CACHE.get(key)
+        if hit is not None and hit[0] == sig:
+            return hit[1]
+        store = _open(path)
+        _CACHE[key] = (sig, store)
+        if hit is not None:
+            hit[1].con.close()
+        return store
+
+
+def clear_cache() -> None:
+    """Close every cached connection (tests, or after rewriting OUT in place)."""
+    with _CACHE_LOCK:
+        for _, store in _CACHE.values():
+            store.con.close()
+        _CACHE.clear()
+
+
+def table_columns(out: str | Path | Store) -> Mapping[str, list[str]]:
+    """Column names of the four tables of OUT."""
+    store = open_store(out)
+    return {t: list(cols) for t, cols in store.columns.items()}
+
+
+__all__ = [
+    "PARTITIONED",
+    "RUN_COLUMNS_FIXED",
+    "TABLES",
+    "Store",
+    "clear_cache",
+    "open_store",
+    "quote_ident",
+    "table_columns",
+]

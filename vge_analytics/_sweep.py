@@ -1,0 +1,275 @@
+"""Budget sweeps: SR and SSR per run at several lambdas, by re-replaying the logs in memory.
+
+The inputs come from `OUT/manifest.json` (each run's directory, episodes file and benchmark,
+as given to `vge replay`). Every episode that OUT holds for a run is replayed again with
+`replay.replay_episode` at each lambda (the task's plan is computed once and reused), and the
+metrics are computed from the resulting episode rows with the registry's own SQL.
+
+Which lambdas the logs support
+------------------------------
+A log was produced under a budget: the harness stopped the agent when its budget (at the
+*recorded* lambda: the task's `lambda`, else the run's, else 5, the precedence of
+`vge replay` without `--lambda`) ran out. Replaying with a *smaller* lambda is always
+possible: the budgets run out earlier and the rest of the log is truncated. Replaying with a
+*larger* lambda needs steps the agent may never have been allowed to take. An episode
+supports a lambda L above its recorded lambda when the log holds every step the larger budget
+would have allowed, which is the case exactly when
+
+- its replay at L does not end with `log_ended` (it reached success or the L budget within
+  the logged steps: the log, e.g. with steps logged after the recorded budget, went far
+  enough), or
+- its replay at the recorded lambda already ended with `log_ended`: the log stopped before
+  its budget ran out (the agent or harness ended the episode for another reason), so a larger
+  budget would not have produced more steps either. (Success at the recorded lambda is
+  covered by the first case: budgets only grow with lambda, so it succeeds at L too.)
+
+An episode that hit its budget at the recorded lambda (`budget_global` / `budget_local`) and
+whose log has nothing beyond the steps that budget allowed would end with `log_ended` at L:
+such a lambda is refused for its run, with a one-line message naming the run, the lambda and
+the episode.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import duckdb
+import msgspec
+import polars as pl
+import pyarrow as pa
+
+import replay
+
+from ._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
+from ._metrics import compose, run_query
+from ._registry import resolve_metrics
+from ._store import Store, open_store
+
+DEFAULT_SWEEP_METRICS: tuple[str, ...] = ("SR", "SSR")
+
+
+def parse_lambdas(value: str | Sequence[float]) -> list[float]:
+    """Sorted distinct positive lambdas from '2,3,4,5' or a sequence of numbers."""
+    items: Sequence[object]
+    items = [v.strip() for v in value.split(",") if v.strip()] if isinstance(value, str) else value
+    out: set[float] = set()
+    for item in items:
+        try:
+            lam = float(item)  # type: ignore[arg-type]
+        except (TypeError, ValueError):
+            raise ConfigError(f"lambda {item!r} is not a number") from None
+        if not math.isfinite(lam) or lam <= 0:
+            raise ConfigError(f"lambda must be a positive number, not {item!r}")
+        out.add(lam)
+    if not out:
+        raise ConfigError("no lambda given (e.g. --lambdas 2,3,4,5)")
+    return sorted(out)
+
+
+@dataclass(frozen=True)
+class _RunJob:
+    run_id: str
+    model: str
+    agent_kind: str
+    run_lambda: float | None
+    episodes_file: str
+    bench: str
+    episode_ids: frozenset[str]
+    lambdas: tuple[float, ...]
+
+
+def _resolve(path: str, what: str, run_id: str) -> Path:
+    p = Path(path)
+    if p.exists():
+        return p
+    raise SweepInputError(
+        f"run {run_id}: {what} {path} recorded in manifest.json not found "
+        "(paths are kept as given to `vge replay`: run `vge sweep` from the same directory)"
+    )
+
+
+def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> list[_RunJob]:
+    manifest = replay.read_manifest(store.out)
+    if manifest is None:
+        raise SweepInputError(f"{store.out}/manifest.json: not found; the sweep needs it")
+    entries = {e.run_id: e for e in manifest.runs}
+    known = store.run_ids()
+    wanted = list(run_ids) if run_ids else known
+    for run in wanted:
+        if run not in known:
+            raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
+        if run not in entries:
+            raise SweepInputError(f"run {run}: not in {store.out}/manifest.json")
+    eps = run_query(
+        store,
+        "SELECT run_id, episode_id FROM episodes WHERE run_id IN "
+        "(SELECT unnest(CAST(? AS VARCHAR[])))",
+        [wanted],
+    )
+    jobs = []
+    for run in wanted:
+        e = entries[run]
+        episodes_file = _resolve(e.inputs.episodes.path, "episodes file", run)
+        bench = _resolve(e.inputs.bench, "benchmark directory", run)
+        ids = frozenset(eps.filter(pl.col("run_id") == run)["episode_id"].to_list())
+        jobs.append(
+            _RunJob(
+                run_id=run,
+                model=e.run.model,
+                agent_kind=e.run.agent_kind,
+                run_lambda=e.run.lam,
+                episodes_file=str(episodes_file),
+                bench=str(bench),
+                episode_ids=ids,
+                lambdas=tuple(lambdas),
+            )
+        )
+    return jobs
+
+
+_decoder = msgspec.json.Decoder(replay.EpisodeLog)
+
+
+def _replay_run(job: _RunJob) -> tuple[list[replay.EpisodeRow], str | None]:
+    """Episode rows of one run at every lambda of the job, or a refusal message."""
+    bench = replay.Benchmark.open(job.bench)
+    rows: list[replay.EpisodeRow] = []
+    seen: set[str] = set()
+    for _, line in replay.iter_lines(job.episodes_file):
+        try:
+            log = _decoder.decode(line)
+        except msgspec.DecodeError:
+            continue  # quarantined by the replay: not in OUT either
+        if log.episode_id not in job.episode_ids or log.episode_id in seen:
+            continue
+        seen.add(log.episode_id)
+        entry = bench.tasks.get(log.episode_id)
+        if entry is None:
+            continue
+        task = entry.task
+        machine = bench.machine(task.device_id)
+        setup = replay.setup_episode(machine, task)
+        recorded = next(
+            v for v in (task.lam, job.run_lambda, replay.DEFAULT_LAMBDA) if v is not None
+        )
+
+        def play(lam: float, log=log, task=task, machine=machine, setup=setup):
+            return replay.replay_episode(
+                machine,
+                task,
+                log,
+                lam=lam,
+                run_id=job.run_id,
+                model=job.model,
+                agent_kind=job.agent_kind,
+                setup=setup,
+            ).episode
+
+        at_recorded: str | None = None
+        for lam in job.lambdas:
+            ep = play(lam)
+            if lam > recorded and ep.termination == "log_ended":
+                if at_recorded is None:
+                    at_recorded = play(recorded).termination
+                if at_recorded != "log_ended":
+                    return [], (
+                        f"run {job.run_id}: lambda {lam:g} is above the recorded lambda "
+                        f"{recorded:g} and episode {log.episode_id} hit its budget there "
+                        f"({at_recorded}); its log holds no steps a larger budget would allow "
+                        f"(use lambdas <= {recorded:g} for this run)"
+                    )
+            rows.append(ep)
+    return rows, None
+
+
+def _episodes_table(rows: list[replay.EpisodeRow]) -> pa.Table:
+    return replay.rows_to_table(rows, replay.EpisodeRow)
+
+
+def _metrics_of(rows: list[replay.EpisodeRow], metric_names: list[str]) -> pl.DataFrame:
+    """Registry metrics per (run_id, model, lambda) over in-memory episode rows."""
+    con = duckdb.connect(":memory:")
+    try:
+        con.from_arrow(_episodes_table(rows)).create_view("episodes")
+        for table in ("steps", "goals"):
+            schema = replay.arrow_schema(replay.TABLE_ROWS[table])
+            con.from_arrow(schema.empty_table()).create_view(table)
+        con.sql('SELECT DISTINCT run_id, model, agent_kind, "lambda" FROM episodes').create_view(
+            "runs"
+        )
+        columns = {
+            t: {r[0]: str(r[1]) for r in con.execute(f"DESCRIBE {t}").fetchall()}
+            for t in ("steps", "episodes", "goals", "runs")
+        }
+        store = Store(out=Path("<sweep>"), con=con, columns=columns, manifest={})
+        sql, params = compose(store, ("run_id", "model", "lambda"), resolve_metrics(metric_names))
+        return run_query(store, sql, params)
+    finally:
+        con.close()
+
+
+def sweep(
+    out,
+    lambdas: str | Sequence[float] = (2, 3, 4, 5),
+    *,
+    runs: Sequence[str] | None = None,
+    metrics: str | Sequence[str] | None = None,
+    workers: int = 1,
+) -> pl.DataFrame:
+    """SR and SSR (or other episode metrics) per run and lambda, by re-replaying the logs.
+
+    Columns: run_id, model, lambda, then per metric M: M, `M_gain` (M minus M at the smallest
+    lambda of the sweep, in the metric's unit: percentage points for rates) and `M_rel_gain`
+    (that gain relative to M at the smallest lambda, in percent; null when that is 0 or null).
+    Rows sorted by run_id, lambda. Raises `SweepRefused` when a lambda is above what a run's
+    logs support (see the module docstring).
+    """
+    store = open_store(out)
+    lams = parse_lambdas(lambdas)
+    chosen = resolve_metrics(list(metrics) if metrics else list(DEFAULT_SWEEP_METRICS))
+    not_episode = [m.name for m in chosen if m.grain != "episodes"]
+    if not_episode:
+        raise ConfigError(
+            f"the sweep computes metrics from episode rows only; {', '.join(not_episode)} "
+            "need steps or goals (episode metrics: SR, SSR, SPL, State-F1, VSPS, GVPE)"
+        )
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers must be a positive integer, not {workers!r}")
+    jobs = _jobs(store, runs, lams)
+    if workers > 1 and len(jobs) > 1:
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+            results = list(pool.map(_replay_run, jobs))
+    else:
+        results = [_replay_run(job) for job in jobs]
+    rows: list[replay.EpisodeRow] = []
+    for episode_rows, refusal in results:
+        if refusal is not None:
+            raise SweepRefused(refusal)
+        rows.extend(episode_rows)
+    names = [m.name for m in chosen]
+    df = _metrics_of(rows, names)
+    base = df.sort("lambda").group_by("run_id", maintain_order=True).first()
+    base = base.select("run_id", *[pl.col(n).alias(f"__base_{n}") for n in names])
+    df = df.join(base, on="run_id", how="left")
+    gains = []
+    for n in names:
+        b = pl.col(f"__base_{n}")
+        gains.append((pl.col(n) - b).alias(f"{n}_gain"))
+        gains.append(
+            pl.when(b.is_not_null() & (b != 0))
+            .then(100.0 * (pl.col(n) - b) / b)
+            .otherwise(None)
+            .alias(f"{n}_rel_gain")
+        )
+    df = df.with_columns(gains)
+    order = ["run_id", "model", "lambda"]
+    for n in names:
+        order += [n, f"{n}_gain", f"{n}_rel_gain"]
+    return df.select(order).sort("run_id", "lambda")
+
+
+__all__ = ["DEFAULT_SWEEP_METRICS", "parse_lambdas", "sweep"]

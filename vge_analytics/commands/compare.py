@@ -1,0 +1,34 @@
+"""`vge compare OUT RUN_A RUN_B`: paired comparison on common episodes, bootstrap CIs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from .._compare import DEFAULT_RESAMPLES, DEFAULT_SEED
+from .._compare import compare as compute_compare
+from .._format import check_format
+from .._output import FORMAT_HELP, emit_sections
+
+
+def compare(
+    out: Path = typer.Argument(..., help="Replay output directory."),
+    run_a: str = typer.Argument(..., help="Baseline run id (A)."),
+    run_b: str = typer.Argument(..., help="Compared run id (B); differences are B - A."),
+    metric_names: str = typer.Option(None, "--metrics", help="Metrics (default: all)."),
+    seed: int = typer.Option(DEFAULT_SEED, "--seed", help="Bootstrap seed."),
+    resamples: int = typer.Option(DEFAULT_RESAMPLES, "--resamples", help="Bootstrap resamples."),
+    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+) -> None:
+    """Metrics of B and A on the episodes both ran, B - A with paired bootstrap 95% CIs,
+    McNemar's exact test on success, error-distribution difference (pp), flipped episodes."""
+    check_format(fmt)
+    result = compute_compare(
+        out, run_a, run_b, metrics=metric_names, seed=seed, resamples=resamples
+    )
+    emit_sections(result.sections(), fmt)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("compare")(compare)

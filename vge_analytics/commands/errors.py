@@ -1,0 +1,62 @@
+"""`vge errors OUT`: error taxonomy (share of errors, the paper's pie) and switch classes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import polars as pl
+import typer
+
+from .._format import check_format
+from .._output import FORMAT_HELP, emit_sections
+from .._scope import parse_by
+from .._taxonomy import ERROR_LABELS, error_distribution, groups_of, switch_classes
+from .metrics import parse_where
+
+
+def _wide(df: pl.DataFrame, by: list[str], index: list[str], value: str) -> pl.DataFrame:
+    """One column per group (its values joined by '/'), one row per index entry."""
+    keyed = df.with_columns(
+        pl.concat_str(
+            [pl.col(c).cast(pl.String).fill_null("null") for c in by], separator="/"
+        ).alias("__group")
+        if by
+        else pl.lit("all").alias("__group")
+    )
+    return keyed.pivot(on="__group", index=index, values=value, maintain_order=True)
+
+
+def errors(
+    out: Path = typer.Argument(..., help="Replay output directory."),
+    by: str = typer.Option("run_id", "--by", help="Group by these columns (default: run_id)."),
+    where: list[str] = typer.Option(None, "--where", help="Filter COLUMN=VALUE[,VALUE...]."),
+    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+) -> None:
+    """Error-type and error-group distribution (share of all errors, and counts) and the
+    NP/PN/NN/PP switch classes, per run."""
+    check_format(fmt)
+    by_cols = list(parse_by(by))
+    filters = parse_where(where)
+    types = error_distribution(out, by_cols, filters)
+    groups = groups_of(types, by_cols)
+    switches = switch_classes(out, by_cols, filters)
+    if fmt in ("json", "csv"):
+        sections = {"error_types": types, "error_groups": groups, "switch_classes": switches}
+    else:
+        labelled = types.with_columns(error_type=pl.col("error_type").replace_strict(ERROR_LABELS))
+        sections = {
+            "error types: share of errors (%)": _wide(
+                labelled, by_cols, ["error_group", "error_type"], "share"
+            ),
+            "error types: count": _wide(labelled, by_cols, ["error_group", "error_type"], "count"),
+            "error groups: share of errors (%)": _wide(groups, by_cols, ["error_group"], "share"),
+            "switch classes: share of classified switches (%)": _wide(
+                switches, by_cols, ["switch_class"], "share"
+            ),
+            "switch classes: count": _wide(switches, by_cols, ["switch_class"], "count"),
+        }
+    emit_sections(sections, fmt, fixed=True)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("errors")(errors)

@@ -1,0 +1,62 @@
+"""`vge metrics OUT`: the paper's main table (SPEC 6), plus PSR and the distance metrics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import polars as pl
+import typer
+
+from .._errors import UnknownColumnError
+from .._format import check_format
+from .._metrics import metrics as compute_metrics
+from .._output import FORMAT_HELP, emit
+from .._scope import DEFAULT_BY, parse_by
+
+
+def parse_where(items: list[str] | None) -> dict[str, list[str]]:
+    """`--where col=v1,v2` options -> {col: [v1, v2]} (values cast to the column's type)."""
+    where: dict[str, list[str]] = {}
+    for item in items or []:
+        col, sep, values = item.partition("=")
+        if not sep or not col.strip():
+            raise UnknownColumnError(f"--where expects COLUMN=VALUE[,VALUE...], got {item!r}")
+        where.setdefault(col.strip(), []).extend(v.strip() for v in values.split(","))
+    return where
+
+
+def for_people(df: pl.DataFrame, by: tuple[str, ...]) -> pl.DataFrame:
+    """Drop run_id from the default grouping when each model has one run (like the paper)."""
+    if by == DEFAULT_BY and df["model"].n_unique() == df.height:
+        return df.drop("run_id")
+    return df
+
+
+def metrics(
+    out: Path = typer.Argument(..., help="Replay output directory (vge replay --out)."),
+    by: str = typer.Option(
+        ",".join(DEFAULT_BY),
+        "--by",
+        help="Group by these columns of runs/episodes (comma-separated), e.g. model,category "
+        "or meta_history; step columns such as action_type work with step metrics only.",
+    ),
+    metric_names: str = typer.Option(
+        None, "--metrics", help="Metrics to show (default: all twelve, in SPEC 6 order)."
+    ),
+    where: list[str] = typer.Option(
+        None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable)."
+    ),
+    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+) -> None:
+    """Metrics per run (or per any grouping): SR SSR SPL State-F1 EIR TIR VSPS GVPE EER PSR
+    AvgDist AvgWDist. Best value bold, second underlined in table/markdown/latex."""
+    check_format(fmt)
+    by_cols = parse_by(by)
+    df = compute_metrics(out, by=by_cols, metrics=metric_names, where=parse_where(where))
+    if fmt in ("table", "markdown", "latex"):
+        df = for_people(df, by_cols)
+    emit(df, fmt, title="Metrics (SPEC 6): \u2191 higher is better, \u2193 lower is better")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("metrics")(metrics)

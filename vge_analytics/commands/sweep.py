@@ -1,0 +1,36 @@
+"""`vge sweep OUT --lambdas 2,3,4,5`: SR and SSR per budget, by re-replaying the logs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from .._format import check_format
+from .._output import FORMAT_HELP, emit
+from .._sweep import DEFAULT_SWEEP_METRICS
+from .._sweep import sweep as compute_sweep
+
+
+def sweep(
+    out: Path = typer.Argument(
+        ..., help="Replay output directory (its manifest names the inputs)."
+    ),
+    lambdas: str = typer.Option("2,3,4,5", "--lambdas", help="Comma-separated lambdas."),
+    runs: str = typer.Option(None, "--runs", help="Only these run ids (comma-separated)."),
+    metric_names: str = typer.Option(
+        ",".join(DEFAULT_SWEEP_METRICS), "--metrics", help="Episode metrics to compute."
+    ),
+    workers: int = typer.Option(1, "--workers", help="Processes (one run per process)."),
+    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+) -> None:
+    """SR/SSR per run at each lambda and the gain over the smallest lambda. A lambda above
+    what a run's logs support (an episode hit its recorded budget) is refused."""
+    check_format(fmt)
+    run_ids = [r.strip() for r in runs.split(",") if r.strip()] if runs else None
+    df = compute_sweep(out, lambdas, runs=run_ids, metrics=metric_names.split(","), workers=workers)
+    emit(df, fmt, title="Budget sweep (gain over the smallest lambda)", marks=False)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("sweep")(sweep)
