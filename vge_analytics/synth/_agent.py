@@ -31,6 +31,10 @@ from ._thinking import (
 )
 
 AXONOMETRIC = ("front_top", "back_bottom")
+RESAMPLE = 0.02
+"""Chance that the agent reconsiders a standing belief without feedback telling it to."""
+STALE_STATE = 0.85
+"""Without history: chance of planning from the state the goal started in, not the current one."""
 DASHBOARD = "dashboard"
 INTERACTIONS = ("press", "rotate", "push", "pull", "grasp")
 KIND_ACTIONS: dict[str, tuple[str, ...]] = {
@@ -161,6 +165,10 @@ class Agent:
         self.events: deque[_Event] = deque()
         self.step_index = 0
         self.regions = tuple(v for v in machine.views if v in machine.dashboard_regions)
+        self.beliefs: dict[tuple[int, int], str | None] = {}
+        self.insight: dict[int, bool] = {}
+        self.segment_start: dict[int, int] = {}
+        self.operations: dict[tuple[int, int, str], replay.Action] = {}
         self.switch_views = tuple(v for v in machine.views if v != DASHBOARD)
 
     # ------------------------------------------------------------------ memory
@@ -194,16 +202,21 @@ class Agent:
     def _misses(self, recent: list[_Event], comp: str) -> int:
         return sum(1 for e in recent if e.component == comp and e.kind == "null_effect")
 
-    def _bad_components(self, recent: list[_Event], state: int, goal_index: int) -> set[str]:
-        """Components that reacted to the agent without progress (tried, not the way)."""
-        return {
-            e.component
-            for e in recent
-            if e.component is not None
-            and e.state == state
-            and e.goal_index == goal_index
-            and (e.moved_away or (e.kind == "transition" and not e.progress))
-        }
+    def _refuted(self, recent: list[_Event], state: int, goal_index: int) -> set[str]:
+        """Components the agent has given up on for this goal in this state: they did the
+        wrong thing, or several attempts at them achieved nothing."""
+        fails: dict[str, int] = {}
+        out: set[str] = set()
+        for e in recent:
+            if e.component is None or e.state != state or e.goal_index != goal_index:
+                continue
+            if e.moved_away or (e.kind == "transition" and not e.progress):
+                out.add(e.component)
+            elif e.kind in ("null_effect", "operational_error") and not e.progress:
+                fails[e.component] = fails.get(e.component, 0) + 1
+                if fails[e.component] >= 3:
+                    out.add(e.component)
+        return out
 
     # ------------------------------------------------------------------ helpers
 
@@ -270,7 +283,13 @@ class Agent:
             self.task.instructions[goal_index] if goal_index < len(self.task.instructions) else ""
         )
         intent = intent_text(instruction)
-        targets = replay.progressing(m, s, goal)
+        start = self.segment_start.setdefault(goal_index, s)
+        plan_state = s
+        if p.history_length == 0 and s != start and rng.random() < STALE_STATE:
+            # Without any history the agent cannot tell that its last action changed the
+            # device (the pictures look the same): it plans from where the goal began.
+            plan_state = start
+        targets = replay.progressing(m, plan_state, goal)
         real = [t for t in targets if t.action is not None]
         wait_needed = any(t.action is None for t in targets)
 
@@ -342,6 +361,7 @@ class Agent:
             and rng.random() < p.feedback_use
         ):
             comp = last.component
+            self.beliefs[(goal_index, s)] = comp
             same = [t for t in visible if t.component == comp]
             if same:
                 return self._interact(
@@ -349,14 +369,52 @@ class Agent:
                 )
             return self._interact_component(sim, goal_index, comp, recent, intent, refine=True)
 
-        bad = self._bad_components(recent, s, goal_index) if self._remembers() else set()
-        knowledge = p.component_knowledge
-        if bad:
-            knowledge = min(0.95, knowledge + 0.15 * len(bad))
-        if rng.random() < knowledge:
-            return self._interact(sim, goal_index, rng.choice(visible), recent, intent)
-        comps_here = [c for c in self._visible_components(view) if c not in bad]
-        return self._interact_wrong(sim, goal_index, comps_here, recent, intent)
+        comp = self._hypothesis(sim, goal_index, visible, recent)
+        same = [t for t in visible if t.component == comp]
+        if same:
+            return self._interact(sim, goal_index, rng.choice(same), recent, intent)
+        if comp is None:
+            return self._interact_empty(sim, intent)
+        return self._interact_component(sim, goal_index, comp, recent, intent)
+
+    def _hypothesis(
+        self, sim: replay.SimState, goal_index: int, visible: list, recent: list[_Event]
+    ) -> str | None:
+        """The component the agent believes does the job. A belief persists (within the
+        history window) until feedback refutes it; each refuted guess makes the right one
+        likelier, as elimination does."""
+        rng = self.rng
+        s, view = sim.state, sim.view
+        key = (goal_index, s)
+        refuted = self._refuted(recent, s, goal_index) if self._remembers() else set()
+        here = self._visible_components(view)
+        targets = sorted({t.component for t in visible})
+        belief = self.beliefs.get(key)
+        # A model given the same picture and instruction mostly answers the same way: a
+        # belief stands until remembered feedback refutes it (or, now and then, on a whim).
+        keep = key in self.beliefs and rng.random() >= RESAMPLE
+        if keep and belief not in refuted and (belief is None or belief in here):
+            return belief
+        wrong = [c for c in here if c not in targets and c not in refuted]
+        insight = self.insight.get(goal_index)
+        if insight is None:
+            # Whether the agent recognises what to operate for this goal at all: the paper's
+            # agents either solve a goal fairly directly or flounder.
+            insight = rng.random() < self.p.component_knowledge
+            self.insight[goal_index] = insight
+        if not refuted and key not in self.beliefs:
+            knowledge = 0.95 if insight else 0.15
+        else:
+            knowledge = min(0.9, 0.5 * self.p.component_knowledge + 0.1 * len(refuted))
+        if not wrong or rng.random() < knowledge:
+            fresh = [c for c in targets if c not in refuted] or targets
+            belief = rng.choice(fresh)
+        elif rng.random() < 0.12:
+            belief = None  # something that looks like a control but is not one
+        else:
+            belief = rng.choice(wrong)
+        self.beliefs[key] = belief
+        return belief
 
     def _navigate(
         self,
@@ -462,32 +520,39 @@ class Agent:
         spec = self._spec(comp)
         kinds = KIND_ACTIONS.get(spec.kind, INTERACTIONS) if spec else INTERACTIONS
         remember = self._remembers()
-        chosen = None
-        for _ in range(6):
-            if rng.random() < p.action_knowledge:
-                a_type = correct.type
-            else:
-                others = [a for a in kinds if a != correct.type] or [
-                    a for a in INTERACTIONS if a != correct.type
-                ]
-                a_type = rng.choice(others)
-            if a_type == correct.type and rng.random() < p.param_knowledge:
-                params = correct.params
-            else:
-                params = self._params_for(a_type, rng)
-            cand = replay.Action(a_type, None, params)
-            if remember and self._failed(recent, sim.state, comp, cand):
-                continue
-            chosen = cand
-            break
+        key = (goal_index, sim.state, comp)
+        chosen = self.operations.get(key)
+        if chosen is not None and (remember and self._failed(recent, sim.state, comp, chosen)):
+            chosen = None
+        if chosen is not None and rng.random() < RESAMPLE:
+            chosen = None
         if chosen is None:
-            chosen = (
-                correct
-                if rng.random() < 0.5
-                else replay.Action(
-                    rng.choice(kinds), None, self._params_for(rng.choice(kinds), rng)
+            for _ in range(6):
+                if rng.random() < p.action_knowledge:
+                    a_type = correct.type
+                else:
+                    others = [a for a in kinds if a != correct.type] or [
+                        a for a in INTERACTIONS if a != correct.type
+                    ]
+                    a_type = rng.choice(others)
+                if a_type == correct.type and rng.random() < p.param_knowledge:
+                    params = correct.params
+                else:
+                    params = self._params_for(a_type, rng)
+                cand = replay.Action(a_type, None, params)
+                if remember and self._failed(recent, sim.state, comp, cand):
+                    continue
+                chosen = cand
+                break
+            if chosen is None:
+                chosen = (
+                    correct
+                    if rng.random() < 0.5
+                    else replay.Action(
+                        rng.choice(kinds), None, self._params_for(rng.choice(kinds), rng)
+                    )
                 )
-            )
+            self.operations[key] = chosen
         rects = tr.rects[sim.view]
         rect = rects[0]
         misses = self._misses(recent, comp) if remember else 0

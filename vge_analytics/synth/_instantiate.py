@@ -21,8 +21,17 @@ from ._rng import rng_for
 
 PAPER_DASHBOARDS = 144
 """Devices with a dashboard view in the paper (7,888 views = 968 x 8 + 144)."""
-EXTRA_FACE_KEEP = 0.9
+EXTRA_FACE_KEEP = 1.0
 """Chance that a component is annotated in each of its secondary faces (the first always)."""
+CURVED_SIDE_SHARE = 0.8
+"""On a cylindrical body, chance that a control listed on one side sits off-centre, where the
+curved surface shows it in the neighbouring side view too (and is annotated there)."""
+_NEXT_SIDE = {
+    "front": ("right", "left"),
+    "right": ("back", "front"),
+    "back": ("left", "right"),
+    "left": ("front", "back"),
+}
 _VIEW_RANK = {v: i for i, v in enumerate(STANDARD_VIEWS + (DASHBOARD,))}
 
 
@@ -51,11 +60,17 @@ def instantiate_device(
 ) -> SyntheticDevice:
     """Generate one device of `category`; deterministic in (category, device_id, seed)."""
     rng = rng_for(seed, "device", device_id)
-    logic = instantiate_logic(category, device_id, rng)
     catalog = load_catalog(category)
     p = dashboard_probability() if dashboard_p is None else dashboard_p
+    wants_dashboard = catalog.dashboard and rng.random() < p
+    force: frozenset[str] = frozenset()
+    if wants_dashboard:
+        # A device with a dashboard has a control panel: at least two of its controls.
+        on_panel = sorted(c for c, spec in catalog.components.items() if spec.on_dashboard)
+        force = frozenset(rng.sample(on_panel, min(2, len(on_panel))))
+    logic = instantiate_logic(category, device_id, rng, force=force)
     panel_parts = [c for c in logic.components if catalog.components[c].on_dashboard]
-    has_dashboard = catalog.dashboard and len(panel_parts) >= 2 and rng.random() < p
+    has_dashboard = wants_dashboard and len(panel_parts) >= 1
     views: dict[str, tuple[str, ...]] = {}
     for comp in logic.components:
         spec = catalog.components[comp]
@@ -63,6 +78,16 @@ def instantiate_device(
             views[comp] = (DASHBOARD,)
         else:
             views[comp] = _face_subset(spec.faces, rng)
+            draw = rng.random()
+            side = views[comp][0]
+            if (
+                catalog.body.lower().startswith("cylind")
+                and len(views[comp]) == 1
+                and side in _NEXT_SIDE
+                and spec.size != "large"
+                and draw < CURVED_SIDE_SHARE
+            ):
+                views[comp] = (side, _NEXT_SIDE[side][0 if draw < CURVED_SIDE_SHARE / 2 else 1])
     machine = logic.machine
     logical = logical_form(machine["name"], machine["initial_state"], machine["states"])
     for _ in range(4 * len(views) + 2):
@@ -166,6 +191,11 @@ def layout_input_from_ssm(ssm, device_id: str) -> LayoutInput | None:
             views[comp] = (DASHBOARD,)
             continue
         ordered = tuple(f for f in spec.faces if f in vs)
+        extra = vs - set(ordered)
+        if extra and len(ordered) == 1 and catalog.body.lower().startswith("cylind"):
+            if len(extra) != 1 or next(iter(extra)) not in _NEXT_SIDE.get(ordered[0], ()):
+                return None
+            ordered = ordered + tuple(extra)
         if set(ordered) != vs or not ordered or ordered[0] != spec.faces[0]:
             return None
         views[comp] = ordered

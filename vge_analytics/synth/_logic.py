@@ -17,9 +17,41 @@ from ._catalog import Catalog, load_catalog, load_ucsm
 
 SPECIAL = ("immediate", "timed_wait")
 
-OPTIONAL_KEEP = 0.42
-"""Chance that a device has a given optional component (tuned to the paper's ~3.8 unique
-components and ~16 transitions per device; see docs/SYNTHETIC.md)."""
+OPTIONAL_KEEP = 0.3
+"""Default chance that a device has a given optional component."""
+FUNCTION_DROP = 0.0
+"""Default chance that a device lacks a given optional function (state)."""
+CATEGORY_PRUNING: dict[str, tuple[float, float]] = {
+    "AirFryer": (0.1, 0.0),
+    "AirPurifier": (0.2, 0.15),
+    "CarKey": (0.2, 0.9),
+    "CoffeeMachine": (0.05, 0.6),
+    "DigitalAlarmClock": (0.1, 0.9),
+    "DigitalCamera": (0.1, 0.45),
+    "ElectricFan": (0.5, 0.0),
+    "ElectricKettle": (0.85, 0.75),
+    "ElectricToothbrush": (0.5, 0.45),
+    "FilmCamera": (0.1, 0.9),
+    "Flashlight": (0.3, 0.75),
+    "HairDryer": (0.85, 0.15),
+    "Heater": (0.3, 0.9),
+    "Humidifier": (0.2, 0.75),
+    "Lamp": (0.1, 0.9),
+    "Landline": (0.2, 0.9),
+    "Lighter": (0.3, 0.45),
+    "MechanicalAlarmClock": (0.1, 0.9),
+    "Microwave": (0.1, 0.45),
+    "PowerBank": (0.2, 0.6),
+    "Razor": (0.3, 0.6),
+    "RiceCooker": (0.3, 0.45),
+    "ThermometerGun": (0.1, 0.9),
+    "Vacuum": (0.2, 0.9),
+    "WashingMachine": (0.1, 0.45),
+    "WeighingScale": (0.4, 0.75),
+}
+"""Per category (optional component keep rate, function drop rate), calibrated so the mean
+number of operable transitions per device follows the paper's per-category action counts
+(Table "atomic actions") and the totals its statistics table (docs/SYNTHETIC.md)."""
 
 # Per-component variations: (probability, action, bijection on one parameter position).
 _PRESS_SWAP = {"0": "1", "1": "0"}
@@ -41,16 +73,32 @@ class DeviceLogic:
     """Paper-format SSM without bboxes: name, initial_state, states."""
 
 
+def pruning_rates(category: str) -> tuple[float, float]:
+    """(chance to keep an optional component, chance to drop an optional function)."""
+    return CATEGORY_PRUNING.get(category, (OPTIONAL_KEEP, FUNCTION_DROP))
+
+
 def instantiate_logic(
-    category: str, device_id: str, rng: random.Random, *, optional_keep: float = OPTIONAL_KEEP
+    category: str,
+    device_id: str,
+    rng: random.Random,
+    *,
+    optional_keep: float | None = None,
+    function_drop: float | None = None,
+    force: frozenset[str] = frozenset(),
 ) -> DeviceLogic:
-    """Prune and vary the category's UCSM for one device."""
+    """Prune and vary the category's UCSM for one device; `force` names optional components
+    the device must have (the controls of its dashboard)."""
+    keep_p, drop_p = pruning_rates(category)
+    keep_p = keep_p if optional_keep is None else optional_keep
+    drop_p = drop_p if function_drop is None else function_drop
     ucsm = load_ucsm(category)
     catalog = load_catalog(category)
     names = list(catalog.components)
-    kept = {n for n in names if catalog.components[n].required}
+    kept = {n for n in names if catalog.components[n].required} | set(force)
     for n in names:
-        if not catalog.components[n].required and rng.random() < optional_keep:
+        draw = rng.random()
+        if not catalog.components[n].required and draw < keep_p:
             kept.add(n)
     variations = {n: _choose_variation(ucsm, n, rng) for n in names if n in kept}
 
@@ -67,9 +115,93 @@ def instantiate_logic(
 
     reachable = _reachable(states, ucsm["initial_state"])
     states = {s: d for s, d in states.items() if s in reachable}
+    states = _drop_functions(states, ucsm["initial_state"], set(catalog.goal_phrases), drop_p, rng)
     used = {c for d in states.values() for c in d["on"] if c not in SPECIAL}
     machine = {"name": ucsm["name"], "initial_state": ucsm["initial_state"], "states": states}
     return DeviceLogic(device_id, category, tuple(n for n in names if n in used), machine)
+
+
+def _is_error(name: str, sdef: dict) -> bool:
+    return name == "Error" or bool(sdef.get("is_error"))
+
+
+def _without(states: dict[str, dict], drop: set[str], initial: str) -> dict[str, dict] | None:
+    """`states` minus `drop`, the transitions into them, the settling states that led only
+    into them, and what became unreachable; None if that would remove the initial state."""
+    drop = set(drop)
+    while True:
+        more = set()
+        for sname, sdef in states.items():
+            if sname in drop:
+                continue
+            imm = sdef["on"].get("immediate")
+            if imm and imm[0]["next_state"] in drop:
+                more.add(sname)
+        if not more:
+            break
+        drop |= more
+    if initial in drop:
+        return None
+    out: dict[str, dict] = {}
+    for sname, sdef in states.items():
+        if sname in drop:
+            continue
+        on = {}
+        for comp, trans in sdef["on"].items():
+            kept = [t for t in trans if t["next_state"] not in drop]
+            if kept:
+                on[comp] = kept
+        out[sname] = {**sdef, "on": on}
+    reachable = _reachable(out, initial)
+    return {s: d for s, d in out.items() if s in reachable}
+
+
+def _returns_home(states: dict[str, dict], initial: str) -> bool:
+    """Every state can get back to the initial state."""
+    reverse: dict[str, set[str]] = {s: set() for s in states}
+    for sname, sdef in states.items():
+        for trans in sdef["on"].values():
+            for t in trans:
+                reverse[t["next_state"]].add(sname)
+    seen = {initial}
+    todo = deque([initial])
+    while todo:
+        s = todo.popleft()
+        for p in reverse[s]:
+            if p not in seen:
+                seen.add(p)
+                todo.append(p)
+    return seen == set(states)
+
+
+def _drop_functions(
+    states: dict[str, dict], initial: str, phrased: set[str], drop_p: float, rng: random.Random
+) -> dict[str, dict]:
+    """Remove some functions (states) this device lacks, e.g. a microwave without a medium
+    power level, as long as the machine stays usable: every state can return to the initial
+    one, every component keeps a use, and at least two goal states remain."""
+
+    def used(st: dict[str, dict]) -> set[str]:
+        return {c for d in st.values() for c in d["on"] if c not in SPECIAL}
+
+    for sname in list(states):
+        draw = rng.random()
+        if sname not in states or sname == initial or _is_error(sname, states[sname]):
+            continue
+        if draw >= drop_p:
+            continue
+        candidate = _without(states, {sname}, initial)
+        if candidate is None or not _returns_home(candidate, initial):
+            continue
+        if used(candidate) != used(states):
+            continue
+        goals = {
+            s for s, d in candidate.items() if s in phrased and s != initial and not _is_error(s, d)
+        }
+        if len(goals) < 2:
+            continue
+        states = candidate
+    return states
 
 
 def _reachable(states: dict[str, dict], start: str) -> set[str]:

@@ -213,3 +213,33 @@ def test_replaying_simulated_logs_matches_the_simulation(synth_tiny, scale):
         assert m.truncated_steps == 0
         assert m.diverged_steps == 0
         assert "log_ended" not in m.terminations
+
+
+def test_profiles_keep_the_papers_order_on_the_sample():
+    """Replayed from the bundled sample: the simulated profiles rank like the paper's models
+    (weakest first), the human-like profile above them, and no history hurts the strongest."""
+    from vge_analytics.synth import PROFILES, measure_output
+
+    measures = measure_output(LOGS)
+    for m in measures.values():
+        assert m.truncated_steps == 0 and m.diverged_steps == 0
+        assert "log_ended" not in m.terminations
+    order = [p.name for p in PROFILES]
+    rates = [measures[name].sr for name in order]
+    assert rates == sorted(rates), dict(zip(order, rates, strict=True))
+    assert rates[0] < 5.0 and 40.0 < measures["sim-vlm-f"].sr < 70.0
+    assert measures["sim-vlm-f-hist0"].sr < measures["sim-vlm-f"].sr
+
+
+def test_run_headers_say_they_are_simulated():
+    for run_dir in sorted((LOGS / "runs").iterdir()):
+        header = replay.read_run_header(run_dir)
+        meta = header.meta
+        assert meta["simulated"] is True
+        assert {"profile", "mimics", "history_length", "perturbation"} <= set(meta)
+        assert meta["instruction_generator"]
+        assert header.lam == 5.0
+        if header.agent_kind == "human":
+            first = next(replay.iter_lines(replay.episodes_file(run_dir)))[1]
+            step = json.loads(first)["steps"][0]
+            assert "action" in step and "output" not in step

@@ -26,8 +26,8 @@ def _private_cache(tmp_path, monkeypatch):
 
 def _devices():
     # A dashboard microwave, a cylindrical kettle, and a small handheld device.
-    out = [instantiate_device("Microwave", "Microwave_000", 0)]
-    assert out[0].geometry.panel is not None
+    microwaves = (instantiate_device("Microwave", f"Microwave_{i:03d}", 0) for i in range(12))
+    out = [next(d for d in microwaves if d.geometry.panel is not None)]
     out.append(instantiate_device("ElectricKettle", "ElectricKettle_001", 0))
     return out
 
