@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "compare",
     "sweep",
     "sql",
+    "app",
 )
 
 app = typer.Typer(

@@ -1,0 +1,349 @@
+"""Altair charts of the dashboard, each a function of a polars DataFrame from the analytics.
+
+Colours follow the paper: error groups blue (grounding), red (execution), green
+(navigation); switch classes NP green, PN red; boxes as in the MCAP annotations (targets
+green, hits orange, clicks red).
+"""
+
+from __future__ import annotations
+
+import base64
+from collections.abc import Sequence
+
+import altair as alt
+import polars as pl
+
+from vge_analytics._dashboard import ViewPicture
+from vge_analytics._taxonomy import ERROR_LABELS, ERROR_TYPES, SWITCH_CLASSES
+
+ERROR_COLORS: dict[str, str] = {
+    "invalid_coord": "#1f4e9c",
+    "component_selection": "#6a9bd8",
+    "params_error": "#a61c1c",
+    "action_error": "#d9534f",
+    "invalid_waiting": "#f2a7a5",
+    "switch_view_nn": "#2e7d4f",
+    "switch_view_pn": "#8fd19e",
+}
+"""Per error type: shades of blue (grounding), red (execution), green (navigation)."""
+
+SWITCH_COLORS: dict[str, str] = {"NP": "#2ca02c", "PN": "#d62728", "NN": "#9e9e9e", "PP": "#4c78a8"}
+OUTCOME_COLORS: dict[str, str] = {
+    "target hit": "#26bf4d",
+    "other component": "#ff9900",
+    "miss": "#e61a1a",
+}
+BOX_COLORS: dict[str, str] = {"target": "#26bf4d", "hit": "#ff9900", "component": "#787878"}
+
+
+def _labels() -> list[str]:
+    return [ERROR_LABELS[t] for t in ERROR_TYPES]
+
+
+def _with_type_order(dist: pl.DataFrame) -> pl.DataFrame:
+    order = {t: i for i, t in enumerate(ERROR_TYPES)}
+    return dist.with_columns(
+        type_order=pl.col("error_type").replace_strict(order, return_dtype=pl.Int64)
+    )
+
+
+def _error_color() -> alt.Color:
+    return alt.Color(
+        "label:N",
+        title="Error type",
+        sort=_labels(),
+        scale=alt.Scale(domain=_labels(), range=[ERROR_COLORS[t] for t in ERROR_TYPES]),
+    )
+
+
+def metric_bars(long: pl.DataFrame, metric_order: Sequence[str], group_order: Sequence[str]):
+    """One small bar chart per metric (columns: group, metric, value, direction)."""
+    base = (
+        alt.Chart(long.to_pandas())
+        .mark_bar()
+        .encode(
+            x=alt.X("group:N", sort=list(group_order), title=None, axis=alt.Axis(labelLimit=120)),
+            y=alt.Y("value:Q", title=None),
+            color=alt.Color("group:N", sort=list(group_order), legend=None),
+            tooltip=["group", "metric", alt.Tooltip("value:Q", format=".2f"), "direction"],
+        )
+        .properties(width=170, height=130)
+    )
+    return (
+        base.facet(
+            facet=alt.Facet("metric:N", sort=list(metric_order), title=None),
+            columns=4,
+        )
+        .resolve_scale(y="independent")
+        .configure_header(labelFontSize=13, labelFontWeight="bold")
+    )
+
+
+def error_donut(dist: pl.DataFrame, title: str):
+    """The paper's error pie (as a donut) for one group (columns: label, count, share)."""
+    data = _with_type_order(dist.filter(pl.col("count") > 0)).to_pandas()
+    base = alt.Chart(data, title=title).encode(
+        theta=alt.Theta("count:Q", stack=True),
+        color=_error_color(),
+        order=alt.Order("type_order:Q"),
+        tooltip=["label", "count", alt.Tooltip("share:Q", format=".1f", title="share %")],
+    )
+    arcs = base.mark_arc(innerRadius=70, outerRadius=140)
+    text = base.mark_text(radius=160, size=12).encode(
+        text=alt.Text("share:Q", format=".1f"), color=alt.value("#333")
+    )
+    return (arcs + text).properties(width=360, height=340)
+
+
+def error_stacked(dist: pl.DataFrame, group_order: Sequence[str]):
+    """Stacked bars of error-type shares, one bar per group (columns: group, label, share)."""
+    return (
+        alt.Chart(_with_type_order(dist).to_pandas(), title="Error types")
+        .mark_bar()
+        .encode(
+            y=alt.Y(
+                "group:N",
+                sort=list(group_order),
+                title=None,
+                axis=alt.Axis(labelLimit=200, labelOverlap=False),
+            ),
+            x=alt.X("share:Q", title="share of errors (%)", scale=alt.Scale(domain=[0, 100])),
+            color=_error_color(),
+            order=alt.Order("type_order:Q"),
+            tooltip=["group", "label", "count", alt.Tooltip("share:Q", format=".1f")],
+        )
+        .properties(height=alt.Step(24))
+    )
+
+
+GROUP_COLORS: dict[str, str] = {
+    "grounding": "#1f4e9c",
+    "execution": "#a61c1c",
+    "navigation": "#2e7d4f",
+}
+
+
+def error_group_stacked(groups: pl.DataFrame, group_order: Sequence[str]):
+    """Stacked bars of error-group shares (grounding, execution, navigation) per group."""
+    names = list(GROUP_COLORS)
+    data = groups.with_columns(
+        group_order=pl.col("error_group").replace_strict(
+            {g: i for i, g in enumerate(names)}, return_dtype=pl.Int64
+        )
+    )
+    return (
+        alt.Chart(data.to_pandas(), title="Error groups")
+        .mark_bar()
+        .encode(
+            y=alt.Y(
+                "group:N",
+                sort=list(group_order),
+                title=None,
+                axis=alt.Axis(labelLimit=200, labelOverlap=False),
+            ),
+            x=alt.X("share:Q", title="share of errors (%)", scale=alt.Scale(domain=[0, 100])),
+            color=alt.Color(
+                "error_group:N",
+                title="Error group",
+                sort=names,
+                scale=alt.Scale(domain=names, range=[GROUP_COLORS[g] for g in names]),
+            ),
+            order=alt.Order("group_order:Q"),
+            tooltip=["group", "error_group", "count", alt.Tooltip("share:Q", format=".1f")],
+        )
+        .properties(height=alt.Step(24))
+    )
+
+
+def switch_stacked(classes: pl.DataFrame, group_order: Sequence[str]):
+    """The paper's switch-view figure: NP/PN/NN/PP shares per group, stacked."""
+    order = list(SWITCH_CLASSES)
+    data = classes.with_columns(
+        class_order=pl.col("switch_class").replace_strict(
+            {c: i for i, c in enumerate(order)}, return_dtype=pl.Int64
+        )
+    )
+    return (
+        alt.Chart(data.to_pandas())
+        .mark_bar()
+        .encode(
+            y=alt.Y(
+                "group:N",
+                sort=list(group_order),
+                title=None,
+                axis=alt.Axis(labelLimit=200, labelOverlap=False),
+            ),
+            x=alt.X("share:Q", title="share of classified switches (%)"),
+            color=alt.Color(
+                "switch_class:N",
+                title="Switch class",
+                sort=order,
+                scale=alt.Scale(domain=order, range=[SWITCH_COLORS[c] for c in order]),
+            ),
+            order=alt.Order("class_order:Q"),
+            tooltip=["group", "switch_class", "count", alt.Tooltip("share:Q", format=".1f")],
+        )
+        .properties(height=alt.Step(24))
+    )
+
+
+def ratio_bars(df: pl.DataFrame, metric: str, group_order: Sequence[str]):
+    """Horizontal bars of one metric per group (columns: group, <metric>)."""
+    return (
+        alt.Chart(df.to_pandas(), title=metric)
+        .mark_bar()
+        .encode(
+            y=alt.Y(
+                "group:N",
+                sort=list(group_order),
+                title=None,
+                axis=alt.Axis(labelLimit=200, labelOverlap=False),
+            ),
+            x=alt.X(f"{metric}:Q", title=metric),
+            tooltip=["group", alt.Tooltip(f"{metric}:Q", format=".2f")],
+        )
+        .properties(height=alt.Step(20))
+    )
+
+
+def sweep_lines(gain: pl.DataFrame, y_title: str):
+    """The paper's budget figure: SR gain over the baseline lambda, one line per group."""
+    return (
+        alt.Chart(gain.to_pandas())
+        .mark_line(point=True)
+        .encode(
+            x=alt.X("lambda:Q", title="λ (budget redundancy factor)", axis=alt.Axis(tickMinStep=1)),
+            y=alt.Y("gain:Q", title=y_title),
+            color=alt.Color("group:N", title=None),
+            tooltip=[
+                "group",
+                "lambda",
+                alt.Tooltip("SR:Q", format=".2f"),
+                alt.Tooltip("gain:Q", format=".2f"),
+            ],
+        )
+        .properties(height=360)
+    )
+
+
+def diff_forest(cmp: pl.DataFrame, label_a: str, label_b: str):
+    """Per metric, B - A with its 95% bootstrap interval (columns: metric, diff, ci_low,
+    ci_high); one panel per unit so percentages and ratios keep their own scales."""
+    data = cmp.filter(pl.col("diff").is_not_null()).to_pandas()
+    base = alt.Chart(data).encode(
+        y=alt.Y("metric:N", sort=list(data["metric"]), title=None),
+    )
+    bars = base.mark_rule(strokeWidth=2).encode(
+        x=alt.X("ci_low:Q", title=f"{label_b} − {label_a} (95% CI)"), x2="ci_high:Q"
+    )
+    dots = base.mark_point(filled=True, size=70).encode(
+        x="diff:Q",
+        color=alt.condition(alt.datum.diff >= 0, alt.value("#2ca02c"), alt.value("#d62728")),
+        tooltip=[
+            "metric",
+            alt.Tooltip("A:Q", format=".2f", title=label_a),
+            alt.Tooltip("B:Q", format=".2f", title=label_b),
+            alt.Tooltip("diff:Q", format=".2f"),
+            alt.Tooltip("ci_low:Q", format=".2f"),
+            alt.Tooltip("ci_high:Q", format=".2f"),
+        ],
+    )
+    zero = alt.Chart().mark_rule(color="#999", strokeDash=[4, 4]).encode(x=alt.datum(0))
+    return (
+        alt.layer(bars, dots, zero, data=data)
+        .properties(width=260, height=alt.Step(22))
+        .facet(row=alt.Row("unit:N", title=None))
+        .resolve_scale(x="independent", y="independent")
+    )
+
+
+def side_by_side(cmp: pl.DataFrame, label_a: str, label_b: str):
+    """Metric values of the two runs side by side, one small panel per metric."""
+    long = cmp.select("metric", "A", "B").unpivot(
+        index="metric", on=["A", "B"], variable_name="run", value_name="value"
+    )
+    long = long.with_columns(
+        pl.col("run").replace_strict({"A": label_a, "B": label_b}, return_dtype=pl.String)
+    )
+    return (
+        alt.Chart(long.to_pandas())
+        .mark_bar()
+        .encode(
+            x=alt.X("run:N", sort=[label_a, label_b], title=None, axis=alt.Axis(labels=False)),
+            y=alt.Y("value:Q", title=None),
+            color=alt.Color("run:N", sort=[label_a, label_b], title=None),
+            tooltip=["metric", "run", alt.Tooltip("value:Q", format=".2f")],
+        )
+        .properties(width=90, height=110)
+        .facet(facet=alt.Facet("metric:N", sort=list(cmp["metric"]), title=None), columns=6)
+        .resolve_scale(y="independent")
+    )
+
+
+def _data_uri(picture: ViewPicture) -> str:
+    mime = "image/jpeg" if picture.format in ("jpg", "jpeg") else f"image/{picture.format}"
+    return f"data:{mime};base64," + base64.b64encode(picture.data).decode("ascii")
+
+
+def click_scatter(
+    picture: ViewPicture, boxes: pl.DataFrame, points: pl.DataFrame, width: int = 560
+):
+    """Click points over the device view with the component boxes (targets in green)."""
+    height = round(width * picture.height / picture.width)
+    x_scale = alt.Scale(domain=[0, 1000], nice=False, zero=False)
+    y_scale = alt.Scale(domain=[1000, 0], nice=False, zero=False)
+    x_axis = alt.Axis(title="x (0..1000)", grid=False)
+    y_axis = alt.Axis(title="y (0..1000)", grid=False)
+    corners = {"x": 0, "x2": 1000, "y": 0, "y2": 1000, "url": _data_uri(picture)}
+    image = (
+        alt.Chart(alt.Data(values=[corners]))
+        .mark_image(aspect=False, opacity=0.9)
+        .encode(
+            x=alt.X("x:Q", scale=x_scale, axis=x_axis),
+            x2="x2:Q",
+            y=alt.Y("y:Q", scale=y_scale, axis=y_axis),
+            y2="y2:Q",
+            url="url:N",
+        )
+    )
+    roles = ["target", "component"]
+    rects = (
+        alt.Chart(boxes.to_pandas())
+        .mark_rect(fillOpacity=0, strokeWidth=2)
+        .encode(
+            x=alt.X("x0:Q", scale=x_scale),
+            x2="x1:Q",
+            y=alt.Y("y0:Q", scale=y_scale),
+            y2="y1:Q",
+            stroke=alt.Stroke(
+                "role:N",
+                title="Box",
+                scale=alt.Scale(domain=roles, range=[BOX_COLORS[r] for r in roles]),
+            ),
+            tooltip=["component", "role"],
+        )
+    )
+    outcomes = list(OUTCOME_COLORS)
+    dots = (
+        alt.Chart(points.to_pandas())
+        .mark_point(filled=True, size=40, opacity=0.75)
+        .encode(
+            x=alt.X("x:Q", scale=x_scale),
+            y=alt.Y("y:Q", scale=y_scale),
+            color=alt.Color(
+                "outcome:N",
+                title="Click",
+                scale=alt.Scale(domain=outcomes, range=[OUTCOME_COLORS[o] for o in outcomes]),
+            ),
+            shape=alt.Shape("run_id:N", title="Run"),
+            tooltip=[
+                "run_id",
+                "episode_id",
+                "step",
+                "outcome",
+                "error_type",
+                alt.Tooltip("distance:Q", format=".1f"),
+            ],
+        )
+    )
+    return alt.layer(image, rects, dots).properties(width=width, height=height)

@@ -1,0 +1,411 @@
+"""Plumbing shared by the dashboard pages: which OUT, the sidebar, cached analytics calls.
+
+Every number a page shows comes from `call(name, ...)`: one function of the analytics API
+(`API` below), run through `st.cache_data` with the OUT path and `out_version(OUT)` (the hash
+of OUT's manifest) in the key, so a re-replay of OUT invalidates the cache.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import polars as pl
+import streamlit as st
+
+import vge_analytics as va
+from vge_analytics import _browse as browse
+from vge_analytics import _dashboard as dash
+from vge_analytics._compare import compare
+from vge_analytics._errors import AnalyticsError
+from vge_analytics._registry import METRIC_NAMES, get_metric
+from vge_analytics._sql import sql
+from vge_analytics._taxonomy import error_distribution, error_groups, switch_classes
+
+API: dict[str, Callable[..., Any]] = {
+    "metrics": va.metrics,
+    "error_distribution": error_distribution,
+    "error_groups": error_groups,
+    "switch_classes": switch_classes,
+    "compare": compare,
+    "sql": sql,
+    "runs": browse.runs,
+    "facets": browse.facets,
+    "episodes": browse.episodes,
+    "goals": browse.goals,
+    "episode_steps": browse.episode_steps,
+    "steps_with_error": browse.steps_with_error,
+    "out_summary": dash.out_summary,
+    "column_values": dash.column_values,
+    "step_picture": dash.step_picture,
+    "episode_mcap": dash.episode_mcap,
+    "interaction_views": dash.interaction_views,
+    "click_points": dash.click_points,
+    "scatter_boxes": dash.scatter_boxes,
+    "view_picture": dash.view_picture,
+    "table_columns": dash.table_columns_frame,
+    "sweep_size": dash.sweep_size,
+    "computed_sweep": dash.computed_sweep,
+}
+"""The functions pages may call, by name: first argument OUT, the rest as given."""
+
+PAGES: dict[str, str] = {
+    "leaderboard": "views/leaderboard.py",
+    "errors": "views/errors.py",
+    "navigation": "views/navigation.py",
+    "grounding": "views/grounding.py",
+    "budgets": "views/budgets.py",
+    "human_vs_vlm": "views/human_vs_vlm.py",
+    "episode_viewer": "views/episode_viewer.py",
+    "sql": "views/sql.py",
+}
+"""Page files, relative to the entry file (for links between pages)."""
+
+
+# --------------------------------------------------------------------------------- OUT
+
+
+def out_argument(argv: Sequence[str] | None = None) -> str:
+    """OUT from the script arguments (`-- --out OUT`), else `$VGE_APP_OUT`, else the default."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    for i, arg in enumerate(args):
+        if arg == "--out" and i + 1 < len(args):
+            return args[i + 1]
+        if arg.startswith("--out="):
+            return arg.split("=", 1)[1]
+    return os.environ.get(dash.OUT_ENV) or dash.DEFAULT_OUT
+
+
+def out_dir() -> Path:
+    """The checked OUT directory (raises `OutputDirError` with what to run if it is not one)."""
+    return dash.check_out(out_argument())
+
+
+@st.cache_data(show_spinner=False, max_entries=1024)
+def _cached(name: str, out: str, version: str, args: tuple, kwargs: dict) -> Any:
+    del version  # part of the cache key only
+    return API[name](out, *args, **kwargs)
+
+
+def call(name: str, *args: Any, **kwargs: Any) -> Any:
+    """`API[name](OUT, *args, **kwargs)`, cached per (OUT, manifest hash, arguments)."""
+    out = out_dir()
+    return _cached(name, str(out), dash.out_version(out), args, kwargs)
+
+
+def show_error(exc: Exception) -> None:
+    """An analytics error as a message for people (no traceback)."""
+    st.error(str(exc), icon=":material/error:")
+
+
+END_MARKER = "vge-page-done"
+"""id of the invisible element every script run ends with (`end_of_page`)."""
+
+
+def end_of_page() -> None:
+    """An invisible last element: when the browser shows it, the page's script has finished."""
+    st.markdown(f'<div id="{END_MARKER}"></div>', unsafe_allow_html=True)
+
+
+# ----------------------------------------------------------------------------- sidebar
+
+
+def sidebar() -> bool:
+    """The OUT indicator and the run-facet filters; False (after saying why) if OUT is unusable."""
+    try:
+        out = out_dir()
+        summary = call("out_summary")
+        facets = call("facets")
+    except AnalyticsError as exc:
+        st.sidebar.error("No usable replay output")
+        show_error(exc)
+        return False
+    with st.sidebar:
+        st.caption(f"**OUT** `{out}`")
+        st.caption(
+            f"{summary.runs} runs · {summary.episodes} episodes · {summary.steps} steps · "
+            f"engine {summary.engine_version}"
+            + (f" · {summary.quarantined} quarantined" if summary.quarantined else "")
+        )
+        useful = {c: v for c, v in facets.items() if len(v) > 1}
+        if useful:
+            st.markdown("**Run facets** (filter every page)")
+            for column, values in useful.items():
+                st.multiselect(
+                    column.removeprefix("meta_"),
+                    values,
+                    key=f"facet:{column}",
+                    placeholder="all",
+                    format_func=value_label,
+                )
+    return True
+
+
+def value_label(value: Any) -> str:
+    """How a facet or column value reads in a picker (null as `(none)`)."""
+    return "(none)" if value is None else str(value)
+
+
+def facet_filters() -> dict[str, list]:
+    """{facet column: chosen values} from the sidebar (empty choice = no filter)."""
+    chosen = {}
+    for key, value in st.session_state.items():
+        if isinstance(key, str) and key.startswith("facet:") and value:
+            chosen[key.removeprefix("facet:")] = list(value)
+    return dict(sorted(chosen.items()))
+
+
+def where(**extra: Sequence[Any] | None) -> dict[str, list]:
+    """The facet filters plus the page's own (`column=[values]`; empty means no filter)."""
+    filters = facet_filters()
+    for column, values in extra.items():
+        if values:
+            filters[column] = list(values)
+    return filters
+
+
+# ---------------------------------------------------------------------------- grouping
+
+GROUPINGS: dict[str, tuple[str, ...]] = {
+    "run": ("run_id", "model"),
+    "model": ("model",),
+    "agent kind": ("agent_kind",),
+    "category": ("category",),
+    "goal count": ("n_goals",),
+}
+
+
+def group_by_picker(key: str, *, label: str = "Group by") -> tuple[str, ...]:
+    """A selectbox of groupings (run, model, agent kind, category, goal count, each facet)."""
+    options = dict(GROUPINGS)
+    for column in call("facets"):
+        options[f"model × {column.removeprefix('meta_')}"] = ("model", column)
+    choice = st.selectbox(label, list(options), key=key)
+    return options[choice]
+
+
+def labelled(df: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:
+    """`df` with a `group` label column first (the run id when grouped by run; the run_id
+    column itself is then dropped as a duplicate)."""
+    out = df.with_columns(dash.group_labels(df, by))
+    drop = {"group", "run_id"} if "run_id" in by and "model" in by and len(by) == 2 else {"group"}
+    return out.select("group", *[c for c in df.columns if c not in drop])
+
+
+# ------------------------------------------------------------------------------ tables
+
+
+def number_config(df: pl.DataFrame, digits: int = 2) -> dict[str, Any]:
+    """Column formats showing every float column of `df` with `digits` decimals."""
+    return {
+        c: st.column_config.NumberColumn(format=f"%.{digits}f")
+        for c, t in df.schema.items()
+        if t in (pl.Float64, pl.Float32)
+    }
+
+
+def metric_column_config(names: Sequence[str]) -> dict[str, Any]:
+    """Column formats for metric columns: 2 decimals, header with the paper's arrow."""
+    config: dict[str, Any] = {}
+    for name in names:
+        m = get_metric(name)
+        config[name] = st.column_config.NumberColumn(
+            f"{name} {m.arrow}", format="%.2f", help=f"{m.title}: {m.definition}"
+        )
+    return config
+
+
+def best_styler(df: pl.DataFrame, metric_names: Sequence[str]) -> Any:
+    """A pandas Styler of `df` with each metric's best value(s) in bold on green."""
+    best = dash.best_rows(df, metric_names)
+    pdf = df.to_pandas()
+
+    def style(column: pd.Series) -> list[str]:
+        rows = set(best.get(str(column.name), []))
+        return [
+            "font-weight: bold; background-color: rgba(38, 191, 77, 0.25)" if i in rows else ""
+            for i in range(len(column))
+        ]
+
+    present = [m for m in metric_names if m in pdf.columns]
+    return pdf.style.apply(style, subset=present).format(precision=2, na_rep="—", subset=present)
+
+
+def all_metrics() -> tuple[str, ...]:
+    return METRIC_NAMES
+
+
+# ----------------------------------------------------------------------------- steps
+
+STEP_COLUMNS: tuple[str, ...] = (
+    "run_id",
+    "episode_id",
+    "step",
+    "goal_index",
+    "view_before",
+    "action_raw",
+    "feedback_kind",
+    "error_type",
+    "error_detail",
+    "state_before",
+    "state_after",
+)
+"""Columns of the drill-down step tables (what a person scans to pick a step)."""
+MAX_ROWS = 500
+"""Rows a drill-down table shows (the caption gives the full count)."""
+
+
+def selected_row(df: pl.DataFrame, selection: Any) -> dict | None:
+    """The row a single-row dataframe selection points at, or None."""
+    try:
+        rows = selection.selection.rows
+    except AttributeError:
+        return None
+    if not rows or rows[0] >= df.height:
+        return None
+    return df.row(rows[0], named=True)
+
+
+def viewer_query(run_id: str, episode_id: str, step: int | None = None) -> dict[str, str]:
+    """Query parameters that open the episode viewer on an episode (and step)."""
+    query = {"run": str(run_id), "episode": str(episode_id)}
+    if step is not None:
+        query["step"] = str(int(step))
+    return query
+
+
+def open_step_link(df: pl.DataFrame, selection: Any) -> None:
+    """A link to the episode viewer for the selected row (run_id, episode_id[, step])."""
+    row = selected_row(df, selection)
+    if row is None:
+        return
+    step = row.get("step")
+    label = f"Open {row['episode_id']} of {row['run_id']}" + (
+        f" at step {step}" if step is not None else ""
+    )
+    st.page_link(
+        PAGES["episode_viewer"],
+        label=label,
+        icon=":material/movie:",
+        query_params=viewer_query(row["run_id"], row["episode_id"], step),
+    )
+
+
+# --------------------------------------------------------------------- small helpers
+
+LAMBDA_CHOICES: tuple[float, ...] = (1, 1.5, 2, 2.5, 3, 4, 5, 6, 8, 10)
+"""λ values the budgets page offers."""
+
+
+def sweep_workers(size: int) -> int:
+    """Processes for a sweep: two for a large one (the machine's cores permitting)."""
+    return 1 if size <= dash.SWEEP_AUTO_LIMIT else max(1, min(2, os.cpu_count() or 1))
+
+
+def runs_matching_facets(runs: pl.DataFrame) -> list[str]:
+    """Run ids that pass the sidebar's facet filters."""
+    return dash.runs_matching(runs, facet_filters())
+
+
+def device_label(views: pl.DataFrame, device: str) -> str:
+    part = views.filter(views["device_id"] == device)
+    return f"{device} ({part['category'][0]}): {part['interactions'].sum()} clicks"
+
+
+def view_label(views: pl.DataFrame, view: str) -> str:
+    n = views.filter(views["view"] == view)["interactions"].sum()
+    return f"{view}: {n} clicks"
+
+
+def click_summary(points: pl.DataFrame) -> str:
+    counts = dash.click_counts(points)
+    total = sum(counts.values())
+    parts = ", ".join(f"{n} {outcome}" for outcome, n in counts.items())
+    return (
+        f"{total} clicks ({parts}). Green boxes: components that were the nearest target of a "
+        "click shown; grey: the view's other components."
+    )
+
+
+# ---------------------------------------------------------------------- episode viewer
+
+EPISODE_COLUMNS: tuple[str, ...] = (
+    "episode_id",
+    "device_id",
+    "category",
+    "n_goals",
+    "goals_completed",
+    "success",
+    "termination",
+    "L_act",
+    "L_opt",
+    "spl",
+    "state_f1",
+)
+_VIEWER_KEYS = {"run": "viewer_run", "episode": "viewer_episode", "step": "viewer_step"}
+
+
+def apply_viewer_query(runs: Sequence[str]) -> None:
+    """Open the episode the URL names (`?run=...&episode=...&step=...`) when the URL changed
+    (a drill-down link or a pasted address); the pickers keep the user's choice otherwise."""
+    query = {k: st.query_params.get(k) for k in _VIEWER_KEYS}
+    if query["run"] not in runs or query == st.session_state.get("viewer_applied"):
+        return
+    st.session_state["viewer_applied"] = query
+    st.session_state["viewer_run"] = query["run"]
+    if query["episode"]:
+        st.session_state["viewer_episode"] = query["episode"]
+    try:
+        st.session_state["viewer_step"] = int(query["step"] or 0)
+    except ValueError:
+        st.session_state["viewer_step"] = 0
+
+
+def set_viewer_query(run: str, episode: str, step: int) -> None:
+    """Keep the URL in step with the pickers, so the address can be shared."""
+    query = viewer_query(run, episode, step)
+    st.session_state["viewer_applied"] = {k: query.get(k) for k in _VIEWER_KEYS}
+    if dict(st.query_params) != query:
+        st.query_params.from_dict(query)
+
+
+def step_slider(steps: pl.DataFrame) -> int:
+    """The step picker (a slider over the episode's steps); returns the chosen position."""
+    last = steps.height - 1
+    current = st.session_state.get("viewer_step", 0)
+    if not isinstance(current, int) or not 0 <= current <= last:
+        st.session_state["viewer_step"] = 0
+    if last == 0:
+        st.session_state["viewer_step"] = 0
+        st.caption("One step.")
+        return 0
+    return int(st.slider("Step", 0, last, key="viewer_step"))
+
+
+# --------------------------------------------------------------------------------- SQL
+
+MAX_SQL_ROWS = 10_000
+"""Rows the SQL page shows (the CSV download has them all)."""
+
+
+def load_example() -> None:
+    """Callback of the examples picker: put the chosen query in the query box."""
+    name = st.session_state.get("sql_example")
+    if name in dash.EXAMPLE_QUERIES:
+        st.session_state["sql_query"] = dash.EXAMPLE_QUERIES[name]
+
+
+def init_state(key: str, value: Any) -> None:
+    """Give a widget its first value through the session state (before it is drawn)."""
+    if key not in st.session_state:
+        st.session_state[key] = value
+
+
+def keep_choice(key: str, options: Sequence[Any]) -> None:
+    """Forget a picker's remembered value when it is no longer one of its options."""
+    if key in st.session_state and st.session_state[key] not in options:
+        del st.session_state[key]

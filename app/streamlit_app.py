@@ -1,0 +1,44 @@
+"""Entry file of the dashboard: routing only (`vge app [OUT]` runs it with `-- --out OUT`).
+
+The sidebar shows which OUT is open and holds the run-facet filters every page applies.
+Every run ends with an invisible marker (`ui.end_of_page`): browser tests and the render-time
+benchmark wait for it.
+"""
+
+from __future__ import annotations
+
+import streamlit as st
+
+from app import _ui as ui
+
+
+def run() -> None:
+    st.set_page_config(page_title="VGE Analytics", page_icon=":material/analytics:", layout="wide")
+    page = st.navigation(
+        [
+            st.Page(
+                "views/leaderboard.py",
+                title="Leaderboard",
+                icon=":material/leaderboard:",
+                default=True,
+            ),
+            st.Page("views/errors.py", title="Errors", icon=":material/error:"),
+            st.Page("views/navigation.py", title="Navigation", icon=":material/explore:"),
+            st.Page("views/grounding.py", title="Grounding", icon=":material/my_location:"),
+            st.Page("views/budgets.py", title="Budgets", icon=":material/timeline:"),
+            st.Page(
+                "views/human_vs_vlm.py", title="Human vs VLM", icon=":material/compare_arrows:"
+            ),
+            st.Page("views/episode_viewer.py", title="Episode viewer", icon=":material/movie:"),
+            st.Page("views/sql.py", title="SQL", icon=":material/database:"),
+        ]
+    )
+    try:
+        if ui.sidebar():
+            page.run()
+    finally:
+        ui.end_of_page()
+
+
+if __name__ == "__main__":
+    run()

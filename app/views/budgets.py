@@ -1,0 +1,53 @@
+"""Budgets: how SR grows with the interaction budget (the paper's lambda figure)."""
+
+import streamlit as st
+
+from app import _charts as charts
+from app import _ui as ui
+from vge_analytics import _dashboard as dash
+from vge_analytics._errors import AnalyticsError
+
+st.title("Budgets")
+st.caption(
+    "Every episode is replayed again with budgets λ·C_opt for each λ; the curves show the SR "
+    "gain over the smallest λ chosen (the paper normalises λ = 2 to zero). A λ above the one "
+    "a run was recorded with needs logs that go beyond that budget."
+)
+
+runs = ui.call("runs")
+facet_runs = ui.runs_matching_facets(runs)
+c1, c2, c3 = st.columns([3, 2, 2])
+chosen = c1.multiselect("Runs", facet_runs, placeholder="all runs (of the facet filter)")
+lambdas = c2.multiselect("λ values", ui.LAMBDA_CHOICES, default=[2, 3, 4, 5], key="budgets_lambdas")
+relative = c3.radio("Gain", ["percentage points", "relative %"], key="budgets_gain")
+if len(lambdas) < 2 or not facet_runs:
+    st.info("Choose at least two λ values and one run.")
+    st.stop()
+
+selected = sorted(chosen or facet_runs)
+table = dash.stored_sweep(ui.out_dir(), selected, lambdas)
+if table is None:
+    size = ui.call("sweep_size", selected, lambdas)
+    if size > dash.SWEEP_AUTO_LIMIT and not st.button(
+        f"Compute the sweep: {size:,} episode replays, about "
+        f"{size * dash.SWEEP_SECONDS_PER_REPLAY / 2:.0f} s",
+        icon=":material/play_arrow:",
+    ):
+        st.info(
+            "This sweep is large; it is computed once, then kept (also across restarts). "
+            "Fewer runs or λ values make it faster."
+        )
+        st.stop()
+    try:
+        with st.spinner("Replaying every episode at each λ..."):
+            table = ui.call("computed_sweep", selected, lambdas, workers=ui.sweep_workers(size))
+    except AnalyticsError as exc:
+        ui.show_error(exc)
+        st.stop()
+
+gain = dash.sweep_curves(table, relative=relative == "relative %")
+title = f"SR gain over λ = {min(lambdas):g}" + (
+    " (% of SR at that λ)" if relative == "relative %" else " (pp)"
+)
+st.altair_chart(charts.sweep_lines(gain, title))
+st.dataframe(table, hide_index=True, column_config=ui.number_config(table))

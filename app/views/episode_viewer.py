@@ -1,0 +1,69 @@
+"""Episode viewer: step through one episode as the agent saw it, with the replay's verdicts."""
+
+import functools
+
+import streamlit as st
+
+from app import _ui as ui
+from vge_analytics import _dashboard as dash
+
+st.title("Episode viewer")
+runs = ui.call("runs")
+ui.apply_viewer_query(runs["run_id"].to_list())
+c1, c2 = st.columns([2, 3])
+run = c1.selectbox("Run", runs["run_id"].to_list(), key="viewer_run")
+episodes = ui.call("episodes", where={"run_id": run}, columns=list(ui.EPISODE_COLUMNS))
+if episodes.height == 0:
+    st.info(f"Run {run} has no replayed episode.")
+    st.stop()
+ui.keep_choice("viewer_episode", episodes["episode_id"].to_list())
+episode = c2.selectbox(
+    "Episode",
+    episodes["episode_id"].to_list(),
+    format_func=lambda e: dash.episode_label(episodes, e),
+    key="viewer_episode",
+)
+ep = episodes.filter(episodes["episode_id"] == episode).row(0, named=True)
+steps = ui.call("episode_steps", run, episode)
+goals = ui.call("goals", where={"run_id": run, "episode_id": episode})
+
+m = st.columns([2, 1, 1, 1, 1])
+m[0].metric("Result", dash.termination_label(ep["termination"]))
+m[1].metric("Goals", f"{ep['goals_completed']} / {ep['n_goals']}")
+m[2].metric("Steps (optimal)", f"{ep['L_act']} ({ep['L_opt']})")
+m[3].metric("SPL", f"{ep['spl']:.2f}")
+m[4].metric("State-F1", f"{ep['state_f1']:.2f}")
+
+if steps.height == 0:
+    st.info("This episode has no step.")
+    st.stop()
+step = ui.step_slider(steps)
+row = steps.row(step, named=True)
+ui.set_viewer_query(run, episode, step)
+
+left, right = st.columns([3, 2])
+with left:
+    if row["view_before"] is None:
+        st.info("This step was logged after the episode ended (truncated): it was not replayed.")
+    else:
+        st.image(
+            ui.call("step_picture", run, episode, step),
+            caption=dash.step_caption(row),
+        )
+with right:
+    st.markdown(dash.step_markdown(row, goals))
+    st.dataframe(dash.step_classification(row), hide_index=True)
+    if row["thinking"]:
+        with st.expander("Thinking", expanded=True):
+            st.text(row["thinking"])
+
+st.download_button(
+    "Download episode as MCAP (Foxglove)",
+    data=functools.partial(dash.episode_mcap, str(ui.out_dir()), run, episode),
+    file_name=f"{run}-{episode}.mcap",
+    mime="application/octet-stream",
+    icon=":material/download:",
+    on_click="ignore",
+)
+with st.expander("All steps of the episode"):
+    st.dataframe(steps.select(ui.STEP_COLUMNS), hide_index=True)

@@ -1,0 +1,71 @@
+"""Errors: the paper's error taxonomy per group, and drill-down to the steps and episodes."""
+
+import streamlit as st
+
+from app import _charts as charts
+from app import _ui as ui
+from vge_analytics import _dashboard as dash
+from vge_analytics._taxonomy import ERROR_LABELS, ERROR_TYPES
+
+st.title("Errors")
+st.caption(
+    "Share of each error type among all errors of a group (SPEC 5 taxonomy): grounding in "
+    "blue, execution in red, navigation in green, as in the paper's error pie."
+)
+
+runs = ui.call("runs")
+c1, c2, c3 = st.columns([3, 2, 2])
+chosen_runs = c1.multiselect("Runs", runs["run_id"].to_list(), placeholder="all runs")
+categories = c2.multiselect(
+    "Category", ui.call("column_values", "episodes", "category"), placeholder="all"
+)
+with c3:
+    by = ui.group_by_picker("errors_by")
+where = ui.where(run_id=chosen_runs, category=categories)
+
+dist = ui.labelled(ui.call("error_distribution", by=list(by), where=where, labels=True), by)
+groups = ui.call("error_groups", by=list(by), where=where)
+order = dist["group"].unique(maintain_order=True).to_list()
+
+compare_tab, pie_tab, table_tab = st.tabs(["Compare groups", "Pie of one group", "Table"])
+with compare_tab:
+    st.altair_chart(charts.error_stacked(dist, order))
+    st.altair_chart(charts.error_group_stacked(ui.labelled(groups, by), order))
+with pie_tab:
+    one = st.selectbox("Group", order, key="errors_pie_group")
+    part = dist.filter(dist["group"] == one)
+    if part["count"].sum() == 0:
+        st.info(f"{one} made no error.")
+    else:
+        st.altair_chart(charts.error_donut(part, f"{one}: {part['count'].sum()} errors"))
+with table_tab:
+    shares = dash.error_share_wide(dist)
+    st.dataframe(shares, hide_index=True, column_config=ui.number_config(shares, 1))
+
+st.subheader("Drill down: steps with an error")
+d1, d2 = st.columns([2, 3])
+error_type = d1.selectbox(
+    "Error type", ERROR_TYPES, format_func=ERROR_LABELS.get, key="errors_drill_type"
+)
+drill_runs = d2.multiselect(
+    "Runs",
+    runs["run_id"].to_list(),
+    default=chosen_runs,
+    placeholder="all runs",
+    key="errors_drill_runs",
+)
+steps = ui.call(
+    "steps_with_error",
+    error_type,
+    where=ui.where(run_id=drill_runs, category=categories),
+    columns=list(ui.STEP_COLUMNS),
+)
+st.caption(f"{steps.height} steps with {ERROR_LABELS[error_type]}; select one to open its episode.")
+picked = st.dataframe(
+    steps.head(ui.MAX_ROWS),
+    hide_index=True,
+    on_select="rerun",
+    selection_mode="single-row",
+    key="errors_drill_steps",
+)
+ui.open_step_link(steps, picked)

@@ -1,0 +1,59 @@
+"""Grounding: how close clicks land to their targets, and where they land on a device view."""
+
+import streamlit as st
+
+from app import _charts as charts
+from app import _ui as ui
+
+st.title("Grounding")
+st.caption(
+    "Avg Dist: mean distance (0..1000 scale) from a click to the nearest target box; "
+    "Avg W-Dist weighs repeated failed attempts on the same target more (both ↓). "
+    "EIR / TIR: share of interactions hitting any component / a target component (↑)."
+)
+
+runs = ui.call("runs")
+c1, c2, c3 = st.columns([3, 2, 2])
+chosen_runs = c1.multiselect("Runs", runs["run_id"].to_list(), placeholder="all runs")
+categories = c2.multiselect(
+    "Category", ui.call("column_values", "episodes", "category"), placeholder="all"
+)
+with c3:
+    by = ui.group_by_picker("grounding_by")
+where = ui.where(run_id=chosen_runs, category=categories)
+
+names = ["AvgDist", "AvgWDist", "EIR", "TIR"]
+table = ui.labelled(ui.call("metrics", by=list(by), metrics=names, where=where), by)
+order = table["group"].to_list()
+left, right = st.columns(2)
+left.altair_chart(charts.ratio_bars(table, "AvgDist", order))
+right.altair_chart(charts.ratio_bars(table, "AvgWDist", order))
+st.dataframe(
+    ui.best_styler(table, names), hide_index=True, column_config=ui.metric_column_config(names)
+)
+
+st.subheader("Click points on a device view")
+views = ui.call("interaction_views", where=where)
+if views.height == 0:
+    st.info("No interaction in the selection.")
+    st.stop()
+devices = views["device_id"].unique(maintain_order=True).to_list()
+d1, d2 = st.columns(2)
+device = d1.selectbox(
+    "Device (most clicked first)",
+    devices,
+    format_func=lambda d: ui.device_label(views, d),
+    key="grounding_device",
+)
+device_views = views.filter(views["device_id"] == device)
+view = d2.selectbox(
+    "View",
+    device_views["view"].to_list(),
+    format_func=lambda v: ui.view_label(device_views, v),
+    key="grounding_view",
+)
+points = ui.call("click_points", device, view, where=where)
+boxes = ui.call("scatter_boxes", device, view, points)
+picture = ui.call("view_picture", device, view)
+st.altair_chart(charts.click_scatter(picture, boxes, points), width="content")
+st.caption(ui.click_summary(points))

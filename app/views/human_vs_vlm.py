@@ -1,0 +1,52 @@
+"""Human vs VLM: two runs on the episodes both played, with paired bootstrap intervals."""
+
+import streamlit as st
+
+from app import _charts as charts
+from app import _ui as ui
+from vge_analytics import _dashboard as dash
+from vge_analytics._errors import AnalyticsError
+
+st.title("Human vs VLM")
+st.caption(
+    "Metrics of both runs on their common episodes; the difference is human − model (as in "
+    "the paper's tables) with a 95% paired bootstrap interval over episodes."
+)
+
+runs = ui.call("runs")
+humans, models = dash.run_choices(runs)
+c1, c2 = st.columns(2)
+human = c1.selectbox("Human (or reference) run", humans, key="hvv_human")
+model = c2.selectbox("Model run", [r for r in models if r != human], key="hvv_model")
+if human is None or model is None:
+    st.info("This needs two runs.")
+    st.stop()
+try:
+    cmp = ui.call("compare", model, human)
+except AnalyticsError as exc:
+    ui.show_error(exc)
+    st.stop()
+
+mc = cmp.mcnemar.row(0, named=True)
+st.markdown(
+    f"**{cmp.n_common} common episodes** ({cmp.n_only_a} only {model}, {cmp.n_only_b} only "
+    f"{human}). Solved by both {mc['both']}, only {model} {mc['a_only']}, only {human} "
+    f"{mc['b_only']}, neither {mc['neither']}; McNemar exact p = {mc['p_value']:.3g}."
+)
+table = dash.comparison_rows(cmp.metrics, model, human)
+st.dataframe(table, hide_index=True, column_config=ui.number_config(table), key="hvv_metrics")
+st.altair_chart(charts.side_by_side(cmp.metrics, model, human), width="content")
+st.markdown(f"**{human} − {model}**, 95% paired bootstrap interval (green: human higher)")
+st.altair_chart(charts.diff_forest(cmp.metrics, model, human), width="content")
+
+st.subheader("Error distribution")
+errors = dash.error_difference_rows(cmp.errors, model, human)
+st.dataframe(errors, hide_index=True, column_config=ui.number_config(errors, 1))
+
+st.subheader("Episodes that flip")
+flips = dash.flip_rows(cmp.flips, model, human)
+st.caption(f"{flips.height} episodes solved by one run only; select one to open it.")
+picked = st.dataframe(
+    flips, hide_index=True, on_select="rerun", selection_mode="single-row", key="hvv_flips"
+)
+ui.open_step_link(flips, picked)

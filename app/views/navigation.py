@@ -1,0 +1,39 @@
+"""Navigation: how view switches went (NP/PN/NN/PP, the paper's switch-view figure), VSPS, GVPE."""
+
+import streamlit as st
+
+from app import _charts as charts
+from app import _ui as ui
+from vge_analytics import _dashboard as dash
+
+st.title("Navigation")
+st.caption(
+    "Each successful Switch_view is classed by whether a target component of the current goal "
+    "is visible (P) or not (N) in the start and end views: **NP** found the target, **PN** lost "
+    "it, **NN** searched in vain, **PP** kept it. VSPS: switches per completed goal within "
+    "episodes; GVPE: all switches per completed goal (both ↓)."
+)
+
+runs = ui.call("runs")
+c1, c2, c3 = st.columns([3, 2, 2])
+chosen_runs = c1.multiselect("Runs", runs["run_id"].to_list(), placeholder="all runs")
+categories = c2.multiselect(
+    "Category", ui.call("column_values", "episodes", "category"), placeholder="all"
+)
+with c3:
+    by = ui.group_by_picker("navigation_by")
+where = ui.where(run_id=chosen_runs, category=categories)
+
+classes = ui.labelled(ui.call("switch_classes", by=list(by), where=where), by)
+ratios = ui.labelled(ui.call("metrics", by=list(by), metrics=["VSPS", "GVPE"], where=where), by)
+order = ratios["group"].to_list()
+
+st.altair_chart(charts.switch_stacked(classes, order))
+left, right = st.columns(2)
+left.altair_chart(charts.ratio_bars(ratios, "VSPS", order))
+right.altair_chart(charts.ratio_bars(ratios, "GVPE", order))
+st.dataframe(
+    dash.switch_summary(classes, ratios),
+    hide_index=True,
+    column_config=ui.metric_column_config(["VSPS", "GVPE"]),
+)

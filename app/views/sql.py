@@ -1,0 +1,37 @@
+"""SQL: read-only queries over the tables steps, episodes, goals and runs."""
+
+import streamlit as st
+
+from app import _ui as ui
+from vge_analytics import _dashboard as dash
+from vge_analytics._errors import AnalyticsError
+
+st.title("SQL")
+st.caption(
+    "DuckDB SQL over the replay tables `steps`, `episodes`, `goals` and `runs` (one statement, "
+    "read-only; files outside OUT cannot be read). Ctrl+Enter runs the query."
+)
+examples = dash.EXAMPLE_QUERIES
+st.selectbox(
+    "Examples",
+    list(examples),
+    index=None,
+    placeholder="Pick an example query",
+    key="sql_example",
+    on_change=ui.load_example,
+)
+ui.init_state("sql_query", next(iter(examples.values())))
+query = st.text_area("Query", height=160, key="sql_query")
+with st.expander("Columns of the tables"):
+    st.dataframe(ui.call("table_columns"), hide_index=True)
+if query.strip():
+    try:
+        result = ui.call("sql", query)
+    except AnalyticsError as exc:
+        ui.show_error(exc)
+        st.stop()
+    st.caption(f"{result.height} rows")
+    st.dataframe(result.head(ui.MAX_SQL_ROWS), hide_index=True)
+    st.download_button(
+        "Download CSV", dash.csv_bytes(result), file_name="query.csv", mime="text/csv"
+    )

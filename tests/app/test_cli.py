@@ -1,0 +1,46 @@
+"""`vge app`: what it runs, and what it says when there is nothing to show."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from vge_analytics import _dashboard as dash
+from vge_analytics.cli import main
+from vge_analytics.commands.app import streamlit_command
+
+
+def test_default_out_missing_says_run_vge_demo(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["app"]) == 1
+    err = capsys.readouterr().err
+    assert err.strip() == (
+        "error: No replay output at logs-replayed: run `vge demo` first "
+        "(it replays the bundled sample into ./logs-replayed)"
+    )
+
+
+def test_not_a_replay_output(tmp_path, capsys):
+    (tmp_path / "steps").mkdir()
+    assert main(["app", str(tmp_path)]) == 1
+    assert "is not a replay output directory" in capsys.readouterr().err
+
+
+def test_streamlit_command(tiny_out):
+    cmd = streamlit_command(tiny_out, port=8600, headless=True, address="127.0.0.1")
+    assert cmd[1:4] == ["-m", "streamlit", "run"]
+    assert Path(cmd[4]) == dash.app_script() and dash.app_script().name == "streamlit_app.py"
+    assert cmd[cmd.index("--server.port") + 1] == "8600"
+    assert cmd[cmd.index("--server.headless") + 1] == "true"
+    assert cmd[cmd.index("--server.address") + 1] == "127.0.0.1"
+    assert cmd[-3:] == ["--", "--out", str(tiny_out)]
+
+
+def test_out_argument_precedence(monkeypatch):
+    from app import _ui
+
+    monkeypatch.setenv("VGE_APP_OUT", "/from/env")
+    assert _ui.out_argument(["--out", "/from/args"]) == "/from/args"
+    assert _ui.out_argument(["--out=/x"]) == "/x"
+    assert _ui.out_argument([]) == "/from/env"
+    monkeypatch.delenv("VGE_APP_OUT")
+    assert _ui.out_argument([]) == dash.DEFAULT_OUT

@@ -1,0 +1,332 @@
+"""The dashboard's functions (`vge_analytics._dashboard`), against the analytics API they
+reshape and the replayed tiny synthetic benchmark."""
+
+from __future__ import annotations
+
+import io
+import shutil
+from pathlib import Path
+
+import polars as pl
+import pytest
+from PIL import Image
+
+import replay
+import vge_analytics as va
+from vge_analytics import _browse as browse
+from vge_analytics import _dashboard as dash
+from vge_analytics._compare import compare
+from vge_analytics._errors import OutputDirError
+from vge_analytics._sql import sql
+from vge_analytics._taxonomy import error_distribution, switch_classes
+
+# ------------------------------------------------------------------------------ OUT
+
+
+def test_check_out_says_what_to_run(tmp_path):
+    with pytest.raises(
+        OutputDirError, match=r"No replay output at .*logs-replayed: run `vge demo`"
+    ):
+        dash.check_out(tmp_path / "logs-replayed")
+    with pytest.raises(OutputDirError, match=r"run `vge demo`, or `vge replay RUN\.\.\."):
+        dash.check_out(tmp_path / "elsewhere")
+    (tmp_path / "half" / "steps").mkdir(parents=True)
+    with pytest.raises(OutputDirError, match=r"not a replay output directory \(no episodes/"):
+        dash.check_out(tmp_path / "half")
+
+
+def test_check_out_accepts_a_replay_output(tiny_out):
+    assert dash.check_out(tiny_out) == tiny_out.resolve()
+
+
+def test_out_version_follows_the_manifest(tiny_out, tmp_path):
+    copy = tmp_path / "out"
+    shutil.copytree(tiny_out, copy)
+    before = dash.out_version(copy)
+    assert before == dash.out_version(tiny_out)
+    manifest = copy / "manifest.json"
+    manifest.write_text(manifest.read_text().replace('"runs"', '"runs" ', 1))
+    assert dash.out_version(copy) != before
+
+
+def test_out_summary_counts(tiny_out):
+    summary = dash.out_summary(tiny_out)
+    episodes = browse.episodes(tiny_out)
+    assert summary.runs == 9
+    assert summary.episodes == episodes.height == 9 * 24
+    assert summary.steps == sql(tiny_out, "SELECT count(*) AS n FROM steps")["n"][0]
+
+
+def test_input_path_falls_back_to_outs_parent(tmp_path, monkeypatch):
+    (tmp_path / "bench").mkdir()
+    out = tmp_path / "out"
+    out.mkdir()
+    monkeypatch.chdir("/")
+    assert dash.input_path(out, "bench") == tmp_path / "bench"
+    assert dash.input_path(out, "/abs/bench") == Path("/abs/bench")
+
+
+# ---------------------------------------------------------------------- leaderboard
+
+
+def test_best_rows_follow_each_metrics_direction():
+    df = pl.DataFrame(
+        {
+            "SR": [10.0, 30.0, 30.0],
+            "VSPS": [1.5, 0.5, None],
+            "AvgDist": [None, None, None],
+        }
+    )
+    best = dash.best_rows(df, ["SR", "VSPS", "AvgDist", "EIR"])
+    assert best == {"SR": [1, 2], "VSPS": [1], "AvgDist": []}
+
+
+def test_group_labels():
+    df = pl.DataFrame({"run_id": ["r1", "r2"], "model": ["m", "m"], "n_goals": [1, None]})
+    assert dash.group_labels(df, ["run_id", "model"]).to_list() == ["r1", "r2"]
+    assert dash.group_labels(df, ["model"]).to_list() == ["m", "m"]
+    assert dash.group_labels(df, ["model", "n_goals"]).to_list() == ["m · 1", "m · ∅"]
+    assert dash.group_labels(df, []).to_list() == ["all", "all"]
+
+
+def test_metrics_long_keeps_values_and_directions(tiny_out):
+    table = va.metrics(tiny_out).with_columns(group=pl.col("run_id"))
+    long = dash.metrics_long(table, ["SR", "VSPS"])
+    assert long.height == 2 * table.height - table["VSPS"].null_count()
+    row = long.filter((pl.col("group") == "sim-human") & (pl.col("metric") == "SR"))
+    assert row["value"][0] == table.filter(pl.col("run_id") == "sim-human")["SR"][0]
+    assert set(long["direction"]) == {"higher", "lower"}
+
+
+# --------------------------------------------------------------------------- errors
+
+
+def test_error_share_wide_rows_add_up(tiny_out):
+    dist = error_distribution(tiny_out, labels=True).with_columns(group=pl.col("run_id"))
+    wide = dash.error_share_wide(dist)
+    assert wide["group"].to_list() == sorted(dist["run_id"].unique().to_list())
+    shares = wide.drop("group", "errors")
+    assert shares.width == 7
+    for total in shares.sum_horizontal().to_list():
+        assert total == pytest.approx(100.0)
+    counts = dist.group_by("run_id").agg(pl.col("count").sum())
+    assert dict(zip(wide["group"], wide["errors"], strict=True)) == dict(counts.iter_rows())
+
+
+def test_switch_summary_joins_classes_and_ratios(tiny_out):
+    classes = switch_classes(tiny_out).with_columns(group=pl.col("run_id"))
+    ratios = va.metrics(tiny_out, metrics=["VSPS", "GVPE"]).with_columns(group=pl.col("run_id"))
+    table = dash.switch_summary(classes, ratios)
+    assert table.columns == ["group", "switches", "NP %", "PN %", "NN %", "PP %", "VSPS", "GVPE"]
+    human = table.filter(pl.col("group") == "sim-human").row(0, named=True)
+    n = sql(
+        tiny_out,
+        "SELECT count(*) AS n FROM steps WHERE run_id = 'sim-human' AND is_switch AND NOT truncated",
+    )["n"][0]
+    assert human["switches"] == n
+    assert sum(human[f"{c} %"] for c in ("NP", "PN", "NN", "PP")) == pytest.approx(100.0)
+
+
+# ------------------------------------------------------------------------ grounding
+
+
+def test_click_points_are_the_interactions_of_a_view(tiny_out):
+    views = dash.interaction_views(tiny_out)
+    first = views.row(0, named=True)
+    points = dash.click_points(tiny_out, first["device_id"], first["view"])
+    assert points.height == first["interactions"]
+    expected = sql(
+        tiny_out,
+        "SELECT count(*) FILTER (WHERE hit_target) AS t, "
+        "count(*) FILTER (WHERE hit_component AND NOT hit_target) AS c, "
+        "count(*) FILTER (WHERE NOT hit_component) AS m FROM steps "
+        f"WHERE is_interaction AND NOT truncated AND device_id = '{first['device_id']}' "
+        f"AND view_before = '{first['view']}'",
+    ).row(0)
+    counts = dash.click_counts(points)
+    assert (counts["target hit"], counts["other component"], counts["miss"]) == expected
+    assert (
+        views["interactions"].sum()
+        == sql(tiny_out, "SELECT count(*) AS n FROM steps WHERE is_interaction AND NOT truncated")[
+            "n"
+        ][0]
+    )
+
+
+def test_click_points_filters(tiny_out):
+    views = dash.interaction_views(tiny_out, where={"run_id": ["sim-human"]})
+    first = views.row(0, named=True)
+    points = dash.click_points(
+        tiny_out, first["device_id"], first["view"], where={"run_id": ["sim-human"]}
+    )
+    assert set(points["run_id"]) == {"sim-human"}
+    assert points.height == first["interactions"]
+
+
+def test_scatter_boxes_mark_the_clicked_targets(tiny_out):
+    first = dash.interaction_views(tiny_out).row(0, named=True)
+    points = dash.click_points(tiny_out, first["device_id"], first["view"])
+    boxes = dash.scatter_boxes(tiny_out, first["device_id"], first["view"], points)
+    targets = set(points["nearest_target"].drop_nulls())
+    assert set(boxes.filter(pl.col("role") == "target")["component"]) == targets
+    machine = dash.device_machine(tiny_out, first["device_id"])
+    assert set(boxes["component"]) == {c for c, _ in machine.component_rects[first["view"]]}
+    assert (boxes["x1"] > boxes["x0"]).all() and (boxes["y1"] > boxes["y0"]).all()
+
+
+def test_view_boxes_targets_are_the_planners(tiny_out):
+    steps = browse.steps(
+        tiny_out, where={"run_id": "sim-vlm-f", "is_interaction": True, "truncated": False}
+    )
+    row = steps.row(0, named=True)
+    machine = dash.device_machine(tiny_out, row["device_id"])
+    boxes = dash.view_boxes(
+        machine,
+        row["view_before"],
+        state=row["state_before"],
+        goal=row["goal_state"],
+        hit=row["hit_components"],
+    )
+    s, g = machine.state_index[row["state_before"]], machine.state_index[row["goal_state"]]
+    expected = {c for c, _ in replay.target_rects(machine, s, g, row["view_before"])}
+    assert {b.component for b in boxes if b.role == "target"} == expected
+    hits = {b.component for b in boxes if b.role == "hit"}
+    assert hits == set(row["hit_components"]) - expected
+
+
+# --------------------------------------------------------------------------- images
+
+
+def test_draw_step_marks_click_and_boxes():
+    blank = io.BytesIO()
+    Image.new("RGB", (500, 250), (255, 255, 255)).save(blank, format="PNG")
+    picture = dash.ViewPicture(blank.getvalue(), "png", 500, 250, rendered=True)
+    boxes = [dash.Box("knob", 100, 100, 300, 500, role="target")]
+    png = dash.draw_step(picture, boxes, (700.0, 600.0))
+    img = Image.open(io.BytesIO(png)).convert("RGB")
+    assert img.size == (500, 250)
+    assert img.getpixel((350, 150)) == dash.CLICK_COLOR  # the x's centre: 700*0.5, 600*0.25
+    assert img.getpixel((50, 50)) == dash.ROLE_COLORS["target"]  # the box's top-left corner
+
+
+def test_step_picture_is_the_seen_view(tiny_out):
+    row = browse.steps(tiny_out, where={"run_id": "sim-vlm-f", "is_interaction": True}).row(
+        0, named=True
+    )
+    png = dash.step_picture(tiny_out, "sim-vlm-f", row["episode_id"], row["step"])
+    picture = dash.view_picture(tiny_out, row["device_id"], row["view_before"])
+    assert picture.rendered  # the synthetic views are rendered on demand
+    img = Image.open(io.BytesIO(png))
+    assert img.width == min(picture.width, 720)
+
+
+# ----------------------------------------------------------------------------- MCAP
+
+
+def test_episode_mcap_on_demand_equals_the_replays_file(tiny_out, mcap_episode, tmp_path):
+    run, episode = "sim-vlm-f", mcap_episode
+    written = (tiny_out / "mcap" / run / f"{episode}.mcap").read_bytes()
+    assert dash.episode_mcap(tiny_out, run, episode) == written
+    copy = tmp_path / "out"
+    shutil.copytree(tiny_out, copy, ignore=shutil.ignore_patterns("mcap"))
+    assert dash.episode_mcap(copy, run, episode) == written
+
+
+def test_episode_mcap_without_a_file(tiny_out, mcap_episode):
+    from mcap.reader import make_reader
+
+    episode = max(browse.episodes(tiny_out, where={"run_id": "sim-human"})["episode_id"])
+    assert episode != mcap_episode
+    assert not (tiny_out / "mcap" / "sim-human" / f"{episode}.mcap").exists()
+    data = dash.episode_mcap(tiny_out, "sim-human", episode)
+    reader = make_reader(io.BytesIO(data))
+    topics = {c.topic for c in reader.get_summary().channels.values()}
+    assert {"/camera", "/annotations", "/step"} <= topics
+    n_steps = browse.episode_steps(tiny_out, "sim-human", episode).height
+    assert reader.get_summary().statistics.channel_message_counts  # has messages
+    steps = [m for _, c, m in reader.iter_messages(topics=["/step"])]
+    assert len(steps) == n_steps
+
+
+# ------------------------------------------------------------------- human vs VLM
+
+
+def test_run_choices_human_first_best_model_first(tiny_out):
+    runs = browse.runs(tiny_out)
+    refs, models = dash.run_choices(runs)
+    assert refs[0] == "sim-human"
+    assert "sim-human" not in models
+    rates = {r["run_id"]: r["n_success"] / r["n_episodes"] for r in runs.iter_rows(named=True)}
+    assert [rates[m] for m in models] == sorted((rates[m] for m in models), reverse=True)
+
+
+def test_comparison_tables(tiny_out):
+    cmp = compare(tiny_out, "sim-vlm-f", "sim-human", resamples=50)
+    rows = dash.comparison_rows(cmp.metrics, "sim-vlm-f", "sim-human")
+    assert rows.columns[:4] == ["metric", "sim-vlm-f", "sim-human", "sim-human − sim-vlm-f"]
+    assert rows["metric"][0] == "SR ↑"
+    assert rows["sim-human"].to_list() == cmp.metrics["B"].to_list()
+    errors = dash.error_difference_rows(cmp.errors, "sim-vlm-f", "sim-human")
+    assert errors["difference (pp)"].to_list() == cmp.errors["diff_pp"].to_list()
+    flips = dash.flip_rows(cmp.flips, "sim-vlm-f", "sim-human")
+    assert flips.height == cmp.flips.height
+    for row in flips.iter_rows(named=True):
+        assert {row["solved only by"], row["run_id"]} == {"sim-vlm-f", "sim-human"}
+        failed = browse.episodes(tiny_out, where={"run_id": row["run_id"]}).filter(
+            pl.col("episode_id") == row["episode_id"]
+        )
+        assert failed["success"].to_list() == [False]
+
+
+# -------------------------------------------------------------------- small helpers
+
+
+def test_runs_matching(tiny_out):
+    runs = browse.runs(tiny_out)
+    assert dash.runs_matching(runs, {}) == runs["run_id"].to_list()
+    assert dash.runs_matching(runs, {"meta_history_length": ["3"]}) == ["sim-vlm-f-hist3"]
+    assert dash.runs_matching(runs, {"category": ["Lamp"]}) == runs["run_id"].to_list()
+
+
+def test_sweep_curves():
+    table = pl.DataFrame(
+        {
+            "run_id": ["a", "a"],
+            "model": ["m", "m"],
+            "lambda": [2.0, 3.0],
+            "SR": [10.0, 20.0],
+            "SR_gain": [0.0, 10.0],
+            "SR_rel_gain": [0.0, 100.0],
+        }
+    )
+    assert dash.sweep_curves(table)["gain"].to_list() == [0.0, 10.0]
+    assert dash.sweep_curves(table, relative=True)["gain"].to_list() == [0.0, 100.0]
+    assert dash.sweep_curves(table).columns == ["group", "lambda", "SR", "gain"]
+
+
+@pytest.mark.parametrize("name", list(dash.EXAMPLE_QUERIES))
+def test_example_queries_run(tiny_out, name):
+    result = sql(tiny_out, dash.EXAMPLE_QUERIES[name])
+    assert result.width > 0
+
+
+def test_csv_bytes_writes_lists_as_json():
+    df = pl.DataFrame({"a": [1, 2], "b": [["x", "y"], []]})
+    assert dash.csv_bytes(df).decode() == 'a,b\n1,"[""x"", ""y""]"\n2,[]\n'
+
+
+def test_step_text(tiny_out):
+    multi = browse.episodes(tiny_out, where={"run_id": "sim-vlm-f"}).filter(
+        (pl.col("n_goals") > 1) & (pl.col("L_act") > 1)
+    )
+    episode = multi["episode_id"][0]
+    steps = browse.episode_steps(tiny_out, "sim-vlm-f", episode)
+    goals = browse.goals(tiny_out, where={"run_id": "sim-vlm-f", "episode_id": episode})
+    row = steps.row(1, named=True)
+    text = dash.step_markdown(row, goals)
+    assert row["action_raw"] in text
+    assert f"({row['feedback_kind']})" in text
+    assert goals["instruction"][row["goal_index"]] in text
+    table = dash.step_classification(row)
+    assert table["field"].to_list() == list(dash.CLASSIFICATION_FIELDS)
+    assert dash.termination_label("budget_local") == "local budget out"

@@ -1,0 +1,300 @@
+"""One AppTest per page: it runs without exception, shows its widgets, and the numbers it shows
+are the analytics API's (on the replayed tiny synthetic benchmark)."""
+
+from __future__ import annotations
+
+import polars as pl
+import pyarrow as pa
+import pytest
+from streamlit.testing.v1 import AppTest
+
+import vge_analytics as va
+from vge_analytics import _browse as browse
+from vge_analytics import _dashboard as dash
+from vge_analytics._compare import compare
+from vge_analytics._sweep import sweep
+from vge_analytics._taxonomy import ERROR_LABELS, error_distribution, switch_classes
+
+from .conftest import APP
+
+
+def open_page(page: str | None = None, query: dict | None = None, state: dict | None = None):
+    """Run the app (the entry file routes) on `views/<page>.py`; fails on any exception."""
+    at = AppTest.from_file(str(APP), default_timeout=60)
+    for key, value in (state or {}).items():
+        at.session_state[key] = value
+    at.run()
+    if page is not None:
+        at.switch_page(f"views/{page}.py")
+        for key, value in (query or {}).items():
+            at.query_params[key] = value
+        at.run()
+    assert not at.exception, [e.message for e in at.exception]
+    return at
+
+
+def rerun(at: AppTest) -> AppTest:
+    at.run()
+    assert not at.exception, [e.message for e in at.exception]
+    return at
+
+
+def charts(at: AppTest) -> list:
+    return list(at.get("vega_lite_chart"))
+
+
+def chart_data(chart) -> list[pl.DataFrame]:
+    """The datasets a Vega-Lite chart element carries (Arrow IPC)."""
+    frames = []
+    for ds in chart.proto.datasets:
+        frames.append(pl.from_arrow(pa.ipc.open_stream(ds.data.data).read_all()))
+    return frames
+
+
+def nums(values) -> list[float]:
+    """Numbers with null as NaN (tables shown hold NaN where the API has null)."""
+    return [float("nan") if v is None else float(v) for v in list(values)]
+
+
+def by_group(df, column: str) -> dict:
+    return dict(zip(df["group"], df[column], strict=True))
+
+
+# -------------------------------------------------------------------------- sidebar
+
+
+def test_sidebar_shows_out_and_facets(app_env):
+    at = open_page()
+    assert str(app_env) in at.sidebar.caption[0].value
+    assert "216 episodes" in at.sidebar.caption[1].value
+    labels = [m.label for m in at.sidebar.multiselect]
+    assert "history_length" in labels
+    assert "synth_scale" not in labels  # a facet with one value filters nothing
+
+
+def test_missing_out_is_explained(monkeypatch, tmp_path):
+    monkeypatch.setenv("VGE_APP_OUT", str(tmp_path / "logs-replayed"))
+    at = AppTest.from_file(str(APP), default_timeout=60).run()
+    assert not at.exception
+    assert any("run `vge demo`" in e.value for e in at.error)
+    assert not at.dataframe
+
+
+# ----------------------------------------------------------------------- leaderboard
+
+
+def test_leaderboard_shows_each_runs_metrics(app_env):
+    at = open_page()
+    assert at.title[0].value == "Leaderboard"
+    shown = at.dataframe[0].value
+    expected = va.metrics(app_env)
+    assert list(shown["group"]) == expected["run_id"].to_list()
+    for name in ("SR", "SSR", "EIR", "VSPS", "AvgWDist"):
+        assert nums(shown[name]) == pytest.approx(nums(expected[name]), nan_ok=True)
+    bars = chart_data(charts(at)[0])[0]
+    sr = bars.filter(pl.col("metric") == "SR")
+    assert by_group(sr, "value") == pytest.approx(dict(expected.select("run_id", "SR").iter_rows()))
+
+
+def test_leaderboard_filters_and_groups(app_env):
+    at = open_page()
+    at.multiselect[1].select("Lamp")  # category
+    at.selectbox(key="leaderboard_by").select("model")
+    rerun(at)
+    shown = at.dataframe[0].value
+    expected = va.metrics(app_env, by="model", where={"category": ["Lamp"]})
+    assert list(shown["group"]) == expected["model"].to_list()
+    assert nums(shown["SR"]) == pytest.approx(nums(expected["SR"]), nan_ok=True)
+
+
+def test_facet_filter_applies_to_every_page(app_env):
+    at = open_page()
+    at.sidebar.multiselect[0].select("3")  # history_length
+    rerun(at)
+    assert list(at.dataframe[0].value["group"]) == ["sim-vlm-f-hist3"]
+    at.switch_page("views/navigation.py")
+    rerun(at)
+    assert list(at.dataframe[0].value["group"]) == ["sim-vlm-f-hist3"]
+
+
+# --------------------------------------------------------------------------- errors
+
+
+def test_errors_page_shares_and_drill_down(app_env):
+    at = open_page("errors")
+    assert at.title[0].value == "Errors"
+    assert [t.label for t in at.tabs] == ["Compare groups", "Pie of one group", "Table"]
+    table = at.dataframe[0].value
+    dist = error_distribution(app_env, labels=True)
+    human = dist.filter(pl.col("run_id") == "sim-human")
+    row = table[table["group"] == "sim-human"].iloc[0]
+    for label, share in human.select("label", "share").iter_rows():
+        assert row[label] == pytest.approx(share)
+    assert len(charts(at)) == 3  # stacked types, stacked groups, the pie
+
+    at.selectbox(key="errors_drill_type").select("params_error")
+    at.multiselect(key="errors_drill_runs").select("sim-vlm-f")
+    rerun(at)
+    steps = browse.steps_with_error(app_env, "params_error", where={"run_id": ["sim-vlm-f"]})
+    label = ERROR_LABELS["params_error"]
+    assert f"{steps.height} steps with {label}" in at.main.caption[-1].value
+    assert at.dataframe[1].value["step"].tolist() == steps["step"].to_list()[: ui_max_rows()]
+
+
+def ui_max_rows() -> int:
+    from app import _ui
+
+    return _ui.MAX_ROWS
+
+
+def test_drill_down_link_opens_the_episode(app_env):
+    from app import _ui
+
+    class Selection:
+        class selection:  # noqa: N801 - the shape of Streamlit's dataframe selection
+            rows = [0]
+
+    steps = browse.steps_with_error(app_env, "invalid_coord", columns=list(_ui.STEP_COLUMNS))
+    row = _ui.selected_row(steps, Selection())
+    assert row == steps.row(0, named=True)
+    assert _ui.viewer_query(row["run_id"], row["episode_id"], row["step"]) == {
+        "run": row["run_id"],
+        "episode": row["episode_id"],
+        "step": str(row["step"]),
+    }
+    assert _ui.selected_row(steps, object()) is None
+
+
+# ----------------------------------------------------------------------- navigation
+
+
+def test_navigation_page_switch_classes(app_env):
+    at = open_page("navigation")
+    assert at.title[0].value == "Navigation"
+    table = at.dataframe[0].value
+    classes = switch_classes(app_env).filter(pl.col("run_id") == "sim-vlm-f")
+    ratios = va.metrics(app_env, metrics=["VSPS", "GVPE"], where={"run_id": ["sim-vlm-f"]})
+    row = table[table["group"] == "sim-vlm-f"].iloc[0]
+    for cls, share in classes.select("switch_class", "share").iter_rows():
+        assert row[f"{cls} %"] == pytest.approx(share)
+    assert row["VSPS"] == pytest.approx(ratios["VSPS"][0])
+    assert row["GVPE"] == pytest.approx(ratios["GVPE"][0])
+    assert len(charts(at)) == 3
+
+
+# ------------------------------------------------------------------------ grounding
+
+
+def test_grounding_page_distances_and_scatter(app_env):
+    at = open_page("grounding")
+    table = at.dataframe[0].value
+    expected = va.metrics(app_env, metrics=["AvgDist", "AvgWDist"])
+    assert nums(table["AvgDist"]) == pytest.approx(nums(expected["AvgDist"]), nan_ok=True)
+    first = dash.interaction_views(app_env).row(0, named=True)
+    assert at.selectbox(key="grounding_device").value == first["device_id"]
+    scatter = charts(at)[-1]
+    data = chart_data(scatter)
+    points = dash.click_points(app_env, first["device_id"], first["view"])
+    assert any(d.height == points.height and "outcome" in d.columns for d in data)
+    assert f"{points.height} clicks" in at.main.caption[-1].value
+
+
+# -------------------------------------------------------------------------- budgets
+
+
+def test_budgets_page_sweep(app_env):
+    runs = browse.runs(app_env)["run_id"].to_list()
+    at = open_page("budgets")
+    assert at.title[0].value == "Budgets"
+    table = at.dataframe[0].value
+    expected = sweep(app_env, [2, 3, 4, 5])
+    assert nums(table["SR"]) == pytest.approx(nums(expected["SR"]), nan_ok=True)
+    lines = chart_data(charts(at)[0])[0]
+    assert lines.height == expected.height
+    assert lines.filter(pl.col("lambda") == 2)["gain"].to_list() == [0.0] * 9
+    stored = dash.stored_sweep(app_env, runs, [2, 3, 4, 5])  # kept for the next visit
+    assert stored is not None and stored.equals(expected)
+
+
+def test_budgets_page_asks_before_a_large_sweep(app_env, monkeypatch):
+    monkeypatch.setattr(dash, "SWEEP_AUTO_LIMIT", 10)
+    at = open_page("budgets")
+    at.multiselect(key="budgets_lambdas").set_value([2.5, 3])
+    rerun(at)
+    size = dash.sweep_size(app_env, browse.runs(app_env)["run_id"].to_list(), [2.5, 3])
+    assert at.button[0].label.startswith(f"Compute the sweep: {size:,} episode replays")
+    assert not charts(at)
+    at.button[0].click()
+    rerun(at)
+    assert len(charts(at)) == 1
+
+
+# --------------------------------------------------------------------- human vs VLM
+
+
+def test_human_vs_vlm_page(app_env):
+    at = open_page("human_vs_vlm")
+    human, model = at.selectbox(key="hvv_human").value, at.selectbox(key="hvv_model").value
+    assert human == "sim-human"
+    cmp = compare(app_env, model, human)
+    table = at.dataframe[0].value
+    assert nums(table[human]) == pytest.approx(nums(cmp.metrics["B"]), nan_ok=True)
+    assert nums(table["CI low"]) == pytest.approx(nums(cmp.metrics["ci_low"]), nan_ok=True)
+    assert f"{cmp.n_common} common episodes" in at.main.markdown[0].value
+    errors = at.dataframe[1].value
+    assert nums(errors["difference (pp)"]) == pytest.approx(
+        nums(cmp.errors["diff_pp"]), nan_ok=True
+    )
+    assert f"{cmp.flips.height} episodes solved by one run only" in at.main.caption[-1].value
+    assert len(charts(at)) == 2
+
+
+# ------------------------------------------------------------------- episode viewer
+
+
+def test_episode_viewer_from_a_link(app_env):
+    episodes = browse.episodes(app_env, where={"run_id": "sim-vlm-f"})
+    episode = episodes.filter(pl.col("L_act") > 2)["episode_id"][0]
+    at = open_page("episode_viewer", query={"run": "sim-vlm-f", "episode": episode, "step": "2"})
+    assert at.selectbox(key="viewer_run").value == "sim-vlm-f"
+    assert at.selectbox(key="viewer_episode").value == episode
+    assert at.slider(key="viewer_step").value == 2
+    steps = browse.episode_steps(app_env, "sim-vlm-f", episode)
+    text = at.main.markdown[0].value
+    assert "**Step 2**" in text and steps["action_raw"][2] in text
+    assert at.get("image")  # the step picture
+    assert at.get("download_button")[0].proto.label.startswith("Download episode as MCAP")
+
+    at.slider(key="viewer_step").set_value(1)
+    rerun(at)
+    assert "**Step 1**" in at.main.markdown[0].value
+    assert at.query_params["step"] == "1"
+
+
+def test_episode_viewer_default(app_env):
+    at = open_page("episode_viewer")
+    assert at.selectbox(key="viewer_run").value == browse.runs(app_env)["run_id"][0]
+    assert "**Step 0**" in at.main.markdown[0].value
+    classification = at.dataframe[0].value
+    assert list(classification["field"]) == list(dash.CLASSIFICATION_FIELDS)
+
+
+# ------------------------------------------------------------------------------ SQL
+
+
+def test_sql_page_runs_queries_and_refuses_writes(app_env):
+    at = open_page("sql")
+    first = next(iter(dash.EXAMPLE_QUERIES.values()))
+    assert at.text_area(key="sql_query").value == first
+    shown = at.dataframe[1].value
+    assert len(shown) == browse.runs(app_env)["model"].n_unique()
+
+    at.text_area(key="sql_query").input("DROP TABLE steps")
+    rerun(at)
+    assert at.error and not at.exception
+
+    name = "Dangerous actions per run"
+    at.selectbox(key="sql_example").select(name)
+    rerun(at)
+    assert at.text_area(key="sql_query").value == dash.EXAMPLE_QUERIES[name]
+    assert len(at.dataframe[1].value) == 9
