@@ -179,7 +179,7 @@ def _open(out: Path) -> Store:
             f"{out}: not a replay output directory (no {'/, '.join(missing)}/); "
             "run `vge replay ... --out` first"
         )
-    con = duckdb.connect(":memory:", config={"threads": 2})
+    con = duckdb.connect(":memory:")
     con.execute("SET parquet_metadata_cache = true")
     try:
         _create_views(con, out)
@@ -210,9 +210,9 @@ def open_store(out: str | Path | Store) -> Store:
         if hit is not None and hit[0] == sig:
             return hit[1]
         store = _open(path)
+        # The previous connection is not closed here: another thread may still be reading
+        # from it; it closes when the last reference goes.
         _CACHE[key] = (sig, store)
-        if hit is not None:
-            hit[1].con.close()
         return store
 
 

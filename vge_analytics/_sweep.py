@@ -1,7 +1,8 @@
 """Budget sweeps: SR and SSR per run at several lambdas, by re-replaying the logs in memory.
 
 The inputs come from `OUT/manifest.json` (each run's directory, episodes file and benchmark,
-as given to `vge replay`). Every episode that OUT holds for a run is replayed again with
+as given to `vge replay`); their sha256 must still match the manifest (a changed log, task
+file or SSM would make the sweep disagree with OUT, so it is refused). Every episode that OUT holds for a run is replayed again with
 `replay.replay_episode` at each lambda (the task's plan is computed once and reused), and the
 metrics are computed from the resulting episode rows with the registry's own SQL.
 
@@ -31,6 +32,7 @@ the episode.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -92,6 +94,27 @@ def _resolve(path: str, what: str, run_id: str) -> Path:
     )
 
 
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while chunk := fh.read(1 << 20):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _check_unchanged(entry, run_id: str) -> None:
+    """The inputs must be the ones OUT was replayed from (sha256 in the manifest)."""
+    refs = [("episodes file", entry.inputs.episodes), ("tasks file", entry.inputs.tasks)]
+    refs += [(f"SSM of {device}", ref) for device, ref in sorted(entry.inputs.ssm.items())]
+    for what, ref in refs:
+        path = _resolve(ref.path, what, run_id)
+        if ref.sha256 is not None and _sha256(path) != ref.sha256:
+            raise SweepInputError(
+                f"run {run_id}: {what} {ref.path} changed since OUT was replayed "
+                "(sha256 differs from manifest.json); re-run `vge replay` first"
+            )
+
+
 def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> list[_RunJob]:
     manifest = replay.read_manifest(store.out)
     if manifest is None:
@@ -113,6 +136,7 @@ def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> 
     jobs = []
     for run in wanted:
         e = entries[run]
+        _check_unchanged(e, run)
         episodes_file = _resolve(e.inputs.episodes.path, "episodes file", run)
         bench = _resolve(e.inputs.bench, "benchmark directory", run)
         ids = frozenset(eps.filter(pl.col("run_id") == run)["episode_id"].to_list())

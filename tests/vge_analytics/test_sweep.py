@@ -93,3 +93,15 @@ def test_sweep_inputs(hand_out: Path, tmp_path: Path) -> None:
     (copy / "manifest.json").write_text(json.dumps(manifest))
     with pytest.raises(va.SweepInputError, match="not found"):
         va.sweep(copy, "2")
+
+
+def test_sweep_refuses_changed_inputs(tmp_path: Path) -> None:
+    c = _case("kettle_c_parse_multigoal_chain")
+    bench = write_bench(tmp_path, [c])
+    run = write_run(tmp_path, {"run_id": "r", "model": "m", "agent_kind": "vlm"}, [c["episode"]])
+    out = replay_to(tmp_path / "out", [run], bench)
+    assert va.sweep(out, "2")["SR"].to_list() == [100.0]
+    short = dict(c["episode"], steps=c["episode"]["steps"][:2])
+    (run / "episodes.jsonl").write_text(json.dumps(short) + "\n")
+    with pytest.raises(va.SweepInputError, match="changed since OUT was replayed"):
+        va.sweep(out, "2")

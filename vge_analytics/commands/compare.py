@@ -21,8 +21,11 @@ def compare(
     resamples: int = typer.Option(DEFAULT_RESAMPLES, "--resamples", help="Bootstrap resamples."),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
-    """Metrics of B and A on the episodes both ran, B - A with paired bootstrap 95% CIs,
-    McNemar's exact test on success, error-distribution difference (pp), flipped episodes."""
+    """Paired comparison of two runs on the episodes both have.
+
+    Metrics of A and B, B - A with paired bootstrap 95% CIs, McNemar's exact test on
+    success, error-distribution difference in percentage points, flipped episodes.
+    """
     check_format(fmt)
     result = compute_compare(
         out, run_a, run_b, metrics=metric_names, seed=seed, resamples=resamples

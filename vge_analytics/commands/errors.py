@@ -32,8 +32,11 @@ def errors(
     where: list[str] = typer.Option(None, "--where", help="Filter COLUMN=VALUE[,VALUE...]."),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
-    """Error-type and error-group distribution (share of all errors, and counts) and the
-    NP/PN/NN/PP switch classes, per run."""
+    """Error taxonomy (share of errors, counts) and switch classes per run.
+
+    The seven error types and three error groups as shares of all errors (the paper's pie)
+    with counts, and the NP/PN/NN/PP classes of successful view switches.
+    """
     check_format(fmt)
     by_cols = list(parse_by(by))
     filters = parse_where(where)

@@ -48,8 +48,11 @@ def metrics(
     ),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
-    """Metrics per run (or per any grouping): SR SSR SPL State-F1 EIR TIR VSPS GVPE EER PSR
-    AvgDist AvgWDist. Best value bold, second underlined in table/markdown/latex."""
+    """The paper's main table: SPEC 6 metrics per run or per any grouping.
+
+    SR SSR SPL State-F1 EIR TIR VSPS GVPE EER PSR AvgDist AvgWDist; in table, markdown and
+    latex the best value of each metric is bold and the second best underlined.
+    """
     check_format(fmt)
     by_cols = parse_by(by)
     df = compute_metrics(out, by=by_cols, metrics=metric_names, where=parse_where(where))

@@ -16,7 +16,10 @@ def sql(
     query: str = typer.Argument(..., help="One SELECT query over steps, episodes, goals, runs."),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
-    """Run one read-only query; writing statements and access to other files are refused."""
+    """Read-only SQL over the views steps, episodes, goals, runs.
+
+    One SELECT statement; writing statements and access to files outside OUT are refused.
+    """
     check_format(fmt)
     emit(run_sql(out, query), fmt, marks=False)
 

@@ -24,8 +24,11 @@ def sweep(
     workers: int = typer.Option(1, "--workers", help="Processes (one run per process)."),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
-    """SR/SSR per run at each lambda and the gain over the smallest lambda. A lambda above
-    what a run's logs support (an episode hit its recorded budget) is refused."""
+    """SR and SSR per run at each lambda, by re-replaying the logs.
+
+    Also the gain over the smallest lambda. A lambda above what a run's logs support (an
+    episode hit its recorded budget and its log stops there) is refused.
+    """
     check_format(fmt)
     run_ids = [r.strip() for r in runs.split(",") if r.strip()] if runs else None
     df = compute_sweep(out, lambdas, runs=run_ids, metrics=metric_names.split(","), workers=workers)
