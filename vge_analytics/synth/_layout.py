@@ -157,7 +157,7 @@ def layout(inp: LayoutInput) -> Geometry:
 
 def _layout_once(inp: LayoutInput, rng: random.Random) -> Geometry:
     catalog = load_catalog(inp.category)
-    body = "cylinder" if catalog.body.lower().startswith("cylind") else "box"
+    body = body_kind(catalog.body)
     dims = _body_dims(inp.category, catalog, body, rng)
     palette = _palette(rng)
     frames = {v: _ortho_frame(v, dims, rng) for v in ORTHO}
@@ -197,6 +197,27 @@ def _layout_once(inp: LayoutInput, rng: random.Random) -> Geometry:
         panel=panel,
         model_name=model_name,
     )
+
+
+def body_kind(name: str) -> str:
+    """`cylinder`, `pistol` (a barrel over a grip; placed like a box) or `box`."""
+    name = name.lower()
+    if name.startswith("cylind"):
+        return "cylinder"
+    if name == "pistol":
+        return "pistol"
+    return "box"
+
+
+def pistol_solids(dims: Dims) -> tuple[Box3, Box3]:
+    """(barrel, grip) of a pistol-shaped body: the barrel along the longer horizontal axis."""
+    X, Y, Z = dims
+    barrel = Box3((0.0, 0.0, Z * 0.5), (X, Y, Z))
+    if X >= Y:
+        grip = Box3((X * 0.3, Y * 0.12, 0.0), (X * 0.62, Y * 0.88, Z * 0.56))
+    else:
+        grip = Box3((X * 0.12, Y * 0.3, 0.0), (X * 0.88, Y * 0.62, Z * 0.56))
+    return barrel, grip
 
 
 def _body_dims(category: str, catalog: Catalog, body: str, rng: random.Random) -> Dims:
@@ -457,6 +478,8 @@ class _Placer:
             if attempt and attempt % 40 == 0:
                 w, h = w * 0.88, h * 0.88
             box = self.sample_box(faces, w, h)
+            if self.body == "pistol" and not _on_pistol(self.dims, box):
+                continue
             rects = self.rects(box, faces)
             if rects is not None and self.fits(rects):
                 self.commit(rects)
@@ -479,6 +502,17 @@ class _Placer:
 
     def _color(self, spec: ComponentSpec) -> tuple[int, int, int]:
         return self.rng.choice(ACCENT_COLORS)
+
+
+def _on_pistol(dims: Dims, box: Box3) -> bool:
+    """The box's centre is on the barrel or the grip (with a margin for the surface)."""
+    c = box.center
+    for solid in pistol_solids(dims):
+        if all(
+            solid.lo[i] - 0.18 * dims[i] <= c[i] <= solid.hi[i] + 0.18 * dims[i] for i in range(3)
+        ):
+            return True
+    return False
 
 
 def _face_plane_axes(face: str) -> tuple[int, int]:

@@ -27,7 +27,9 @@ from ._geometry import (
     silhouette_size,
 )
 from ._icons import draw_icon
-from ._layout import body_outline_points
+from ._layout import body_outline_points, pistol_solids
+from ._motifs import MOTIFS
+from ._motifs import PAINTERS as MOTIF_PAINTERS
 from ._paint import MIN_TEXT, PAINTERS, centered_text, font, paint_part, text_size
 from ._shapes import ROUND_KINDS, darker, ink_on
 
@@ -129,7 +131,9 @@ def _ortho(g: Geometry, view: str, omit: frozenset[str]) -> Image.Image:
     round_top = g.body == "cylinder" and view in ("top", "bottom")
     outline = darker(pal.body, 0.4)
     lw = max(2, round(min(bw, bh) * 0.006))
-    if round_top:
+    if g.body == "pistol" and view not in ("top", "bottom"):
+        _pistol_silhouette(d, g, view, outline, lw)
+    elif round_top:
         d.ellipse(body, fill=pal.body, outline=outline, width=lw * 2)
         inner = (body[0] + bw * 0.06, body[1] + bh * 0.06, body[2] - bw * 0.06, body[3] - bh * 0.06)
         d.ellipse(inner, outline=darker(pal.body, 0.12), width=lw)
@@ -167,8 +171,59 @@ def _ortho(g: Geometry, view: str, omit: frozenset[str]) -> Image.Image:
     return canvas
 
 
+def _pistol_silhouette(d, g: Geometry, view: str, outline, lw: int) -> None:
+    """Barrel over grip, grown where a component sits off them: outline pass, then fill."""
+    frame = g.frames[view]
+    rects = []
+    for solid in pistol_solids(g.dims):
+        rects.append(_scaled(frame.rect_px(project_box(view, g.dims, solid))))
+    pad = 0.05 * min(rects[0][2] - rects[0][0], rects[0][3] - rects[0][1])
+    for part in g.parts:
+        if view in part.views:
+            x0, y0, x1, y1 = _scaled(g.part_rect(part, view))
+            rects.append((x0 - pad, y0 - pad, x1 + pad, y1 + pad))
+    radius = 0.2 * min(r[3] - r[1] for r in rects[:2])
+    for r in rects:
+        d.rounded_rectangle(
+            r, radius=min(radius, (r[2] - r[0]) / 2, (r[3] - r[1]) / 2), fill=outline
+        )
+    for r in rects:
+        inner = (r[0] + lw * 2, r[1] + lw * 2, r[2] - lw * 2, r[3] - lw * 2)
+        if inner[2] > inner[0] and inner[3] > inner[1]:
+            d.rounded_rectangle(
+                inner,
+                radius=min(radius, (inner[2] - inner[0]) / 2, (inner[3] - inner[1]) / 2),
+                fill=g.palette.body,
+            )
+
+
+def _motifs(canvas: Image.Image, g: Geometry, view: str, body, occupied) -> None:
+    """The category's recognisable details (cup bay, grille, clock face...) where free."""
+    d = ImageDraw.Draw(canvas)
+    x0, y0, x1, y1 = body
+    bw, bh = x1 - x0, y1 - y0
+
+    def text_fn(draw, r, text, ink) -> None:
+        centered_text(draw, r, text, ink, int((r[3] - r[1]) * 0.6))
+
+    for m_view, (fx0, fy0, fx1, fy1), painter in MOTIFS.get(g.category, ()):
+        if m_view != view:
+            continue
+        cx, cy = x0 + bw * (fx0 + fx1) / 2, y0 + bh * (fy0 + fy1) / 2
+        hw, hh = bw * (fx1 - fx0) / 2, bh * (fy1 - fy0) / 2
+        for shrink in (1.0, 0.8, 0.62, 0.48):
+            rect = (cx - hw * shrink, cy - hh * shrink, cx + hw * shrink, cy + hh * shrink)
+            if all(not _overlaps(rect, o) for o in occupied):
+                MOTIF_PAINTERS[painter](d, rect, g.palette.body, text_fn)
+                occupied.append(rect)
+                break
+
+
 def _decorate(canvas: Image.Image, g: Geometry, view: str, body, occupied) -> None:
     """Non-interactive details that make a face recognisable: vents, feet, a rating plate."""
+    _motifs(canvas, g, view, body, occupied)
+    if g.body == "pistol":
+        return
     d = ImageDraw.Draw(canvas)
     x0, y0, x1, y1 = body
     bw, bh = x1 - x0, y1 - y0
@@ -506,17 +561,22 @@ def _axo(g: Geometry, frame: AxoFrame, omit: frozenset[str]) -> Image.Image:
         normal = (0.0, 0.0, 1.0 if cap_z else -1.0)
         d.polygon(_convex_hull(cap), fill=_shade(pal.body, normal, frame.toward), outline=outline)
     else:
-        box = Box3((0.0, 0.0, 0.0), (X, Y, Z))
-        for face in sorted(FACE_NORMALS, key=lambda f: _face_depth(frame, box, f)):
-            if not frame.sees(face):
-                continue
-            poly = [px(p) for p in _FACE_CORNERS[face](box.lo, box.hi)]
-            d.polygon(
-                poly,
-                fill=_shade(pal.body, FACE_NORMALS[face], frame.toward),
-                outline=outline,
-                width=2 * SS,
-            )
+        if g.body == "pistol":
+            barrel, grip = pistol_solids(g.dims)
+            boxes = [grip, barrel] if frame.view == "front_top" else [barrel, grip]
+        else:
+            boxes = [Box3((0.0, 0.0, 0.0), (X, Y, Z))]
+        for box in boxes:
+            for face in sorted(FACE_NORMALS, key=lambda f: _face_depth(frame, box, f)):
+                if not frame.sees(face):
+                    continue
+                poly = [px(p) for p in _FACE_CORNERS[face](box.lo, box.hi)]
+                d.polygon(
+                    poly,
+                    fill=_shade(pal.body, FACE_NORMALS[face], frame.toward),
+                    outline=outline,
+                    width=2 * SS,
+                )
     items: list[tuple[float, Part | None]] = []
     for part in g.parts:
         if part.name in omit:

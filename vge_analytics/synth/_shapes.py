@@ -27,7 +27,7 @@ BODY_DIMS: dict[str, tuple[float, float, float]] = {
     "Razor": (5.5, 4.5, 16.0),
     "RiceCooker": (30.0, 30.0, 27.0),
     "ThermometerGun": (5.0, 13.0, 16.0),
-    "Vacuum": (30.0, 32.0, 40.0),
+    "Vacuum": (26.0, 22.0, 100.0),
     "WashingMachine": (60.0, 60.0, 85.0),
     "WeighingScale": (30.0, 30.0, 3.0),
 }
