@@ -15,6 +15,7 @@ from replay import VGEError
 
 # Command modules, in the order `vge --help` lists them.
 COMMAND_MODULES = (
+    "demo",
     "validate",
     "replay",
     "synth",
