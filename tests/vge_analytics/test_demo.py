@@ -10,7 +10,8 @@ from vge_analytics.cli import main
 LOGS = Path(__file__).resolve().parents[2] / "logs"
 
 
-def test_demo_replays_the_sample_and_prints_the_table(tmp_path: Path, capsys) -> None:
+def test_demo_replays_the_sample_and_prints_the_table(tmp_path: Path, capsys, monkeypatch) -> None:
+    monkeypatch.setenv("COLUMNS", "250")  # a wide terminal: no column is ellipsised
     out = tmp_path / "replayed"
     assert main(["demo", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
