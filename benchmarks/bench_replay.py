@@ -53,11 +53,13 @@ def bare_decoding(files: list[Path]) -> dict[str, float]:
     """Seconds to read + decode every line: msgspec typed, orjson untyped; step count."""
     steps = 0
     t0 = time.perf_counter()
+    c0 = time.process_time()
     for path in files:
         for line in _read(path).splitlines():
             if line.strip():
                 steps += len(episode_decoder.decode(line).steps)
     t_msgspec = time.perf_counter() - t0
+    c_msgspec = time.process_time() - c0
     t0 = time.perf_counter()
     for path in files:
         for line in _read(path).splitlines():
@@ -68,7 +70,13 @@ def bare_decoding(files: list[Path]) -> dict[str, float]:
     for path in files:
         _read(path)
     t_read = time.perf_counter() - t0
-    return {"steps": steps, "msgspec_s": t_msgspec, "orjson_s": t_orjson, "read_s": t_read}
+    return {
+        "steps": steps,
+        "msgspec_s": t_msgspec,
+        "msgspec_cpu_s": c_msgspec,
+        "orjson_s": t_orjson,
+        "read_s": t_read,
+    }
 
 
 _CHILD = """
@@ -78,8 +86,12 @@ runs, bench, out, workers = json.loads(sys.argv[1])
 t0 = time.perf_counter()
 m = replay.replay_runs(runs, bench, out, workers=workers, force=True, progress=False)
 wall = time.perf_counter() - t0
+me = resource.getrusage(resource.RUSAGE_SELF)
+kids = resource.getrusage(resource.RUSAGE_CHILDREN)
 print(json.dumps({
     "wall_s": wall,
+    "main_cpu_s": me.ru_utime + me.ru_stime,
+    "workers_cpu_s": kids.ru_utime + kids.ru_stime,
     "steps": m.content.totals.steps,
     "episodes": m.content.totals.replayed,
     "quarantined": m.content.totals.quarantined,
@@ -99,14 +111,17 @@ def end_to_end(data: Path, out: Path, workers: int) -> dict[str, float]:
 
 
 def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
-    """Replay `n` episodes of the largest run and time `write_episode_mcap` alone."""
+    """Replay `n` episodes of the largest run; time `write_episode_mcap` alone, with the
+    view images (the CLI's image source) fetched beforehand."""
+    from replay._batch import as_image_tuple
+    from vge_analytics.commands.replay import image_source
+
     bench = replay.Benchmark.open(data / "bench")
-    images = replay.BenchImages(str(data / "bench"))
+    images = image_source(data / "bench")
     files = _episode_files(data)
     largest = max(files, key=lambda p: p.stat().st_size)
-    total = 0.0
-    count = 0
-    with_images = 0
+    total = image_total = 0.0
+    count = with_images = 0
     for line in _read(largest).splitlines()[:n]:
         log = episode_decoder.decode(line)
         task = bench.tasks[log.episode_id].task
@@ -115,22 +130,24 @@ def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
             machine, task, log, lam=5.0, run_id="r", model="m", agent_kind="vlm"
         )
         ssm = Path(machine.source).read_bytes()
-        cache: dict[str, object] = {}
-
-        def image(view: str, machine=machine, cache=cache):
-            if view not in cache:
-                cache[view] = images(machine, view)
-            return cache[view]
-
+        t0 = time.perf_counter()
+        views = {r.view_before for r in result.steps if r.view_before} | {
+            result.episode.initial_view
+        }
+        cache = {v: as_image_tuple(images(machine, v)) for v in sorted(views)}
+        image_total += time.perf_counter() - t0
         buf = io.BytesIO()
         t0 = time.perf_counter()
-        replay.write_episode_mcap(buf, machine, result, ssm_bytes=ssm, image=image, library="b")
+        replay.write_episode_mcap(
+            buf, machine, result, ssm_bytes=ssm, image=cache.get, library="bench"
+        )
         total += time.perf_counter() - t0
         count += 1
         with_images += any(v is not None for v in cache.values())
     return {
         "episodes": count,
         "ms_per_episode": 1000 * total / max(count, 1),
+        "image_ms_per_episode": 1000 * image_total / max(count, 1),
         "episodes_with_images": with_images,
     }
 
@@ -166,6 +183,10 @@ def _group(filename: str, func: str) -> str:
     return "other: " + (path.parent.name + "/" + path.name if path.name else filename)
 
 
+def _load() -> str:
+    return " / ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("data", type=Path, help="directory with bench/ and runs/")
@@ -178,19 +199,23 @@ def main() -> None:
     size = sum(p.stat().st_size for p in files)
     print(f"## Replay benchmark on {data}\n")
     print(
-        f"- {len(files)} runs, {size / 1e6:.1f} MB of episode files, python {sys.version.split()[0]}, "
-        f"{os.cpu_count()} CPUs\n"
+        f"- {len(files)} runs, {size / 1e6:.1f} MB of episode files, "
+        f"python {sys.version.split()[0]}, {os.cpu_count()} CPUs, "
+        f"load average at start {_load()}\n"
     )
     bare = bare_decoding(files)
     steps = bare["steps"]
-    print("| measure | seconds | steps/s |\n|---|---:|---:|")
-    print(f"| read + gunzip only | {bare['read_s']:.2f} | |")
+    print("| measure | wall s | CPU s | steps/s (wall) | steps/s (CPU) |")
+    print("|---|---:|---:|---:|---:|")
+    print(f"| read + gunzip only | {bare['read_s']:.2f} | | | |")
     print(
-        f"| bare decode, msgspec typed (EpisodeLog) | {bare['msgspec_s']:.2f} | "
-        f"{steps / bare['msgspec_s']:,.0f} |"
+        f"| bare decode, msgspec typed (`EpisodeLog`) | {bare['msgspec_s']:.2f} | "
+        f"{bare['msgspec_cpu_s']:.2f} | {steps / bare['msgspec_s']:,.0f} | "
+        f"{steps / bare['msgspec_cpu_s']:,.0f} |"
     )
     print(
-        f"| bare decode, orjson untyped | {bare['orjson_s']:.2f} | {steps / bare['orjson_s']:,.0f} |"
+        f"| bare decode, orjson untyped | {bare['orjson_s']:.2f} | | "
+        f"{steps / bare['orjson_s']:,.0f} | |"
     )
     with tempfile.TemporaryDirectory() as tmp:
         results = {}
@@ -198,28 +223,39 @@ def main() -> None:
             r = end_to_end(data, Path(tmp) / f"out{workers}", workers)
             results[workers] = r
             assert r["steps"] == steps, (r["steps"], steps)
+            # CPU-bound estimate: the busiest process (main, or a worker's share)
+            busiest = max(r["main_cpu_s"], r["workers_cpu_s"] / workers)
+            cpu = r["main_cpu_s"] + r["workers_cpu_s"]
             print(
-                f"| replay end to end, {workers} worker(s) | {r['wall_s']:.2f} | "
-                f"{r['steps'] / r['wall_s']:,.0f} |"
+                f"| replay end to end, {workers} worker(s) | {r['wall_s']:.2f} | {cpu:.2f} | "
+                f"{r['steps'] / r['wall_s']:,.0f} | {r['steps'] / busiest:,.0f} |"
             )
-        print()
         print(
-            "| workers | ratio to bare msgspec decode | peak RSS main (MB) | peak RSS largest worker (MB) |"
+            "\n(steps/s (CPU) of a replay: steps / CPU seconds of its busiest process, i.e. the"
+            " rate on idle cores; with workers, the main process only reads and writes.)\n"
         )
-        print("|---:|---:|---:|---:|")
+        print(
+            "| workers | wall / bare decode | CPU / bare decode CPU | peak RSS main (MB) |"
+            " peak RSS largest worker (MB) |"
+        )
+        print("|---:|---:|---:|---:|---:|")
         for workers, r in results.items():
             worker_rss = f"{r['worker_rss_mb']:.0f}" if workers > 1 else "-"
+            cpu = r["main_cpu_s"] + r["workers_cpu_s"]
             print(
-                f"| {workers} | {r['wall_s'] / bare['msgspec_s']:.0f}x | {r['main_rss_mb']:.0f} | {worker_rss} |"
+                f"| {workers} | {r['wall_s'] / bare['msgspec_s']:.0f}x | "
+                f"{cpu / bare['msgspec_cpu_s']:.0f}x | {r['main_rss_mb']:.0f} | {worker_rss} |"
             )
+        first = next(iter(results.values()))
         print(
-            f"\n- {steps:,} steps, {next(iter(results.values()))['episodes']:,} episodes, "
-            f"{next(iter(results.values()))['quarantined']} quarantined"
+            f"\n- {steps:,} steps, {first['episodes']:,} episodes, {first['quarantined']}"
+            f" quarantined; load average at the end {_load()}"
         )
         m = mcap_ms_per_episode(data, args.mcap_episodes)
         print(
-            f"- MCAP: {m['ms_per_episode']:.2f} ms per episode "
-            f"({m['episodes']} episodes, {m['episodes_with_images']} with view images)"
+            f"- MCAP: {m['ms_per_episode']:.2f} ms per episode to write "
+            f"({m['episodes']} episodes, {m['episodes_with_images']} with view images; "
+            f"getting the images: {m['image_ms_per_episode']:.1f} ms per episode, cached per view)"
         )
         if args.profile:
             print("\n| profile (1 worker, largest run): exclusive time | share |\n|---|---:|")
