@@ -94,12 +94,22 @@ class BatchFailure:
     details: str
 
 
+SETUP_CACHE_SIZE = 50_000
+"""Episode setups (plans) kept per process; bounds memory whatever the number of tasks."""
 _IMAGE_CACHE_SIZE = 128
+_SSM_CACHE_SIZE = 256
+
+
+def _remember(cache: dict, key: object, value: object, limit: int) -> None:
+    """Insert into a bounded cache, dropping the oldest entry when full."""
+    if len(cache) >= limit:
+        del cache[next(iter(cache))]
+    cache[key] = value
 
 
 @dataclass
 class WorkerState:
-    """Per-process caches: the benchmark, episode setups, SSM bytes and view images."""
+    """Per-process caches (bounded): the benchmark, episode setups, SSM bytes, view images."""
 
     bench: Benchmark
     setups: dict[str, EpisodeSetup | TaskError] = field(default_factory=dict)
@@ -113,7 +123,7 @@ class WorkerState:
                 got = setup_episode(machine, task)
             except TaskError as exc:
                 got = exc
-            self.setups[task.episode_id] = got
+            _remember(self.setups, task.episode_id, got, SETUP_CACHE_SIZE)
         if isinstance(got, TaskError):
             raise got
         return got
@@ -121,9 +131,7 @@ class WorkerState:
     def image(self, source: ImageSource, machine: Machine, view: str) -> ImageTuple | None:
         key = (machine.device_id, view)
         if key not in self.images:
-            if len(self.images) >= _IMAGE_CACHE_SIZE:
-                del self.images[next(iter(self.images))]
-            self.images[key] = as_image_tuple(source(machine, view))
+            _remember(self.images, key, as_image_tuple(source(machine, view)), _IMAGE_CACHE_SIZE)
         return self.images[key]
 
     def ssm(self, machine: Machine) -> bytes:
@@ -133,7 +141,7 @@ class WorkerState:
                 got = Path(machine.source).read_bytes()
             except OSError:
                 got = msgspec.json.encode(machine.ssm)
-            self.ssm_bytes[machine.device_id] = got
+            _remember(self.ssm_bytes, machine.device_id, got, _SSM_CACHE_SIZE)
         return got
 
 
