@@ -112,7 +112,7 @@ def error_stacked(dist: pl.DataFrame, group_order: Sequence[str]):
             order=alt.Order("type_order:Q"),
             tooltip=["group", "label", "count", alt.Tooltip("share:Q", format=".1f")],
         )
-        .properties(height=alt.Step(24))
+        .properties(width=560, height=alt.Step(24))
     )
 
 
@@ -151,7 +151,7 @@ def error_group_stacked(groups: pl.DataFrame, group_order: Sequence[str]):
             order=alt.Order("group_order:Q"),
             tooltip=["group", "error_group", "count", alt.Tooltip("share:Q", format=".1f")],
         )
-        .properties(height=alt.Step(24))
+        .properties(width=560, height=alt.Step(24))
     )
 
 
@@ -183,7 +183,7 @@ def switch_stacked(classes: pl.DataFrame, group_order: Sequence[str]):
             order=alt.Order("class_order:Q"),
             tooltip=["group", "switch_class", "count", alt.Tooltip("share:Q", format=".1f")],
         )
-        .properties(height=alt.Step(24))
+        .properties(width=560, height=alt.Step(24))
     )
 
 

@@ -38,7 +38,7 @@ API: dict[str, Callable[..., Any]] = {
     "episodes": browse.episodes,
     "goals": browse.goals,
     "episode_steps": browse.episode_steps,
-    "steps_with_error": browse.steps_with_error,
+    "error_step_sample": dash.error_step_sample,
     "out_summary": dash.out_summary,
     "column_values": dash.column_values,
     "step_picture": dash.step_picture,
@@ -104,6 +104,16 @@ def show_error(exc: Exception) -> None:
 
 END_MARKER = "vge-page-done"
 """id of the invisible element every script run ends with (`end_of_page`)."""
+
+
+class PageStopped(Exception):  # noqa: N818 - a control-flow signal, like st.stop's
+    """Raised by `stop()`: the page has said all it can; the entry file still ends the run
+    with its marker (st.stop would drop everything after it)."""
+
+
+def stop() -> None:
+    """End the page here (the entry file catches this and finishes the run)."""
+    raise PageStopped
 
 
 def end_of_page() -> None:
@@ -206,6 +216,11 @@ def number_config(df: pl.DataFrame, digits: int = 2) -> dict[str, Any]:
         for c, t in df.schema.items()
         if t in (pl.Float64, pl.Float32)
     }
+
+
+def table_height(df: pl.DataFrame) -> int:
+    """Pixel height showing every row of a small table without a scrollbar."""
+    return 38 + 35 * df.height
 
 
 def metric_column_config(names: Sequence[str]) -> dict[str, Any]:

@@ -7,6 +7,8 @@ benchmark wait for it.
 
 from __future__ import annotations
 
+import contextlib
+
 import streamlit as st
 
 from app import _ui as ui
@@ -33,11 +35,10 @@ def run() -> None:
             st.Page("views/sql.py", title="SQL", icon=":material/database:"),
         ]
     )
-    try:
-        if ui.sidebar():
+    if ui.sidebar():
+        with contextlib.suppress(ui.PageStopped):  # a page said all it could (ui.stop)
             page.run()
-    finally:
-        ui.end_of_page()
+    ui.end_of_page()
 
 
 if __name__ == "__main__":

@@ -530,14 +530,22 @@ def click_points(
     return store.cursor().sql(sql, params=params).pl()
 
 
+def clicked_targets(points: pl.DataFrame) -> tuple[str, ...]:
+    """The components that were the nearest target of some click of a `click_points` result."""
+    return tuple(sorted(t for t in points["nearest_target"].unique().to_list() if t is not None))
+
+
 def scatter_boxes(
-    out: str | Path, device_id: str, view: str, points: pl.DataFrame, run_id: str | None = None
+    out: str | Path,
+    device_id: str,
+    view: str,
+    targets: Sequence[str],
+    run_id: str | None = None,
 ) -> pl.DataFrame:
     """The component boxes of a device view for the scatter: component, x0, y0, x1, y1 and
-    role, `target` for the components that were the nearest target of some click shown."""
+    role, `target` for the components named in `targets` (see `clicked_targets`)."""
     machine = device_machine(out, device_id, run_id)
-    targets = [t for t in points["nearest_target"].unique().to_list() if t is not None]
-    boxes = view_boxes(machine, view, targets=targets)
+    boxes = view_boxes(machine, view, targets=list(targets))
     return pl.DataFrame(
         [
             {
@@ -562,6 +570,35 @@ def scatter_boxes(
 
 
 # ------------------------------------------------------------------------------ errors
+
+
+def error_step_sample(
+    out: str | Path,
+    error_type: str,
+    where: Filters = None,
+    columns: Sequence[str] = ("run_id", "episode_id", "step"),
+    *,
+    limit: int = 500,
+) -> tuple[pl.DataFrame, int]:
+    """The first `limit` scored steps with `error_type` (by run, episode, step) and how many
+    there are in all: the drill-down table. Unlike `steps_with_error`, the limit is applied
+    in the query, so a common error type on the full benchmark (10^5 steps) stays cheap."""
+    store = open_store(out)
+    check_columns(store, [*(where or {}), *columns], ["steps"], "filter/column")
+    scope = build_scope(store, "steps", [], where)
+    cols = ", ".join(f"g.{quote_ident(c)}" for c in columns)
+    base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
+    params = [*scope.params, error_type]
+    total = store.cursor().execute(f"SELECT count(*) {base}", params).fetchall()[0][0]
+    df = (
+        store.cursor()
+        .sql(
+            f"SELECT {cols} {base} ORDER BY g.run_id, g.episode_id, g.step LIMIT ?",
+            params=[*params, int(limit)],
+        )
+        .pl()
+    )
+    return df, int(total)
 
 
 def error_share_wide(dist: pl.DataFrame) -> pl.DataFrame:
@@ -914,7 +951,7 @@ def sweep_size(out: str | Path, runs: Sequence[str], lambdas: Sequence[float]) -
             "SELECT count(*) FROM episodes WHERE list_contains(CAST(? AS VARCHAR[]), run_id)",
             [list(runs)],
         )
-        .fetchone()[0]
+        .fetchall()[0][0]
     )
     return int(n) * len(lambdas)
 

@@ -22,7 +22,7 @@ lambdas = c2.multiselect("λ values", ui.LAMBDA_CHOICES, default=[2, 3, 4, 5], k
 relative = c3.radio("Gain", ["percentage points", "relative %"], key="budgets_gain")
 if len(lambdas) < 2 or not facet_runs:
     st.info("Choose at least two λ values and one run.")
-    st.stop()
+    ui.stop()
 
 selected = sorted(chosen or facet_runs)
 table = dash.stored_sweep(ui.out_dir(), selected, lambdas)
@@ -37,13 +37,13 @@ if table is None:
             "This sweep is large; it is computed once, then kept (also across restarts). "
             "Fewer runs or λ values make it faster."
         )
-        st.stop()
+        ui.stop()
     try:
         with st.spinner("Replaying every episode at each λ..."):
             table = ui.call("computed_sweep", selected, lambdas, workers=ui.sweep_workers(size))
     except AnalyticsError as exc:
         ui.show_error(exc)
-        st.stop()
+        ui.stop()
 
 gain = dash.sweep_curves(table, relative=relative == "relative %")
 title = f"SR gain over λ = {min(lambdas):g}" + (

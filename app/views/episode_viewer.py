@@ -15,7 +15,7 @@ run = c1.selectbox("Run", runs["run_id"].to_list(), key="viewer_run")
 episodes = ui.call("episodes", where={"run_id": run}, columns=list(ui.EPISODE_COLUMNS))
 if episodes.height == 0:
     st.info(f"Run {run} has no replayed episode.")
-    st.stop()
+    ui.stop()
 ui.keep_choice("viewer_episode", episodes["episode_id"].to_list())
 episode = c2.selectbox(
     "Episode",
@@ -36,8 +36,9 @@ m[4].metric("State-F1", f"{ep['state_f1']:.2f}")
 
 if steps.height == 0:
     st.info("This episode has no step.")
-    st.stop()
+    ui.stop()
 step = ui.step_slider(steps)
+st.caption(f"{steps.height} steps, numbered 0–{steps.height - 1}")
 row = steps.row(step, named=True)
 ui.set_viewer_query(run, episode, step)
 
@@ -52,7 +53,8 @@ with left:
         )
 with right:
     st.markdown(dash.step_markdown(row, goals))
-    st.dataframe(dash.step_classification(row), hide_index=True)
+    classification = dash.step_classification(row)
+    st.dataframe(classification, hide_index=True, height=ui.table_height(classification))
     if row["thinking"]:
         with st.expander("Thinking", expanded=True):
             st.text(row["thinking"])

@@ -29,8 +29,8 @@ order = dist["group"].unique(maintain_order=True).to_list()
 
 compare_tab, pie_tab, table_tab = st.tabs(["Compare groups", "Pie of one group", "Table"])
 with compare_tab:
-    st.altair_chart(charts.error_stacked(dist, order))
-    st.altair_chart(charts.error_group_stacked(ui.labelled(groups, by), order))
+    st.altair_chart(charts.error_stacked(dist, order), width="content")
+    st.altair_chart(charts.error_group_stacked(ui.labelled(groups, by), order), width="content")
 with pie_tab:
     one = st.selectbox("Group", order, key="errors_pie_group")
     part = dist.filter(dist["group"] == one)
@@ -54,15 +54,17 @@ drill_runs = d2.multiselect(
     placeholder="all runs",
     key="errors_drill_runs",
 )
-steps = ui.call(
-    "steps_with_error",
+steps, total = ui.call(
+    "error_step_sample",
     error_type,
     where=ui.where(run_id=drill_runs, category=categories),
-    columns=list(ui.STEP_COLUMNS),
+    columns=ui.STEP_COLUMNS,
+    limit=ui.MAX_ROWS,
 )
-st.caption(f"{steps.height} steps with {ERROR_LABELS[error_type]}; select one to open its episode.")
+shown = "" if total <= steps.height else f" (the first {steps.height} shown)"
+st.caption(f"{total} steps with {ERROR_LABELS[error_type]}{shown}; select one to open its episode.")
 picked = st.dataframe(
-    steps.head(ui.MAX_ROWS),
+    steps,
     hide_index=True,
     on_select="rerun",
     selection_mode="single-row",

@@ -4,6 +4,7 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _ui as ui
+from vge_analytics import _dashboard as dash
 
 st.title("Grounding")
 st.caption(
@@ -36,7 +37,7 @@ st.subheader("Click points on a device view")
 views = ui.call("interaction_views", where=where)
 if views.height == 0:
     st.info("No interaction in the selection.")
-    st.stop()
+    ui.stop()
 devices = views["device_id"].unique(maintain_order=True).to_list()
 d1, d2 = st.columns(2)
 device = d1.selectbox(
@@ -53,7 +54,7 @@ view = d2.selectbox(
     key="grounding_view",
 )
 points = ui.call("click_points", device, view, where=where)
-boxes = ui.call("scatter_boxes", device, view, points)
+boxes = ui.call("scatter_boxes", device, view, dash.clicked_targets(points))
 picture = ui.call("view_picture", device, view)
 st.altair_chart(charts.click_scatter(picture, boxes, points), width="content")
 st.caption(ui.click_summary(points))

@@ -20,12 +20,12 @@ human = c1.selectbox("Human (or reference) run", humans, key="hvv_human")
 model = c2.selectbox("Model run", [r for r in models if r != human], key="hvv_model")
 if human is None or model is None:
     st.info("This needs two runs.")
-    st.stop()
+    ui.stop()
 try:
     cmp = ui.call("compare", model, human)
 except AnalyticsError as exc:
     ui.show_error(exc)
-    st.stop()
+    ui.stop()
 
 mc = cmp.mcnemar.row(0, named=True)
 st.markdown(

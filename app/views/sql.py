@@ -29,7 +29,7 @@ if query.strip():
         result = ui.call("sql", query)
     except AnalyticsError as exc:
         ui.show_error(exc)
-        st.stop()
+        ui.stop()
     st.caption(f"{result.height} rows")
     st.dataframe(result.head(ui.MAX_SQL_ROWS), hide_index=True)
     st.download_button(

@@ -127,6 +127,16 @@ def test_switch_summary_joins_classes_and_ratios(tiny_out):
     assert sum(human[f"{c} %"] for c in ("NP", "PN", "NN", "PP")) == pytest.approx(100.0)
 
 
+def test_error_step_sample_is_the_head_of_steps_with_error(tiny_out):
+    where = {"run_id": ["sim-vlm-a", "sim-vlm-b"]}
+    every = browse.steps_with_error(tiny_out, "invalid_coord", where=where)
+    sample, total = dash.error_step_sample(
+        tiny_out, "invalid_coord", where=where, columns=("run_id", "episode_id", "step"), limit=7
+    )
+    assert total == every.height > 7
+    assert sample.rows() == every.select("run_id", "episode_id", "step").head(7).rows()
+
+
 # ------------------------------------------------------------------------ grounding
 
 
@@ -166,8 +176,9 @@ def test_click_points_filters(tiny_out):
 def test_scatter_boxes_mark_the_clicked_targets(tiny_out):
     first = dash.interaction_views(tiny_out).row(0, named=True)
     points = dash.click_points(tiny_out, first["device_id"], first["view"])
-    boxes = dash.scatter_boxes(tiny_out, first["device_id"], first["view"], points)
     targets = set(points["nearest_target"].drop_nulls())
+    assert dash.clicked_targets(points) == tuple(sorted(targets))
+    boxes = dash.scatter_boxes(tiny_out, first["device_id"], first["view"], sorted(targets))
     assert set(boxes.filter(pl.col("role") == "target")["component"]) == targets
     machine = dash.device_machine(tiny_out, first["device_id"])
     assert set(boxes["component"]) == {c for c, _ in machine.component_rects[first["view"]]}

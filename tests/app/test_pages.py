@@ -139,6 +139,7 @@ def test_errors_page_shares_and_drill_down(app_env):
     label = ERROR_LABELS["params_error"]
     assert f"{steps.height} steps with {label}" in at.main.caption[-1].value
     assert at.dataframe[1].value["step"].tolist() == steps["step"].to_list()[: ui_max_rows()]
+    assert len(at.dataframe[1].value) == min(steps.height, ui_max_rows())
 
 
 def ui_max_rows() -> int:
