@@ -98,8 +98,10 @@ def _make_progress(enabled: bool) -> Progress | None:
 
 
 def _rate(progress: Progress, task: TaskID) -> str:
-    speed = progress.tasks[task].speed  # rich's own moving average (display only)
-    return "-" if speed is None else f"{speed:,.0f}"
+    """Episodes per second since the run started (display only; never written anywhere)."""
+    t = progress.tasks[task]
+    elapsed = t.elapsed
+    return "-" if not elapsed or not t.completed else f"{t.completed / elapsed:,.0f}"
 
 
 def replay_runs(
