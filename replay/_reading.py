@@ -98,19 +98,20 @@ class LineReader:
 def ordered_results(
     batches: Iterator[list[tuple[int, bytes]]],
     ctx: RunContext,
-    pool: ProcessPoolExecutor | None,
+    pools: list[ProcessPoolExecutor],
     local: WorkerState,
     ahead: int,
 ) -> Iterator[BatchResult | BatchFailure]:
-    """Results in batch order, with at most `ahead` batches in flight."""
-    if pool is None:
+    """Results in batch order, with at most `ahead` batches in flight; batch k goes to
+    `pools[k % len(pools)]` (in-process with `local` when there are no pools)."""
+    if not pools:
         for batch in batches:
             yield guarded_batch(local, ctx, batch)
         return
     pending: deque[Future[BatchResult | BatchFailure]] = deque()
     try:
-        for batch in batches:
-            pending.append(pool.submit(run_batch, ctx, batch))
+        for k, batch in enumerate(batches):
+            pending.append(pools[k % len(pools)].submit(run_batch, ctx, batch))
             if len(pending) >= ahead:
                 yield pending.popleft().result()
         while pending:

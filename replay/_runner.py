@@ -104,6 +104,18 @@ def _rate(progress: Progress, task: TaskID) -> str:
     return "-" if not elapsed or not t.completed else f"{t.completed / elapsed:,.0f}"
 
 
+def _start_workers(workers: int, bench_dir: str) -> list[ProcessPoolExecutor]:
+    """One single-process pool per worker: batch k of every run goes to worker k mod N, so
+    runs that list the same episodes in the same order find each task's plan cached."""
+    context = multiprocessing.get_context("spawn")
+    return [
+        ProcessPoolExecutor(
+            max_workers=1, mp_context=context, initializer=init_worker, initargs=(bench_dir,)
+        )
+        for _ in range(workers)
+    ]
+
+
 def replay_runs(
     run_dirs: Sequence[str | os.PathLike[str]],
     bench_dir: str | os.PathLike[str],
@@ -149,7 +161,7 @@ def replay_runs(
         entries = {e.run_id: e for e in previous.runs} if previous else {}
         hasher = Hasher()
         local = WorkerState(bench)
-        pool: ProcessPoolExecutor | None = None
+        pools: list[ProcessPoolExecutor] = []
         bar = _make_progress(progress)
         try:
             if bar is not None:
@@ -165,13 +177,8 @@ def replay_runs(
                         if bar is not None:
                             bar.console.print(f"{run_id}: up to date, skipped (use --force)")
                         continue
-                if workers > 1 and pool is None:
-                    pool = ProcessPoolExecutor(
-                        max_workers=workers,
-                        mp_context=multiprocessing.get_context("spawn"),
-                        initializer=init_worker,
-                        initargs=(bench_given,),
-                    )
+                if workers > 1 and not pools:
+                    pools = _start_workers(workers, bench_given)
                 entries[run_id] = _replay_one(
                     run,
                     bench,
@@ -181,7 +188,7 @@ def replay_runs(
                     image_source,
                     library,
                     hasher,
-                    pool,
+                    pools,
                     local,
                     workers,
                     bar,
@@ -192,7 +199,7 @@ def replay_runs(
         finally:
             if bar is not None:
                 bar.stop()
-            if pool is not None:
+            for pool in pools:
                 pool.shutdown(wait=True, cancel_futures=True)
             shutil.rmtree(state_dir / "staging", ignore_errors=True)
     return Manifest(
@@ -213,7 +220,7 @@ def _replay_one(
     image_source: ImageSource | None,
     library: str,
     hasher: Hasher,
-    pool: ProcessPoolExecutor | None,
+    pools: list[ProcessPoolExecutor],
     local: WorkerState,
     workers: int,
     bar: Progress | None,
@@ -226,7 +233,7 @@ def _replay_one(
         task = bar.add_task(run.header.run_id, total=None, rate="-")
     try:
         results = ordered_results(
-            reader.batches(), job.ctx, pool, local, AHEAD_PER_WORKER * workers
+            reader.batches(), job.ctx, pools, local, AHEAD_PER_WORKER * workers
         )
         for batch_result in results:
             n = job.take(batch_result)
