@@ -14,9 +14,10 @@ from ._catalog import (
     load_catalog,
     load_ucsm,
 )
-from ._instantiate import SyntheticDevice, dump_ssm, instantiate_device
+from ._instantiate import SyntheticDevice, dump_ssm, instantiate_device, scene_of
 from ._measure import RunMeasures, measure_output, measure_run
 from ._profiles import PROFILES, Profile
+from ._render import png_bytes, render_view
 from ._runs import RunSpec, run_specs
 from ._tasks import TaskRecord, sample_tasks
 
@@ -46,6 +47,9 @@ __all__ = [
     "measure_run",
     "play_episode",
     "plan_devices",
+    "png_bytes",
+    "render_view",
     "run_specs",
     "sample_tasks",
+    "scene_of",
 ]

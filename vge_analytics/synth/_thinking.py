@@ -71,7 +71,9 @@ def _label_text(label: str) -> str:
     if not label:
         return ""
     if label.startswith("icon:"):
-        return f" with a {label[5:].replace('_', ' ')} icon"
+        name = label[5:].replace("_", " ")
+        article = "an" if name[:1] in "aeiou" else "a"
+        return f" with {article} {name} icon"
     return f' labeled "{label}"'
 
 
