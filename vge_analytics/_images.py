@@ -14,6 +14,7 @@ import hashlib
 import io
 import os
 import tempfile
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -119,19 +120,22 @@ def _cache_key(machine: replay.Machine) -> str:
 
 _SCENES: dict[str, object] = {}
 _SCENES_MAX = 64
+_SCENES_LOCK = threading.Lock()
 
 
 def _scene(key: str, machine: replay.Machine):
     """The layout of a synthetic SSM, or None when the SSM is not one the layout reproduces
     (kept for the last few devices: the views of one device are usually asked together)."""
-    if key in _SCENES:
-        return _SCENES[key]
+    with _SCENES_LOCK:
+        if key in _SCENES:
+            return _SCENES[key]
     from vge_analytics.synth._instantiate import scene_of
 
     geometry = scene_of(machine.ssm, machine.device_id)
-    if len(_SCENES) >= _SCENES_MAX:
-        _SCENES.pop(next(iter(_SCENES)))
-    _SCENES[key] = geometry
+    with _SCENES_LOCK:
+        if len(_SCENES) >= _SCENES_MAX:
+            _SCENES.pop(next(iter(_SCENES)))
+        _SCENES[key] = geometry
     return geometry
 
 

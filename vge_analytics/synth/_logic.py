@@ -13,7 +13,7 @@ import random
 from collections import deque
 from dataclasses import dataclass
 
-from ._catalog import Catalog, load_catalog, load_ucsm
+from ._catalog import load_catalog, load_ucsm
 
 SPECIAL = ("immediate", "timed_wait")
 
@@ -278,7 +278,3 @@ def _vary(transition: dict, variation: dict | None) -> dict:
     out["atomic_action"] = action
     out["parameter"] = params
     return out
-
-
-def catalog_of(logic: DeviceLogic) -> Catalog:
-    return load_catalog(logic.category)
