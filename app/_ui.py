@@ -117,8 +117,13 @@ def stop() -> None:
 
 
 def end_of_page() -> None:
-    """An invisible last element: when the browser shows it, the page's script has finished."""
-    st.markdown(f'<div id="{END_MARKER}"></div>', unsafe_allow_html=True)
+    """An invisible last element: when the browser shows it, the page's script has finished.
+
+    It carries the number of the session's script run, so a browser can tell the end of the
+    run it triggered from the end of the previous one."""
+    n = st.session_state.get("_vge_runs", 0) + 1
+    st.session_state["_vge_runs"] = n
+    st.markdown(f'<div id="{END_MARKER}" data-run="{n}"></div>', unsafe_allow_html=True)
 
 
 # ----------------------------------------------------------------------------- sidebar
@@ -324,11 +329,6 @@ def sweep_workers(size: int) -> int:
 def runs_matching_facets(runs: pl.DataFrame) -> list[str]:
     """Run ids that pass the sidebar's facet filters."""
     return dash.runs_matching(runs, facet_filters())
-
-
-def device_label(views: pl.DataFrame, device: str) -> str:
-    part = views.filter(views["device_id"] == device)
-    return f"{device} ({part['category'][0]}): {part['interactions'].sum()} clicks"
 
 
 def view_label(views: pl.DataFrame, view: str) -> str:

@@ -506,6 +506,18 @@ def interaction_views(out: str | Path, where: Filters = None) -> pl.DataFrame:
     return store.cursor().sql(sql, params=scope.params).pl()
 
 
+def device_labels(views: pl.DataFrame) -> dict[str, str]:
+    """{device_id: `<device> (<category>): <n> clicks`} of an `interaction_views` result, most
+    clicked first."""
+    per = views.group_by("device_id", "category", maintain_order=True).agg(
+        pl.col("interactions").sum()
+    )
+    return {
+        d: f"{d} ({c}): {n} clicks"
+        for d, c, n in per.sort("interactions", descending=True, maintain_order=True).iter_rows()
+    }
+
+
 CLICK_OUTCOMES: tuple[str, ...] = ("target hit", "other component", "miss")
 """How a click point is coloured in the grounding scatter."""
 
@@ -761,14 +773,21 @@ def termination_label(termination: str) -> str:
     return TERMINATION_LABELS.get(termination, termination)
 
 
-def episode_label(episodes: pl.DataFrame, episode_id: str) -> str:
-    """`<id> · <device> · success|<termination> · <done>/<goals> goals` for a picker."""
-    row = episodes.filter(pl.col("episode_id") == episode_id).row(0, named=True)
-    result = termination_label(row["termination"])
-    return (
-        f"{episode_id} · {row['device_id']} · {result} · "
-        f"{row['goals_completed']}/{row['n_goals']} goals"
+def episode_labels(episodes: pl.DataFrame) -> dict[str, str]:
+    """{episode_id: `<id> · <device> · <how it ended> · <done>/<goals> goals`} for a picker
+    (computed once for all episodes: a full-scale run has 10^4 of them)."""
+    ended = pl.col("termination").replace_strict(
+        TERMINATION_LABELS, default=pl.col("termination"), return_dtype=pl.String
     )
+    label = pl.format(
+        "{} · {} · {} · {}/{} goals",
+        "episode_id",
+        "device_id",
+        ended,
+        "goals_completed",
+        "n_goals",
+    )
+    return dict(episodes.select("episode_id", label.alias("label")).iter_rows())
 
 
 def _code(text: object) -> str:

@@ -8,10 +8,14 @@ from app import _ui as ui
 from vge_analytics import _dashboard as dash
 
 st.title("Episode viewer")
-runs = ui.call("runs")
-ui.apply_viewer_query(runs["run_id"].to_list())
+run_ids = ui.runs_matching_facets(ui.call("runs"))
+ui.apply_viewer_query(run_ids)
+ui.keep_choice("viewer_run", run_ids)
 c1, c2 = st.columns([2, 3])
-run = c1.selectbox("Run", runs["run_id"].to_list(), key="viewer_run")
+run = c1.selectbox("Run", run_ids, key="viewer_run")
+if run is None:
+    st.info("No run matches the facet filter.")
+    ui.stop()
 episodes = ui.call("episodes", where={"run_id": run}, columns=list(ui.EPISODE_COLUMNS))
 if episodes.height == 0:
     st.info(f"Run {run} has no replayed episode.")
@@ -20,7 +24,7 @@ ui.keep_choice("viewer_episode", episodes["episode_id"].to_list())
 episode = c2.selectbox(
     "Episode",
     episodes["episode_id"].to_list(),
-    format_func=lambda e: dash.episode_label(episodes, e),
+    format_func=dash.episode_labels(episodes).get,
     key="viewer_episode",
 )
 ep = episodes.filter(episodes["episode_id"] == episode).row(0, named=True)

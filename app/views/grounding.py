@@ -38,13 +38,10 @@ views = ui.call("interaction_views", where=where)
 if views.height == 0:
     st.info("No interaction in the selection.")
     ui.stop()
-devices = views["device_id"].unique(maintain_order=True).to_list()
+devices = dash.device_labels(views)
 d1, d2 = st.columns(2)
 device = d1.selectbox(
-    "Device (most clicked first)",
-    devices,
-    format_func=lambda d: ui.device_label(views, d),
-    key="grounding_device",
+    "Device (most clicked first)", list(devices), format_func=devices.get, key="grounding_device"
 )
 device_views = views.filter(views["device_id"] == device)
 view = d2.selectbox(

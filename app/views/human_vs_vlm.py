@@ -14,7 +14,7 @@ st.caption(
 )
 
 runs = ui.call("runs")
-humans, models = dash.run_choices(runs)
+humans, models = dash.run_choices(runs.filter(runs["run_id"].is_in(ui.runs_matching_facets(runs))))
 c1, c2 = st.columns(2)
 human = c1.selectbox("Human (or reference) run", humans, key="hvv_human")
 model = c2.selectbox("Model run", [r for r in models if r != human], key="hvv_model")

@@ -32,15 +32,20 @@ FLAGS = (
     "--disable-dev-shm-usage",
     "--hide-scrollbars",
     "--mute-audio",
+    "--disable-breakpad",
 )
 
-# The page is rendered when the app's end-of-run marker is there (`app._ui.END_MARKER`),
+# The page is rendered when the app's end-of-run marker of a run after `after` is there
+# (`app._ui.END_MARKER`), nothing is stale,
 # every visible chart has drawn (a canvas or svg inside), every image has loaded, every
 # visible table has its cells (the grid's accessible table), and no skeleton or status widget
-# ("Running...") is left.
-_DONE_JS = """(() => {
+# ("Running...") is left; or when the page shows an exception (the caller checks `errors`).
+_DONE_JS = """((after) => {
   const shown = e => e.offsetParent !== null && !e.closest('details:not([open])');
-  if (!document.getElementById('vge-page-done')) return false;
+  if (document.querySelector('[data-testid="stException"]')) return true;  // failed: stop
+  const marker = document.getElementById('vge-page-done');
+  if (!marker || Number(marker.dataset.run || 0) <= after) return false;
+  if (document.querySelector('[data-stale="true"]')) return false;
   if (document.querySelector('[data-testid="stSkeleton"], [data-testid="stStatusWidget"]'))
     return false;
   for (const c of document.querySelectorAll('[data-testid="stVegaLiteChart"]'))
@@ -50,7 +55,8 @@ _DONE_JS = """(() => {
   for (const d of document.querySelectorAll('[data-testid="stDataFrame"]'))
     if (shown(d) && !d.querySelector('[data-testid^="glide-cell-"]')) return false;
   return true;
-})()"""
+})"""
+_RUN_JS = "Number((document.getElementById('vge-page-done') || {dataset: {}}).dataset.run || 0)"
 _TEXT_JS = "document.body ? document.body.innerText : ''"
 # Every table's cells as rows of text: [[header...], [row 1...], ...] per st.dataframe
 # (from the grid's accessible table: `thead th`, and cells `glide-cell-<col>-<row>`).
@@ -174,13 +180,27 @@ class Browser:
         self.send("Page.navigate", url=url)
         return self.wait_idle(expect, started, settle=settle)
 
-    def wait_idle(self, expect: str, started: float, *, settle: float = 0.3) -> float:
+    def navigate(self, path: str, expect: str, *, settle: float = 0.3) -> float:
+        """Go to another page of the app the way a person does, by clicking its link in the
+        sidebar (no page reload: the same session), and wait as `open` does."""
+        before = int(self.evaluate(_RUN_JS) or 0)
+        clicked = self.evaluate(
+            "(() => { const a = Array.from(document.querySelectorAll('[data-testid=\"stSidebarNav\"] a'))"
+            f".find(a => new URL(a.href).pathname === {path!r}); if (a) a.click(); return !!a; }})()"
+        )
+        if not clicked:
+            raise RuntimeError(f"no sidebar link to {path}")
+        return self.wait_idle(expect, time.monotonic(), settle=settle, after=before)
+
+    def wait_idle(
+        self, expect: str, started: float, *, settle: float = 0.3, after: int = 0
+    ) -> float:
         deadline = started + self.timeout
         idle_since: float | None = None
         while True:
             now = time.monotonic()
             text = self.evaluate(_TEXT_JS) or ""
-            done = bool(self.evaluate(_DONE_JS))
+            done = bool(self.evaluate(f"{_DONE_JS}({after})"))
             if expect in text and done:
                 idle_since = idle_since or now
                 if now - idle_since >= settle:

@@ -136,4 +136,8 @@ def test_every_page_renders_in_chromium(server, tiny_out):
             if name == "human_vs_vlm":
                 table = cells_by_first_column(browser.tables()[0])
                 assert set(table) >= {"SR ↑", "EIR ↑", "AvgDist ↓"}
+        # Moving around by the sidebar, as a person does (same session, no reload).
+        browser.navigate("/navigation", "NP found the target")
+        assert not browser.errors()
+        assert cells_by_first_column(browser.tables()[0]).keys() == set(runs)
     print("page load + render seconds:", {k: round(v, 2) for k, v in timings.items()})

@@ -163,6 +163,17 @@ def test_click_points_are_the_interactions_of_a_view(tiny_out):
     )
 
 
+def test_device_labels_most_clicked_first(tiny_out):
+    views = dash.interaction_views(tiny_out)
+    labels = dash.device_labels(views)
+    totals = views.group_by("device_id").agg(pl.col("interactions").sum())
+    expected = totals.sort(["interactions", "device_id"], descending=[True, False])
+    assert sorted(labels) == sorted(expected["device_id"])
+    first = next(iter(labels))
+    assert first == views["device_id"][0]
+    assert labels[first].endswith(f"{expected['interactions'].max()} clicks")
+
+
 def test_click_points_filters(tiny_out):
     views = dash.interaction_views(tiny_out, where={"run_id": ["sim-human"]})
     first = views.row(0, named=True)
@@ -341,3 +352,14 @@ def test_step_text(tiny_out):
     table = dash.step_classification(row)
     assert table["field"].to_list() == list(dash.CLASSIFICATION_FIELDS)
     assert dash.termination_label("budget_local") == "local budget out"
+
+
+def test_episode_labels(tiny_out):
+    episodes = browse.episodes(tiny_out, where={"run_id": "sim-human"})
+    labels = dash.episode_labels(episodes)
+    assert list(labels) == episodes["episode_id"].to_list()
+    row = episodes.row(0, named=True)
+    assert labels[row["episode_id"]] == (
+        f"{row['episode_id']} · {row['device_id']} · {dash.termination_label(row['termination'])}"
+        f" · {row['goals_completed']}/{row['n_goals']} goals"
+    )

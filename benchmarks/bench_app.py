@@ -1,0 +1,136 @@
+"""Render time of every dashboard page, as a browser sees it.
+
+    python benchmarks/bench_app.py OUT [--repeat 3] [--sweep]
+
+Starts `vge app OUT --headless` on a free localhost port and loads each page in headless
+Chromium (the driver of the end-to-end test, `tests/app/browser.py`), timing from navigation
+until the page is rendered (the app's end-of-run marker of that run is there, nothing is
+stale, every chart has drawn, every table has its cells, every image has loaded):
+
+- *first visit*: a fresh page load (new Streamlit session, frontend start included) right
+  after the server started, which fills the caches (`st.cache_data`);
+- *reload*: the same, later (caches warm), median of `--repeat`;
+- *switch*: clicking the page's link in the sidebar from another page, as a person moves
+  around the app (same session, no reload), median of `--repeat` rounds through all pages.
+
+Results go to stdout as a markdown table (docs/PERFORMANCE.md, section "Dashboard").
+
+`--sweep` also times the lambda sweep of every run (computed once and kept on disk; without
+it the Budgets page of a large OUT shows a button instead of computing it on a page load).
+Run it from the directory `vge replay` ran in (the manifest's relative input paths).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from tests.app.browser import Browser  # noqa: E402
+
+PAGES: tuple[tuple[str, str, str], ...] = (
+    ("Leaderboard", "", "Per metric"),
+    ("Errors", "errors", "Drill down"),
+    ("Navigation", "navigation", "NP found the target"),
+    ("Grounding", "grounding", "Click points"),
+    ("Budgets", "budgets", "Budgets"),
+    ("Human vs VLM", "human_vs_vlm", "common episodes"),
+    ("Episode viewer", "episode_viewer", "Download episode as MCAP"),
+    ("SQL", "sql", "rows"),
+)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start_app(out: Path, port: int) -> subprocess.Popen:
+    cmd = [sys.executable, "-m", "vge_analytics.cli", "app", str(out), "--port", str(port)]
+    cmd += ["--headless", "--address", "127.0.0.1"]
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    deadline = time.monotonic() + 60
+    while True:
+        try:
+            with urllib.request.urlopen(f"http://127.0.0.1:{port}/_stcore/health", timeout=2):
+                return proc
+        except OSError:
+            if proc.poll() is not None or time.monotonic() > deadline:
+                raise SystemExit("vge app did not start") from None
+            time.sleep(0.2)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--repeat", type=int, default=3, help="warm visits per page")
+    parser.add_argument("--sweep", action="store_true", help="also time the lambda sweep")
+    args = parser.parse_args()
+
+    from vge_analytics import _browse as browse
+    from vge_analytics import _dashboard as dash
+
+    out = dash.check_out(args.out)
+    summary = dash.out_summary(out)
+    sweep_note = ""
+    if args.sweep:
+        runs = browse.runs(out)["run_id"].to_list()
+        started = time.perf_counter()
+        dash.computed_sweep(out, runs, [2, 3, 4, 5], workers=2)
+        sweep_note = (
+            f"lambda sweep 2,3,4,5 of all {len(runs)} runs computed once in "
+            f"{time.perf_counter() - started:.1f} s (2 workers), then read from the cache"
+        )
+
+    port = free_port()
+    proc = start_app(out, port)
+    first: dict[str, float] = {}
+    reload: dict[str, list[float]] = {t: [] for t, _, _ in PAGES}
+    switch: dict[str, list[float]] = {t: [] for t, _, _ in PAGES}
+    try:
+        with Browser(width=1400, height=1000, timeout=300) as browser:
+            for title, path, expect in PAGES:
+                url = f"http://127.0.0.1:{port}/{path}"
+                first[title] = browser.open(url, expect, settle=0.2)
+                for _ in range(args.repeat):
+                    reload[title].append(browser.open(url, expect, settle=0.2))
+                print(f"{title}: first visit {first[title]:.2f} s", file=sys.stderr)
+            for _ in range(args.repeat):
+                for title, path, expect in PAGES:
+                    switch[title].append(browser.navigate(f"/{path}", expect, settle=0.2))
+    finally:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=20)
+
+    print(
+        f"OUT: {out} ({summary.runs} runs, {summary.episodes:,} episodes, "
+        f"{summary.steps:,} steps); {platform.machine()}, {os.cpu_count()} CPUs, "
+        f"Python {platform.python_version()}\n"
+    )
+    print("| page | first visit (s) | reload, median (s) | switch, median (s) | switch, max (s) |")
+    print("|---|---:|---:|---:|---:|")
+    for title, _, _ in PAGES:
+        print(
+            f"| {title} | {first[title]:.2f} | {statistics.median(reload[title]):.2f} "
+            f"| {statistics.median(switch[title]):.2f} | {max(switch[title]):.2f} |"
+        )
+    if sweep_note:
+        print(f"\n{sweep_note}")
+
+
+if __name__ == "__main__":
+    main()
