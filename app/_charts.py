@@ -286,7 +286,7 @@ def _data_uri(picture: ViewPicture) -> str:
 
 
 def click_scatter(
-    picture: ViewPicture, boxes: pl.DataFrame, points: pl.DataFrame, width: int = 560
+    picture: ViewPicture, boxes: pl.DataFrame, points: pl.DataFrame, width: int = 640
 ):
     """Click points over the device view with the component boxes (targets in green)."""
     height = round(width * picture.height / picture.width)
@@ -335,7 +335,6 @@ def click_scatter(
                 title="Click",
                 scale=alt.Scale(domain=outcomes, range=[OUTCOME_COLORS[o] for o in outcomes]),
             ),
-            shape=alt.Shape("run_id:N", title="Run"),
             tooltip=[
                 "run_id",
                 "episode_id",

@@ -15,6 +15,10 @@ stale, every chart has drawn, every table has its cells, every image has loaded)
 
 Results go to stdout as a markdown table (docs/PERFORMANCE.md, section "Dashboard").
 
+`--screenshots DIR` also saves small screenshots of five pages there (`app-<page>.png`, the
+ones docs/APP.md shows), the episode viewer opened at the first component-selection error of
+the most successful model run.
+
 `--sweep` also times the lambda sweep of every run (computed once and kept on disk; without
 it the Budgets page of a large OUT shows a button instead of computing it on a page load).
 Run it from the directory `vge replay` ran in (the manifest's relative input paths).
@@ -74,11 +78,53 @@ def start_app(out: Path, port: int) -> subprocess.Popen:
             time.sleep(0.2)
 
 
+SHOTS: tuple[tuple[str, str, str], ...] = (
+    ("leaderboard", "", "Per metric"),
+    ("errors", "errors", "Drill down"),
+    ("grounding", "grounding", "Click points"),
+    ("human-vs-vlm", "human_vs_vlm", "common episodes"),
+)
+
+
+def _trim(png: Path, width: int = 900) -> None:
+    """Crop the empty bottom of a screenshot (judged right of the sidebar), scale it to
+    `width` pixels and store it with a 256-colour palette (small files for the docs)."""
+    from PIL import Image, ImageChops
+
+    img = Image.open(png).convert("RGB")
+    main = img.crop((img.width // 4, 0, img.width, img.height))
+    background = Image.new("RGB", main.size, main.getpixel((main.width - 1, main.height - 1)))
+    box = ImageChops.difference(main, background).getbbox()
+    if box is not None:
+        img = img.crop((0, 0, img.width, min(img.height, box[3] + 24)))
+    img = img.resize((width, round(img.height * width / img.width)), Image.Resampling.LANCZOS)
+    img.quantize(colors=256, dither=Image.Dither.NONE).save(png, optimize=True)
+
+
+def save_screenshots(browser: Browser, base: str, out: Path, folder: Path) -> None:
+    from vge_analytics import _browse as browse
+    from vge_analytics import _dashboard as dash
+
+    runs = browse.runs(out)
+    _, models = dash.run_choices(runs)
+    steps, _ = dash.error_step_sample(out, "component_selection", {"run_id": models[:1]}, limit=1)
+    row = steps.row(0, named=True)
+    viewer = f"episode_viewer?run={row['run_id']}&episode={row['episode_id']}&step={row['step']}"
+    shots = [*SHOTS, ("episode-viewer", viewer, "Download episode as MCAP")]
+    browser.set_height(2400)
+    for name, path, expect in shots:
+        browser.open(f"{base}/{path}", expect)
+        target = browser.screenshot(folder / f"app-{name}.png")
+        _trim(target)
+    browser.set_height(1000)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
     parser.add_argument("--repeat", type=int, default=3, help="warm visits per page")
     parser.add_argument("--sweep", action="store_true", help="also time the lambda sweep")
+    parser.add_argument("--screenshots", type=Path, help="save docs screenshots here")
     args = parser.parse_args()
 
     from vge_analytics import _browse as browse
@@ -112,6 +158,8 @@ def main() -> None:
             for _ in range(args.repeat):
                 for title, path, expect in PAGES:
                     switch[title].append(browser.navigate(f"/{path}", expect, settle=0.2))
+            if args.screenshots is not None:
+                save_screenshots(browser, f"http://127.0.0.1:{port}", out, args.screenshots)
     finally:
         os.killpg(proc.pid, signal.SIGTERM)
         proc.wait(timeout=20)
