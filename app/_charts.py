@@ -112,7 +112,7 @@ def error_stacked(dist: pl.DataFrame, group_order: Sequence[str]):
             order=alt.Order("type_order:Q"),
             tooltip=["group", "label", "count", alt.Tooltip("share:Q", format=".1f")],
         )
-        .properties(width=560, height=alt.Step(24))
+        .properties(width=480, height=alt.Step(24))
     )
 
 
@@ -151,7 +151,7 @@ def error_group_stacked(groups: pl.DataFrame, group_order: Sequence[str]):
             order=alt.Order("group_order:Q"),
             tooltip=["group", "error_group", "count", alt.Tooltip("share:Q", format=".1f")],
         )
-        .properties(width=560, height=alt.Step(24))
+        .properties(width=480, height=alt.Step(24))
     )
 
 
@@ -183,7 +183,7 @@ def switch_stacked(classes: pl.DataFrame, group_order: Sequence[str]):
             order=alt.Order("class_order:Q"),
             tooltip=["group", "switch_class", "count", alt.Tooltip("share:Q", format=".1f")],
         )
-        .properties(width=560, height=alt.Step(24))
+        .properties(width=480, height=alt.Step(24))
     )
 
 
@@ -227,9 +227,15 @@ def sweep_lines(gain: pl.DataFrame, y_title: str):
 
 
 def diff_forest(cmp: pl.DataFrame, label_a: str, label_b: str):
-    """Per metric, B - A with its 95% bootstrap interval (columns: metric, diff, ci_low,
-    ci_high); one panel per unit so percentages and ratios keep their own scales."""
-    data = cmp.filter(pl.col("diff").is_not_null()).to_pandas()
+    """Per metric, B - A with its 95% bootstrap interval (columns: metric, direction, unit,
+    diff, ci_low, ci_high); the dot is green where B is better (by the metric's direction),
+    red where it is worse; one panel per unit so percentages and ratios keep their scales."""
+    better = pl.when(pl.col("direction") == "higher").then(pl.col("diff") > 0)
+    data = (
+        cmp.filter(pl.col("diff").is_not_null())
+        .with_columns(better=better.otherwise(pl.col("diff") < 0))
+        .to_pandas()
+    )
     base = alt.Chart(data).encode(
         y=alt.Y("metric:N", sort=list(data["metric"]), title=None),
     )
@@ -238,7 +244,7 @@ def diff_forest(cmp: pl.DataFrame, label_a: str, label_b: str):
     )
     dots = base.mark_point(filled=True, size=70).encode(
         x="diff:Q",
-        color=alt.condition(alt.datum.diff >= 0, alt.value("#2ca02c"), alt.value("#d62728")),
+        color=alt.condition(alt.datum.better, alt.value("#2ca02c"), alt.value("#d62728")),
         tooltip=[
             "metric",
             alt.Tooltip("A:Q", format=".2f", title=label_a),

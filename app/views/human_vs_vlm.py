@@ -34,9 +34,18 @@ st.markdown(
     f"{mc['b_only']}, neither {mc['neither']}; McNemar exact p = {mc['p_value']:.3g}."
 )
 table = dash.comparison_rows(cmp.metrics, model, human)
-st.dataframe(table, hide_index=True, column_config=ui.number_config(table), key="hvv_metrics")
+st.dataframe(
+    table,
+    hide_index=True,
+    column_config=ui.number_config(table),
+    height=ui.table_height(table),
+    key="hvv_metrics",
+)
 st.altair_chart(charts.side_by_side(cmp.metrics, model, human), width="content")
-st.markdown(f"**{human} − {model}**, 95% paired bootstrap interval (green: human higher)")
+st.markdown(
+    f"**{human} − {model}**, 95% paired bootstrap interval (green: {human} better, "
+    f"red: {model} better, by each metric's direction)"
+)
 st.altair_chart(charts.diff_forest(cmp.metrics, model, human), width="content")
 
 st.subheader("Error distribution")
@@ -45,7 +54,10 @@ st.dataframe(errors, hide_index=True, column_config=ui.number_config(errors, 1))
 
 st.subheader("Episodes that flip")
 flips = dash.flip_rows(cmp.flips, model, human)
-st.caption(f"{flips.height} episodes solved by one run only; select one to open it.")
+st.caption(
+    f"{flips.height} episodes solved by one run only; select one to open it in the run that "
+    "failed it (`run_id`)."
+)
 picked = st.dataframe(
     flips, hide_index=True, on_select="rerun", selection_mode="single-row", key="hvv_flips"
 )
