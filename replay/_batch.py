@@ -10,6 +10,7 @@ Duplicates are not decided here: only the main process sees every line of a run 
 
 from __future__ import annotations
 
+import gc
 import os
 import re
 import traceback
@@ -164,23 +165,34 @@ def episode_lambda(ctx: RunContext, task: Task) -> float:
 def process_batch(
     state: WorkerState, ctx: RunContext, lines: list[tuple[int, bytes]]
 ) -> BatchResult:
-    """Decode, check and replay each line of a batch, in order."""
+    """Decode, check and replay each line of a batch, in order.
+
+    The cyclic garbage collector is paused for the batch: the rows are acyclic (tuples,
+    lists, strings), reference counting frees them, and the collector's scans of the
+    growing batch otherwise cost a fifth of the replay time.
+    """
     outcomes: list[LineOutcome] = []
-    steps: list[StepRow] = []
+    steps: list[tuple] = []
     episodes: list[EpisodeRow] = []
     goals: list[GoalRow] = []
-    for number, raw in lines:
-        try:
-            _process_line(state, ctx, number, raw, outcomes, steps, episodes, goals)
-        except Exception as exc:
-            exc.vge_line = number  # type: ignore[attr-defined]
-            raise
-    return BatchResult(
-        outcomes,
-        rows_to_table(steps, StepRow),
-        rows_to_table(episodes, EpisodeRow),
-        rows_to_table(goals, GoalRow),
-    )
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for number, raw in lines:
+            try:
+                _process_line(state, ctx, number, raw, outcomes, steps, episodes, goals)
+            except Exception as exc:
+                exc.vge_line = number  # type: ignore[attr-defined]
+                raise
+        return BatchResult(
+            outcomes,
+            rows_to_table(steps, StepRow),
+            rows_to_table(episodes, EpisodeRow),
+            rows_to_table(goals, GoalRow),
+        )
+    finally:
+        if was_enabled:
+            gc.enable()
 
 
 def _process_line(
@@ -189,7 +201,7 @@ def _process_line(
     number: int,
     raw: bytes,
     outcomes: list[LineOutcome],
-    steps: list[StepRow],
+    steps: list[tuple],
     episodes: list[EpisodeRow],
     goals: list[GoalRow],
 ) -> None:
@@ -253,11 +265,13 @@ def _process_line(
                 image=image,
                 library=ctx.library,
             )
-    steps.extend(result.steps)
+    steps.extend(result.step_tuples)  # tuples in StepRow order: the fast path to Arrow
     episodes.append(result.episode)
     goals.extend(result.goals)
     outcomes.append(
-        LineOutcome(number, eid, True, None, None, len(result.steps), len(result.goals), mcap_tmp)
+        LineOutcome(
+            number, eid, True, None, None, len(result.step_tuples), len(result.goals), mcap_tmp
+        )
     )
 
 

@@ -41,6 +41,8 @@ class Classifier:
         self.m = machine
         self._seen: set[tuple] = set()
         self._failures: dict[tuple[int, str], int] = {}
+        self._goal = -1
+        self._dist: tuple[int, ...] = ()
 
     def classify(
         self,
@@ -56,7 +58,9 @@ class Classifier:
         action = parsed.action if parsed.ok else None
         kind = action.type if action is not None else None
         s0, v0 = before.state, before.view
-        dist = distances(m, goal)
+        if goal != self._goal:
+            self._goal, self._dist = goal, distances(m, goal)
+        dist = self._dist
         d_before = dist[s0]
         d_after = dist[after.state]
         progress = completed > 0 or d_after < d_before

@@ -175,15 +175,14 @@ def replay_episode(
             truncated_steps += 1
             # Field order: StepRow (see _rows.py); nothing after termination is scored.
             rows.append(
-                head
-                + (k, None, None, None, None, None, action_type, parsed.action_text)
-                + (parsed.thinking or None, log_step.output, x, y, params, parsed.ok, parsed.detail)
-                + (None, None, None, None, [], None, None, None, None)
-                + _UNCLASSIFIED_HEAD
-                + ([],)
-                + _UNCLASSIFIED_TAIL
-                + (None, None, True, log_step.feedback, log_step.state, log_step.view, None, [], ts)
-            )
+                (
+                    *head, k, None, None, None, None, None, action_type, parsed.action_text,
+                    parsed.thinking or None, log_step.output, x, y, params, parsed.ok,
+                    parsed.detail, None, None, None, None, [], None, None, None, None,
+                    *_UNCLASSIFIED_HEAD, [], *_UNCLASSIFIED_TAIL,
+                    None, None, True, log_step.feedback, log_step.state, log_step.view, None, [], ts,
+                )
+            )  # fmt: skip
             continue
 
         before = sim
@@ -248,40 +247,20 @@ def replay_episode(
                 diverged_steps += 1
 
         tr = outcome.transition
-        # Field order: StepRow (see _rows.py).
+        # Field order: StepRow (see _rows.py); `cls` is the CLASSIFICATION_FIELDS block.
         rows.append(
-            head
-            + (
-                k,
-                goal_index,
-                names[goal],
-                before.view,
-                sim.view,
-                sim.unlocked if has_dashboard else None,
+            (
+                *head, k, goal_index, names[goal], before.view, sim.view,
+                sim.unlocked if has_dashboard else None, action_type, parsed.action_text,
+                parsed.thinking or None, log_step.output, x, y, params, parsed.ok, parsed.detail,
+                outcome.kind, outcome.text, names[before.state], state_after,
+                [names[s] for s in outcome.entered], tr.component if tr is not None else None,
+                outcome.dangerous, switched, completed,
+                *cls,
+                budget_global - taken, budget_local, False,
+                recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts,
             )
-            + (
-                action_type,
-                parsed.action_text,
-                parsed.thinking or None,
-                log_step.output,
-                x,
-                y,
-                params,
-            )
-            + (
-                parsed.ok,
-                parsed.detail,
-                outcome.kind,
-                outcome.text,
-                names[before.state],
-                state_after,
-            )
-            + ([names[s] for s in outcome.entered], tr.component if tr is not None else None)
-            + (outcome.dangerous, switched, completed)
-            + cls
-            + (budget_global - taken, budget_local, False)
-            + (recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts)
-        )
+        )  # fmt: skip
 
     if termination is None:
         termination = "log_ended"

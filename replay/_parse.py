@@ -46,16 +46,17 @@ _KNOWN = {name: name for name in ACTION_NAMES}
 # checks that both paths agree wherever the fast one applies.
 _NUM = r"([-+]?\d+(?:\.\d+)?)"
 _FAST_COORD = r"coord\s*=\s*\[\s*" + _NUM + r"\s*,\s*" + _NUM + r"\s*\]"
-_FAST_PARAMS = r"params\s*=\s*\[([A-Za-z0-9_*.+\-, \t]*)\]"
+_FAST_PARAMS = r"params\s*=\s*\[([A-Za-z0-9_*.+\-'\", \t]*)\]"
 _FAST = re.compile(
-    r"[ \t]*([A-Za-z_]+)\(\s*(?:(?:"
+    r"\s*(?:```[A-Za-z0-9_+-]*[ \t]*\n|`|\*\*)?[ \t]*(([A-Za-z_]+)\(\s*(?:(?:"
     + _FAST_COORD
     + r"(?:\s*,\s*"
     + _FAST_PARAMS
     + r")?|"
     + _FAST_PARAMS
-    + r")\s*(?:,\s*)?)?\)[ \t]*\.?\s*\Z"
+    + r")\s*(?:,\s*)?)?\))[ \t]*(?:`|\*\*|\n```)?[ \t]*\.?\s*\Z"
 )
+_FAST_ITEM = re.compile(r"(['\"]?)([A-Za-z0-9_*.+\-]+)\1")
 
 
 class Action(msgspec.Struct, frozen=True):
@@ -150,7 +151,7 @@ def _parse_entry(entry: str, thinking: str) -> ParsedAction:
     fast = _FAST.match(entry)
     if fast is None:
         return _parse_entry_full(entry, thinking)
-    name, x, y, params_a, params_b = fast.groups()
+    call_text, name, x, y, params_a, params_b = fast.groups()
     kind = _KNOWN.get(name.lower())
     if kind is None:
         return _parse_entry_full(entry, thinking)
@@ -160,12 +161,14 @@ def _parse_entry(entry: str, thinking: str) -> ParsedAction:
         items = [p.strip() for p in raw.split(",")]
         if len(items) > 1 and not items[-1]:
             items.pop()  # one trailing comma
+        values = []
         for item in items:
-            if not item or " " in item or "\t" in item:
+            m = _FAST_ITEM.fullmatch(item)
+            if m is None:
                 return _parse_entry_full(entry, thinking)
-        params = tuple([normalize_param(p) for p in items])
+            values.append(normalize_param(m.group(2)))
+        params = tuple(values)
     coord = (float(x), float(y)) if x is not None else None
-    call_text = entry.strip().rstrip(".").rstrip()
     return ParsedAction(True, Action(kind, coord, params), None, call_text, thinking)
 
 

@@ -269,25 +269,34 @@ _PARAM = st.sampled_from(
 )
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=500, deadline=None)
 @given(
     st.sampled_from(
         ["Press", "rotate", "PUSH", "Pull", "Grasp", "Switch_view", "Timed_wait", "Click"]
     ),
     st.none() | st.tuples(_COORD, _COORD),
-    st.none() | st.lists(_PARAM, max_size=3),
+    st.none()
+    | st.lists(st.tuples(_PARAM, st.sampled_from(["", "'", '"', "''", "'\""])), max_size=3),
     st.sampled_from(["", " ", ", ", "  ,  "]),
-    st.sampled_from(["", ".", " .", "\n", " \n\n"]),
+    st.sampled_from(
+        ["", ".", " .", "\n", " \n\n", "` .", "**", "`\nmore prose", "\n```", "\n```\n", " ```"]
+    ),
+    st.sampled_from(["", "`", "**", "``", "*", "** ", "\n```\n", "```python\n", "\n```"]),
 )
-def test_fast_path_agrees_with_the_full_grammar(name, coord, params, sep, tail) -> None:
+def test_fast_path_agrees_with_the_full_grammar(name, coord, params, sep, tail, lead) -> None:
     from replay._parse import _parse_entry, _parse_entry_full
 
     args = []
     if coord is not None:
         args.append(f"coord=[{coord[0]}, {coord[1]}]")
     if params is not None:
-        args.append("params=[" + ", ".join(params) + "]")
-    entry = " " + f"{name}(" + sep.join(args) + ")" + tail
+        # quote styles: none, 'x', "x", ''x'' (two levels), 'x" (unbalanced)
+        quoted = [
+            q + p + q if len(q) < 2 else q + p + q if q == "''" else q[0] + p + q[1]
+            for p, q in params
+        ]
+        args.append("params=[" + ", ".join(quoted) + "]")
+    entry = " " + lead + f"{name}(" + sep.join(args) + ")" + tail
     assert _parse_entry(entry, "") == _parse_entry_full(entry, "")
 
 
