@@ -12,6 +12,7 @@ from it) and the switch classes per run. It is timed
 
 - cold: the first call on a directory (opening the views, reading Parquet footers), and
 - warm: later calls (the cached connection of `open_store`), median and best of `--repeats`,
+  with the CPU seconds of all threads (stable under load from other processes),
 
 at 1x and at `--times` x: OUT copied `times` times into `benchmarks/_work/metrics_x<N>/`
 with distinct run ids (`<run_id>~<k>`), i.e. `times` times the steps, episodes, goals and
@@ -43,7 +44,8 @@ BY = ("run_id", "model")
 
 
 def suite(out: Path) -> dict[str, float]:
-    """Run the suite once; seconds per part."""
+    """Run the suite once; wall seconds per part, and CPU seconds (all threads) in total."""
+    c0 = time.process_time()
     t0 = time.perf_counter()
     va.metrics(out, by=BY)
     t1 = time.perf_counter()
@@ -52,7 +54,14 @@ def suite(out: Path) -> dict[str, float]:
     t2 = time.perf_counter()
     va.switch_classes(out, by=BY)
     t3 = time.perf_counter()
-    return {"metrics": t1 - t0, "errors": t2 - t1, "switch_classes": t3 - t2, "total": t3 - t0}
+    cpu = time.process_time() - c0
+    return {
+        "metrics": t1 - t0,
+        "errors": t2 - t1,
+        "switch_classes": t3 - t2,
+        "total": t3 - t0,
+        "cpu": cpu,
+    }
 
 
 def measure(out: Path, repeats: int) -> dict:
@@ -75,6 +84,7 @@ def measure(out: Path, repeats: int) -> dict:
         "cold_total_s": cold["total"],
         "warm_median_s": statistics.median(w["total"] for w in warm),
         "warm_best_s": min(w["total"] for w in warm),
+        "warm_cpu_median_s": statistics.median(w["cpu"] for w in warm),
         "warm_median_parts_s": {
             k: statistics.median(w[k] for w in warm)
             for k in ("metrics", "errors", "switch_classes")
@@ -130,13 +140,13 @@ def main(argv: list[str] | None = None) -> int:
     big = build_copies(args.out, args.times)
     print(f"({args.times}x copy ready in {time.perf_counter() - t:.1f} s: {big})", file=sys.stderr)
     results.append(measure(big, args.repeats))
-    load = os.getloadavg()[0]
+    load = os.getloadavg()[0]  # after the runs: the load they ran under (incl. themselves)
     if args.json:
         print(json.dumps({"load_1min": load, "results": results}, indent=2))
         return 0
     print(f"cpus {os.cpu_count()}, load average (1 min) {load:.2f}")
     header = ("scale", "steps", "episodes", "runs", "open", "cold", "warm med", "warm best",
-              "polars")  # fmt: skip
+              "warm cpu", "polars")  # fmt: skip
     print(" | ".join(header))
     for scale, r in zip(("1x", f"{args.times}x"), results, strict=True):
         print(
@@ -150,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"{r['cold_total_s']:.3f}",
                     f"{r['warm_median_s']:.3f}",
                     f"{r['warm_best_s']:.3f}",
+                    f"{r['warm_cpu_median_s']:.3f}",
                     f"{r['polars_metrics_s']:.3f}",
                 ]
             )

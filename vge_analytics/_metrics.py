@@ -128,7 +128,8 @@ def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
     try:
         return store.cursor().sql(sql, params=list(params)).pl()
     except duckdb.Error as exc:
-        raise QueryError(f"{store.out}: query failed: {exc}") from None
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise QueryError(f"{store.out}: query failed: {first}") from None
 
 
 def metrics(
