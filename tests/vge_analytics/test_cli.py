@@ -54,6 +54,11 @@ def test_metrics_latex_table2_shape(capsys, hand_out: Path) -> None:
     assert "Model &" in out and "model-k" in out and "kettle-vlm" not in out
 
 
+def test_metrics_main_table(capsys, hand_out: Path) -> None:
+    code, out, _ = run(capsys, "metrics", str(hand_out), "--metrics", "main", "-f", "json")
+    assert code == 0 and list(json.loads(out)[0]) == ["run_id", "model", *SPEC6[:9]]
+
+
 def test_metrics_markdown_and_csv(capsys, hand_out: Path) -> None:
     code, out, _ = run(capsys, "metrics", str(hand_out), "--by", "n_goals", "-f", "markdown")
     assert code == 0

@@ -11,6 +11,7 @@ from .._errors import UnknownColumnError
 from .._format import check_format
 from .._metrics import metrics as compute_metrics
 from .._output import FORMAT_HELP, emit
+from .._registry import MAIN_TABLE
 from .._scope import DEFAULT_BY, parse_by
 
 
@@ -41,7 +42,10 @@ def metrics(
         "or meta_history; step columns such as action_type work with step metrics only.",
     ),
     metric_names: str = typer.Option(
-        None, "--metrics", help="Metrics to show (default: all twelve, in SPEC 6 order)."
+        None,
+        "--metrics",
+        help="Metrics to show, comma-separated (default: all twelve, in SPEC 6 order); "
+        "'main' = the paper's Table 2 (SR SSR SPL State-F1 EIR TIR VSPS GVPE EER).",
     ),
     where: list[str] = typer.Option(
         None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable)."
@@ -55,7 +59,8 @@ def metrics(
     """
     check_format(fmt)
     by_cols = parse_by(by)
-    df = compute_metrics(out, by=by_cols, metrics=metric_names, where=parse_where(where))
+    chosen = list(MAIN_TABLE) if metric_names == "main" else metric_names
+    df = compute_metrics(out, by=by_cols, metrics=chosen, where=parse_where(where))
     if fmt in ("table", "markdown", "latex"):
         df = for_people(df, by_cols)
     emit(df, fmt, title="Metrics (SPEC 6): \u2191 higher is better, \u2193 lower is better")
