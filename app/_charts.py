@@ -47,13 +47,19 @@ def _with_type_order(dist: pl.DataFrame) -> pl.DataFrame:
     )
 
 
-def _error_color() -> alt.Color:
+def _error_color(legend: alt.Legend | None = None) -> alt.Color:
     return alt.Color(
         "label:N",
         title="Error type",
         sort=_labels(),
         scale=alt.Scale(domain=_labels(), range=[ERROR_COLORS[t] for t in ERROR_TYPES]),
+        legend=legend if legend is not None else alt.Legend(),
     )
+
+
+def _bottom_legend(columns: int) -> alt.Legend:
+    """A legend under the plot, so stacked-bar charts of one page share their plot width."""
+    return alt.Legend(orient="bottom", columns=columns, titleOrient="left")
 
 
 def metric_bars(long: pl.DataFrame, metric_order: Sequence[str], group_order: Sequence[str]):
@@ -108,11 +114,11 @@ def error_stacked(dist: pl.DataFrame, group_order: Sequence[str]):
                 axis=alt.Axis(labelLimit=200, labelOverlap=False),
             ),
             x=alt.X("share:Q", title="share of errors (%)", scale=alt.Scale(domain=[0, 100])),
-            color=_error_color(),
+            color=_error_color(_bottom_legend(4)),
             order=alt.Order("type_order:Q"),
             tooltip=["group", "label", "count", alt.Tooltip("share:Q", format=".1f")],
         )
-        .properties(width=480, height=alt.Step(24))
+        .properties(height=alt.Step(24))
     )
 
 
@@ -147,11 +153,12 @@ def error_group_stacked(groups: pl.DataFrame, group_order: Sequence[str]):
                 title="Error group",
                 sort=names,
                 scale=alt.Scale(domain=names, range=[GROUP_COLORS[g] for g in names]),
+                legend=_bottom_legend(3),
             ),
             order=alt.Order("group_order:Q"),
             tooltip=["group", "error_group", "count", alt.Tooltip("share:Q", format=".1f")],
         )
-        .properties(width=480, height=alt.Step(24))
+        .properties(height=alt.Step(24))
     )
 
 
@@ -183,7 +190,7 @@ def switch_stacked(classes: pl.DataFrame, group_order: Sequence[str]):
             order=alt.Order("class_order:Q"),
             tooltip=["group", "switch_class", "count", alt.Tooltip("share:Q", format=".1f")],
         )
-        .properties(width=480, height=alt.Step(24))
+        .properties(height=alt.Step(24))
     )
 
 

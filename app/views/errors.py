@@ -29,8 +29,8 @@ order = dist["group"].unique(maintain_order=True).to_list()
 
 compare_tab, pie_tab, table_tab = st.tabs(["Compare groups", "Pie of one group", "Table"])
 with compare_tab:
-    st.altair_chart(charts.error_stacked(dist, order), width="content")
-    st.altair_chart(charts.error_group_stacked(ui.labelled(groups, by), order), width="content")
+    st.altair_chart(charts.error_stacked(dist, order))
+    st.altair_chart(charts.error_group_stacked(ui.labelled(groups, by), order))
 with pie_tab:
     one = st.selectbox("Group", order, key="errors_pie_group")
     part = dist.filter(dist["group"] == one)

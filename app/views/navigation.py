@@ -28,7 +28,7 @@ classes = ui.labelled(ui.call("switch_classes", by=list(by), where=where), by)
 ratios = ui.labelled(ui.call("metrics", by=list(by), metrics=["VSPS", "GVPE"], where=where), by)
 order = ratios["group"].to_list()
 
-st.altair_chart(charts.switch_stacked(classes, order), width="content")
+st.altair_chart(charts.switch_stacked(classes, order))
 left, right = st.columns(2)
 left.altair_chart(charts.ratio_bars(ratios, "VSPS", order))
 right.altair_chart(charts.ratio_bars(ratios, "GVPE", order))
