@@ -10,8 +10,13 @@ from pathlib import Path
 
 import msgspec
 
+from ._manifest import ManifestFile
+from ._quarantine import QuarantineRecord
 from ._records import INPUT_RECORDS
 from ._rows import OUTPUT_RECORDS
+
+OTHER_OUTPUTS: dict[str, type] = {"manifest": ManifestFile, "quarantine": QuarantineRecord}
+"""`OUT/manifest.json` and a line of `OUT/quarantine.jsonl`."""
 
 
 def schema_documents() -> dict[str, bytes]:
