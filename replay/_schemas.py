@@ -22,10 +22,12 @@ OTHER_OUTPUTS: dict[str, type] = {"manifest": ManifestFile, "quarantine": Quaran
 def schema_documents() -> dict[str, bytes]:
     """File name -> pretty JSON bytes, for every record type."""
     docs: dict[str, bytes] = {}
-    for name, record in {
+    records = {
         **INPUT_RECORDS,
         **{f"{k}_row": v for k, v in OUTPUT_RECORDS.items()},
-    }.items():
+        **OTHER_OUTPUTS,
+    }
+    for name, record in records.items():
         schema = msgspec.json.schema(record)
         schema = {
             "$schema": "https://json-schema.org/draft/2020-12/schema",
