@@ -41,3 +41,31 @@ def test_schema_rejects_a_wrong_type() -> None:
     except jsonschema.ValidationError:
         return
     raise AssertionError("a string for `goals` should not validate")
+
+
+def test_replay_outputs_validate_against_their_schemas(tmp_path: Path) -> None:
+    import gzip
+    import shutil
+
+    from replay import replay_runs
+
+    logs = Path(__file__).resolve().parents[2] / "logs"
+    run = tmp_path / "run"
+    shutil.copytree(logs / "runs" / "sim-human", run)
+    lines = gzip.decompress((run / "episodes.jsonl.gz").read_bytes()).splitlines()[:3]
+    (run / "episodes.jsonl.gz").unlink()
+    (run / "episodes.jsonl").write_bytes(
+        b"\n".join(lines + [b'{"episode_id": "nope", "steps": []}', b"{oops"]) + b"\n"
+    )
+    out = tmp_path / "out"
+    manifest = replay_runs([run], logs / "bench", out, progress=False)
+    assert manifest.quarantined == 2
+    jsonschema.validate(
+        json.loads((out / "manifest.json").read_text()),
+        json.loads((SCHEMAS / "manifest.schema.json").read_text()),
+    )
+    quarantine_schema = json.loads((SCHEMAS / "quarantine.schema.json").read_text())
+    records = [json.loads(line) for line in (out / "quarantine.jsonl").read_text().splitlines()]
+    assert [r["kind"] for r in records] == ["unknown_episode", "malformed_json"]
+    for record in records:
+        jsonschema.validate(record, quarantine_schema)
