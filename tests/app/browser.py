@@ -217,6 +217,39 @@ class Browser:
     def text(self) -> str:
         return str(self.evaluate(_TEXT_JS) or "")
 
+    def click(self, x: float, y: float) -> None:
+        """A left click at page coordinates (CSS pixels of the viewport)."""
+        for kind in ("mousePressed", "mouseReleased"):
+            self.send("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)
+
+    def select_first_row(self, table: int = -1) -> None:
+        """Tick the selection box of the first row of a selectable table (-1: the last one
+        on the page): the grid is a canvas, so this clicks where the box is drawn."""
+        x, y = self.evaluate(
+            "(() => { const ds = document.querySelectorAll('[data-testid=\"stDataFrame\"]');"
+            f" const d = ds[({table} + ds.length) % ds.length]; d.scrollIntoView();"
+            " const r = d.getBoundingClientRect(); return [r.x + 15, r.y + 35 + 17]; })()"
+        )
+        self.click(x, y)
+
+    def follow_link(self, text: str, expect: str, *, settle: float = 0.3) -> str:
+        """Click the first link whose text contains `text`, wait for the page it opens to
+        render (showing `expect`); returns the new address."""
+        before = int(self.evaluate(_RUN_JS) or 0)
+        deadline = time.monotonic() + self.timeout
+        while not self.evaluate(
+            f"Array.from(document.querySelectorAll('a')).some(a => a.innerText.includes({text!r}))"
+        ):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no link with {text!r}")
+            time.sleep(0.05)
+        self.evaluate(
+            "Array.from(document.querySelectorAll('a'))"
+            f".find(a => a.innerText.includes({text!r})).click()"
+        )
+        self.wait_idle(expect, time.monotonic(), settle=settle, after=before)
+        return str(self.evaluate("location.href"))
+
     def tables(self) -> list[list[list[str]]]:
         """The cells of every table on the page (header row first; rows the grid has drawn)."""
         return list(self.evaluate(_TABLES_JS) or [])

@@ -136,6 +136,17 @@ def test_every_page_renders_in_chromium(server, tiny_out):
             if name == "human_vs_vlm":
                 table = cells_by_first_column(browser.tables()[0])
                 assert set(table) >= {"SR ↑", "EIR ↑", "AvgDist ↓"}
+        # The drill-down chain: error type -> its steps -> the episode viewer at that step.
+        browser.open(f"{server}/errors", "Drill down")
+        first = dash.error_step_sample(tiny_out, "invalid_coord", limit=1)[0].row(0, named=True)
+        browser.select_first_row()
+        address = browser.follow_link(f"Open {first['episode_id']}", "Download episode as MCAP")
+        assert address.endswith(
+            f"/episode_viewer?run={first['run_id']}&episode={first['episode_id']}"
+            f"&step={first['step']}"
+        )
+        assert f"Step {first['step']}" in browser.text()
+
         # Moving around by the sidebar, as a person does (same session, no reload).
         browser.navigate("/navigation", "NP found the target")
         assert not browser.errors()
