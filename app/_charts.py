@@ -13,8 +13,8 @@ from collections.abc import Sequence
 import altair as alt
 import polars as pl
 
+from vge_analytics import ERROR_LABELS, ERROR_TYPES, SWITCH_CLASSES
 from vge_analytics._dashboard import ViewPicture
-from vge_analytics._taxonomy import ERROR_LABELS, ERROR_TYPES, SWITCH_CLASSES
 
 ERROR_COLORS: dict[str, str] = {
     "invalid_coord": "#1f4e9c",

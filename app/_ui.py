@@ -18,26 +18,20 @@ import polars as pl
 import streamlit as st
 
 import vge_analytics as va
-from vge_analytics import _browse as browse
 from vge_analytics import _dashboard as dash
-from vge_analytics._compare import compare
-from vge_analytics._errors import AnalyticsError
-from vge_analytics._registry import METRIC_NAMES, get_metric
-from vge_analytics._sql import sql
-from vge_analytics._taxonomy import error_distribution, error_groups, switch_classes
 
 API: dict[str, Callable[..., Any]] = {
     "metrics": va.metrics,
-    "error_distribution": error_distribution,
-    "error_groups": error_groups,
-    "switch_classes": switch_classes,
-    "compare": compare,
-    "sql": sql,
-    "runs": browse.runs,
-    "facets": browse.facets,
-    "episodes": browse.episodes,
-    "goals": browse.goals,
-    "episode_steps": browse.episode_steps,
+    "error_distribution": va.error_distribution,
+    "error_groups": va.error_groups,
+    "switch_classes": va.switch_classes,
+    "compare": va.compare,
+    "sql": va.sql,
+    "runs": va.runs,
+    "facets": va.facets,
+    "episodes": va.episodes,
+    "goals": va.goals,
+    "episode_steps": va.episode_steps,
     "error_step_sample": dash.error_step_sample,
     "out_summary": dash.out_summary,
     "column_values": dash.column_values,
@@ -135,7 +129,7 @@ def sidebar() -> bool:
         out = out_dir()
         summary = call("out_summary")
         facets = call("facets")
-    except AnalyticsError as exc:
+    except va.AnalyticsError as exc:
         st.sidebar.error("No usable replay output")
         show_error(exc)
         return False
@@ -232,7 +226,7 @@ def metric_column_config(names: Sequence[str]) -> dict[str, Any]:
     """Column formats for metric columns: 2 decimals, header with the paper's arrow."""
     config: dict[str, Any] = {}
     for name in names:
-        m = get_metric(name)
+        m = va.get_metric(name)
         config[name] = st.column_config.NumberColumn(
             f"{name} {m.arrow}", format="%.2f", help=f"{m.title}: {m.definition}"
         )
@@ -256,7 +250,7 @@ def best_styler(df: pl.DataFrame, metric_names: Sequence[str]) -> Any:
 
 
 def all_metrics() -> tuple[str, ...]:
-    return METRIC_NAMES
+    return va.METRIC_NAMES
 
 
 # ----------------------------------------------------------------------------- steps

@@ -4,8 +4,8 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _ui as ui
+from vge_analytics import AnalyticsError
 from vge_analytics import _dashboard as dash
-from vge_analytics._errors import AnalyticsError
 
 st.title("Human vs VLM")
 st.caption(

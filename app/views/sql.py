@@ -3,8 +3,8 @@
 import streamlit as st
 
 from app import _ui as ui
+from vge_analytics import AnalyticsError
 from vge_analytics import _dashboard as dash
-from vge_analytics._errors import AnalyticsError
 
 st.title("SQL")
 st.caption(

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 import replay
-from vge_analytics import _store
+import vge_analytics as va
 from vge_analytics.commands.replay import image_source
 from vge_analytics.synth import generate
 
@@ -58,7 +58,7 @@ def cache_dir(tmp_path_factory) -> Path:
 def tiny_out(tmp_path_factory, cache_dir) -> Path:
     out = build_tiny(tmp_path_factory.mktemp("app"))
     yield out
-    _store.clear_cache()
+    va.clear_cache()
 
 
 @pytest.fixture(scope="session")

@@ -21,7 +21,6 @@ import polars as pl
 import pytest
 
 import vge_analytics as va
-from vge_analytics import _browse as browse
 from vge_analytics import _dashboard as dash
 
 from .browser import Browser, chromium_path
@@ -96,12 +95,12 @@ def cells_by_first_column(table: list[list[str]]) -> dict[str, dict[str, str]]:
 def test_every_page_renders_in_chromium(server, tiny_out):
     metrics = va.metrics(tiny_out)
     runs = metrics["run_id"].to_list()
-    episodes = browse.episodes(tiny_out, where={"run_id": "sim-vlm-f"})
+    episodes = va.episodes(tiny_out, where={"run_id": "sim-vlm-f"})
     episode = episodes.filter(pl.col("L_act") > 2)["episode_id"][0]
-    steps = browse.episode_steps(tiny_out, "sim-vlm-f", episode)
+    steps = va.episode_steps(tiny_out, "sim-vlm-f", episode)
     first_view = dash.interaction_views(tiny_out).row(0, named=True)
     clicks = dash.click_points(tiny_out, first_view["device_id"], first_view["view"]).height
-    invalid_coord = browse.steps_with_error(tiny_out, "invalid_coord").height
+    invalid_coord = va.steps_with_error(tiny_out, "invalid_coord").height
 
     pages = [
         ("leaderboard", "", "Per metric"),

@@ -13,12 +13,8 @@ from PIL import Image
 
 import replay
 import vge_analytics as va
-from vge_analytics import _browse as browse
+from vge_analytics import OutputDirError, compare, error_distribution, sql, switch_classes
 from vge_analytics import _dashboard as dash
-from vge_analytics._compare import compare
-from vge_analytics._errors import OutputDirError
-from vge_analytics._sql import sql
-from vge_analytics._taxonomy import error_distribution, switch_classes
 
 # ------------------------------------------------------------------------------ OUT
 
@@ -51,7 +47,7 @@ def test_out_version_follows_the_manifest(tiny_out, tmp_path):
 
 def test_out_summary_counts(tiny_out):
     summary = dash.out_summary(tiny_out)
-    episodes = browse.episodes(tiny_out)
+    episodes = va.episodes(tiny_out)
     assert summary.runs == 9
     assert summary.episodes == episodes.height == 9 * 24
     assert summary.steps == sql(tiny_out, "SELECT count(*) AS n FROM steps")["n"][0]
@@ -129,7 +125,7 @@ def test_switch_summary_joins_classes_and_ratios(tiny_out):
 
 def test_error_step_sample_is_the_head_of_steps_with_error(tiny_out):
     where = {"run_id": ["sim-vlm-a", "sim-vlm-b"]}
-    every = browse.steps_with_error(tiny_out, "invalid_coord", where=where)
+    every = va.steps_with_error(tiny_out, "invalid_coord", where=where)
     sample, total = dash.error_step_sample(
         tiny_out, "invalid_coord", where=where, columns=("run_id", "episode_id", "step"), limit=7
     )
@@ -197,7 +193,7 @@ def test_scatter_boxes_mark_the_clicked_targets(tiny_out):
 
 
 def test_view_boxes_targets_are_the_planners(tiny_out):
-    steps = browse.steps(
+    steps = va.steps(
         tiny_out, where={"run_id": "sim-vlm-f", "is_interaction": True, "truncated": False}
     )
     row = steps.row(0, named=True)
@@ -232,7 +228,7 @@ def test_draw_step_marks_click_and_boxes():
 
 
 def test_step_picture_is_the_seen_view(tiny_out):
-    row = browse.steps(tiny_out, where={"run_id": "sim-vlm-f", "is_interaction": True}).row(
+    row = va.steps(tiny_out, where={"run_id": "sim-vlm-f", "is_interaction": True}).row(
         0, named=True
     )
     png = dash.step_picture(tiny_out, "sim-vlm-f", row["episode_id"], row["step"])
@@ -257,14 +253,14 @@ def test_episode_mcap_on_demand_equals_the_replays_file(tiny_out, mcap_episode, 
 def test_episode_mcap_without_a_file(tiny_out, mcap_episode):
     from mcap.reader import make_reader
 
-    episode = max(browse.episodes(tiny_out, where={"run_id": "sim-human"})["episode_id"])
+    episode = max(va.episodes(tiny_out, where={"run_id": "sim-human"})["episode_id"])
     assert episode != mcap_episode
     assert not (tiny_out / "mcap" / "sim-human" / f"{episode}.mcap").exists()
     data = dash.episode_mcap(tiny_out, "sim-human", episode)
     reader = make_reader(io.BytesIO(data))
     topics = {c.topic for c in reader.get_summary().channels.values()}
     assert {"/camera", "/annotations", "/step"} <= topics
-    n_steps = browse.episode_steps(tiny_out, "sim-human", episode).height
+    n_steps = va.episode_steps(tiny_out, "sim-human", episode).height
     assert reader.get_summary().statistics.channel_message_counts  # has messages
     steps = [m for _, c, m in reader.iter_messages(topics=["/step"])]
     assert len(steps) == n_steps
@@ -274,7 +270,7 @@ def test_episode_mcap_without_a_file(tiny_out, mcap_episode):
 
 
 def test_run_choices_human_first_best_model_first(tiny_out):
-    runs = browse.runs(tiny_out)
+    runs = va.runs(tiny_out)
     refs, models = dash.run_choices(runs)
     assert refs[0] == "sim-human"
     assert "sim-human" not in models
@@ -294,7 +290,7 @@ def test_comparison_tables(tiny_out):
     assert flips.height == cmp.flips.height
     for row in flips.iter_rows(named=True):
         assert {row["solved only by"], row["run_id"]} == {"sim-vlm-f", "sim-human"}
-        failed = browse.episodes(tiny_out, where={"run_id": row["run_id"]}).filter(
+        failed = va.episodes(tiny_out, where={"run_id": row["run_id"]}).filter(
             pl.col("episode_id") == row["episode_id"]
         )
         assert failed["success"].to_list() == [False]
@@ -304,7 +300,7 @@ def test_comparison_tables(tiny_out):
 
 
 def test_runs_matching(tiny_out):
-    runs = browse.runs(tiny_out)
+    runs = va.runs(tiny_out)
     assert dash.runs_matching(runs, {}) == runs["run_id"].to_list()
     assert dash.runs_matching(runs, {"meta_history_length": ["3"]}) == ["sim-vlm-f-hist3"]
     assert dash.runs_matching(runs, {"category": ["Lamp"]}) == runs["run_id"].to_list()
@@ -338,12 +334,12 @@ def test_csv_bytes_writes_lists_as_json():
 
 
 def test_step_text(tiny_out):
-    multi = browse.episodes(tiny_out, where={"run_id": "sim-vlm-f"}).filter(
+    multi = va.episodes(tiny_out, where={"run_id": "sim-vlm-f"}).filter(
         (pl.col("n_goals") > 1) & (pl.col("L_act") > 1)
     )
     episode = multi["episode_id"][0]
-    steps = browse.episode_steps(tiny_out, "sim-vlm-f", episode)
-    goals = browse.goals(tiny_out, where={"run_id": "sim-vlm-f", "episode_id": episode})
+    steps = va.episode_steps(tiny_out, "sim-vlm-f", episode)
+    goals = va.goals(tiny_out, where={"run_id": "sim-vlm-f", "episode_id": episode})
     row = steps.row(1, named=True)
     text = dash.step_markdown(row, goals)
     assert row["action_raw"] in text
@@ -355,7 +351,7 @@ def test_step_text(tiny_out):
 
 
 def test_episode_labels(tiny_out):
-    episodes = browse.episodes(tiny_out, where={"run_id": "sim-human"})
+    episodes = va.episodes(tiny_out, where={"run_id": "sim-human"})
     labels = dash.episode_labels(episodes)
     assert list(labels) == episodes["episode_id"].to_list()
     row = episodes.row(0, named=True)

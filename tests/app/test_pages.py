@@ -9,11 +9,8 @@ import pytest
 from streamlit.testing.v1 import AppTest
 
 import vge_analytics as va
-from vge_analytics import _browse as browse
+from vge_analytics import ERROR_LABELS, compare, error_distribution, sweep, switch_classes
 from vge_analytics import _dashboard as dash
-from vge_analytics._compare import compare
-from vge_analytics._sweep import sweep
-from vge_analytics._taxonomy import ERROR_LABELS, error_distribution, switch_classes
 
 from .conftest import APP
 
@@ -135,7 +132,7 @@ def test_errors_page_shares_and_drill_down(app_env):
     at.selectbox(key="errors_drill_type").select("params_error")
     at.multiselect(key="errors_drill_runs").select("sim-vlm-f")
     rerun(at)
-    steps = browse.steps_with_error(app_env, "params_error", where={"run_id": ["sim-vlm-f"]})
+    steps = va.steps_with_error(app_env, "params_error", where={"run_id": ["sim-vlm-f"]})
     label = ERROR_LABELS["params_error"]
     assert f"{steps.height} steps with {label}" in at.main.caption[-1].value
     assert at.dataframe[1].value["step"].tolist() == steps["step"].to_list()[: ui_max_rows()]
@@ -155,7 +152,7 @@ def test_drill_down_link_opens_the_episode(app_env):
         class selection:  # noqa: N801 - the shape of Streamlit's dataframe selection
             rows = [0]
 
-    steps = browse.steps_with_error(app_env, "invalid_coord", columns=list(_ui.STEP_COLUMNS))
+    steps = va.steps_with_error(app_env, "invalid_coord", columns=list(_ui.STEP_COLUMNS))
     row = _ui.selected_row(steps, Selection())
     assert row == steps.row(0, named=True)
     assert _ui.viewer_query(row["run_id"], row["episode_id"], row["step"]) == {
@@ -204,7 +201,7 @@ def test_grounding_page_distances_and_scatter(app_env):
 
 
 def test_budgets_page_sweep(app_env):
-    runs = browse.runs(app_env)["run_id"].to_list()
+    runs = va.runs(app_env)["run_id"].to_list()
     at = open_page("budgets")
     assert at.title[0].value == "Budgets"
     table = at.dataframe[0].value
@@ -222,7 +219,7 @@ def test_budgets_page_asks_before_a_large_sweep(app_env, monkeypatch):
     at = open_page("budgets")
     at.multiselect(key="budgets_lambdas").set_value([2.5, 3])
     rerun(at)
-    size = dash.sweep_size(app_env, browse.runs(app_env)["run_id"].to_list(), [2.5, 3])
+    size = dash.sweep_size(app_env, va.runs(app_env)["run_id"].to_list(), [2.5, 3])
     assert at.button[0].label.startswith(f"Compute the sweep: {size:,} episode replays")
     assert not charts(at)
     at.button[0].click()
@@ -254,13 +251,13 @@ def test_human_vs_vlm_page(app_env):
 
 
 def test_episode_viewer_from_a_link(app_env):
-    episodes = browse.episodes(app_env, where={"run_id": "sim-vlm-f"})
+    episodes = va.episodes(app_env, where={"run_id": "sim-vlm-f"})
     episode = episodes.filter(pl.col("L_act") > 2)["episode_id"][0]
     at = open_page("episode_viewer", query={"run": "sim-vlm-f", "episode": episode, "step": "2"})
     assert at.selectbox(key="viewer_run").value == "sim-vlm-f"
     assert at.selectbox(key="viewer_episode").value == episode
     assert at.slider(key="viewer_step").value == 2
-    steps = browse.episode_steps(app_env, "sim-vlm-f", episode)
+    steps = va.episode_steps(app_env, "sim-vlm-f", episode)
     text = at.main.markdown[0].value
     assert "**Step 2**" in text and steps["action_raw"][2] in text
     assert at.get("image")  # the step picture
@@ -274,7 +271,7 @@ def test_episode_viewer_from_a_link(app_env):
 
 def test_episode_viewer_default(app_env):
     at = open_page("episode_viewer")
-    assert at.selectbox(key="viewer_run").value == browse.runs(app_env)["run_id"][0]
+    assert at.selectbox(key="viewer_run").value == va.runs(app_env)["run_id"][0]
     assert "**Step 0**" in at.main.markdown[0].value
     classification = at.dataframe[0].value
     assert list(classification["field"]) == list(dash.CLASSIFICATION_FIELDS)
@@ -288,7 +285,7 @@ def test_sql_page_runs_queries_and_refuses_writes(app_env):
     first = next(iter(dash.EXAMPLE_QUERIES.values()))
     assert at.text_area(key="sql_query").value == first
     shown = at.dataframe[1].value
-    assert len(shown) == browse.runs(app_env)["model"].n_unique()
+    assert len(shown) == va.runs(app_env)["model"].n_unique()
 
     at.text_area(key="sql_query").input("DROP TABLE steps")
     rerun(at)
