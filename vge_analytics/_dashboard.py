@@ -428,6 +428,8 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     """The episode's MCAP: OUT's file when the replay wrote one, else made now by replaying
     that one episode from the inputs the manifest records (same options, same bytes as
     `vge replay --mcap` would write)."""
+    # The replay's file naming (not public): should it change, the file is not found and the
+    # episode is made on demand below, byte-identical, so only the speed depends on it.
     from replay._batch import safe_file_name
 
     path = Path(out) / "mcap" / run_id / f"{safe_file_name(episode_id)}.mcap"

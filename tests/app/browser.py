@@ -250,6 +250,29 @@ class Browser:
         self.wait_idle(expect, time.monotonic(), settle=settle, after=before)
         return str(self.evaluate("location.href"))
 
+    def download(self, button_text: str, folder: Path) -> Path:
+        """Click the button whose text contains `button_text` and wait for the file it
+        downloads into `folder`; returns its path."""
+        folder.mkdir(parents=True, exist_ok=True)
+        self.send("Browser.setDownloadBehavior", behavior="allow", downloadPath=str(folder))
+        before = set(folder.iterdir())
+        self.evaluate(
+            "Array.from(document.querySelectorAll('button'))"
+            f".find(b => b.innerText.includes({button_text!r})).click()"
+        )
+        deadline = time.monotonic() + self.timeout
+        while True:
+            new = [
+                p
+                for p in folder.iterdir()
+                if p not in before and not p.name.endswith(".crdownload")
+            ]
+            if new:
+                return new[0]
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"nothing downloaded after clicking {button_text!r}")
+            time.sleep(0.1)
+
     def tables(self) -> list[list[list[str]]]:
         """The cells of every table on the page (header row first; rows the grid has drawn)."""
         return list(self.evaluate(_TABLES_JS) or [])

@@ -92,7 +92,7 @@ def cells_by_first_column(table: list[list[str]]) -> dict[str, dict[str, str]]:
     return {row[0]: dict(zip(header, row, strict=False)) for row in rows}
 
 
-def test_every_page_renders_in_chromium(server, tiny_out):
+def test_every_page_renders_in_chromium(server, tiny_out, tmp_path):
     metrics = va.metrics(tiny_out)
     runs = metrics["run_id"].to_list()
     episodes = va.episodes(tiny_out, where={"run_id": "sim-vlm-f"})
@@ -132,6 +132,9 @@ def test_every_page_renders_in_chromium(server, tiny_out):
                     assert float(shown[row["run_id"]]["SR ↑"]) == pytest.approx(row["SR"])
             if name == "episode_viewer":
                 assert "Step 2" in text and steps["action_raw"][2] in text
+                mcap = browser.download("Download episode as MCAP", tmp_path / "downloads")
+                assert mcap.name == f"sim-vlm-f-{episode}.mcap"
+                assert mcap.read_bytes() == dash.episode_mcap(tiny_out, "sim-vlm-f", episode)
             if name == "human_vs_vlm":
                 table = cells_by_first_column(browser.tables()[0])
                 assert set(table) >= {"SR ↑", "EIR ↑", "AvgDist ↓"}
