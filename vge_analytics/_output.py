@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import sys
 from collections.abc import Mapping
 
 import polars as pl
@@ -15,9 +16,11 @@ FORMAT_HELP = "Output format: table (for people), json, csv, markdown or latex."
 
 
 def _console() -> Console:
-    # Not a terminal (pipe, file, test runner): wide enough that tables are not squeezed.
-    width = shutil.get_terminal_size((240, 24)).columns
-    return Console(highlight=False, soft_wrap=False, width=max(width, 100))
+    # A terminal: its width (rich squeezes what does not fit, as people expect). Anything
+    # else (pipe, file, test runner): wide enough that no column is ever squeezed, whatever
+    # COLUMNS says (pytest-xdist sets it to 80 in its workers).
+    width = max(shutil.get_terminal_size((240, 24)).columns, 100) if sys.stdout.isatty() else 400
+    return Console(highlight=False, soft_wrap=False, width=width)
 
 
 def emit(df: pl.DataFrame, fmt: str, *, title: str | None = None, marks: bool = True) -> None:
