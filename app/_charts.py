@@ -85,20 +85,22 @@ def metric_bars(long: pl.DataFrame, metric_order: Sequence[str], group_order: Se
     )
 
 
-def error_donut(dist: pl.DataFrame, title: str):
+def error_donut(dist: pl.DataFrame):
     """The paper's error pie (as a donut) for one group (columns: label, count, share)."""
-    data = _with_type_order(dist.filter(pl.col("count") > 0)).to_pandas()
-    base = alt.Chart(data, title=title).encode(
+    data = (
+        _with_type_order(dist.filter(pl.col("count") > 0))
+        .with_columns(percent=pl.format("{}%", pl.col("share").round(1)))
+        .to_pandas()
+    )
+    base = alt.Chart(data).encode(
         theta=alt.Theta("count:Q", stack=True),
         color=_error_color(),
         order=alt.Order("type_order:Q"),
         tooltip=["label", "count", alt.Tooltip("share:Q", format=".1f", title="share %")],
     )
     arcs = base.mark_arc(innerRadius=70, outerRadius=140)
-    text = base.mark_text(radius=160, size=12).encode(
-        text=alt.Text("share:Q", format=".1f"), color=alt.value("#333")
-    )
-    return (arcs + text).properties(width=360, height=340)
+    text = base.mark_text(radius=165, size=12).encode(text="percent:N", color=alt.value("#333"))
+    return alt.layer(arcs, text).properties(width=360, height=340)
 
 
 def error_stacked(dist: pl.DataFrame, group_order: Sequence[str]):

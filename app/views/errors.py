@@ -37,7 +37,8 @@ with pie_tab:
     if part["count"].sum() == 0:
         st.info(f"{one} made no error.")
     else:
-        st.altair_chart(charts.error_donut(part, f"{one}: {part['count'].sum()} errors"))
+        st.markdown(f"**{one}**: {part['count'].sum()} errors")
+        st.altair_chart(charts.error_donut(part))
 with table_tab:
     shares = dash.error_share_wide(dist)
     st.dataframe(shares, hide_index=True, column_config=ui.number_config(shares, 1))
