@@ -27,7 +27,7 @@ import replay
 from ._errors import OutputDirError, UnknownRunError
 from ._registry import get_metric
 from ._scope import Filters, build_scope, check_columns
-from ._store import open_store, quote_ident
+from ._store import open_store, quote_ident, resolve_input
 
 DEFAULT_OUT = "logs-replayed"
 """Where `vge demo` writes the replayed bundled sample; `vge app` opens it by default."""
@@ -134,24 +134,13 @@ def _run_entry(out: str | Path, run_id: str) -> dict:
     raise UnknownRunError(f"run {run_id!r} is not in {out}/manifest.json")
 
 
-def input_path(out: str | Path, recorded: str) -> Path:
-    """An input path as the manifest records it (as given to `vge replay`): absolute, or
-    relative to the directory the replay ran in, which is unknown here: the current
-    directory is tried first, then OUT's parent (`vge replay ... --out OUT` run next to OUT)."""
-    path = Path(recorded)
-    if path.is_absolute() or path.exists():
-        return path
-    beside = Path(out).resolve().parent / path
-    return beside if beside.exists() else path
-
-
 def bench_dir(out: str | Path, run_id: str | None = None) -> Path:
     """The benchmark directory a run (default: the first run) was replayed against."""
     runs = _manifest(out).get("runs", [])
     if not runs:
         raise OutputDirError(f"{out}: the manifest lists no run")
     entry = _run_entry(out, run_id) if run_id is not None else runs[0]
-    bench = input_path(out, entry["inputs"]["bench"])
+    bench = resolve_input(out, entry["inputs"]["bench"])
     if not bench.is_dir():
         raise OutputDirError(
             f"benchmark {entry['inputs']['bench']} (recorded in {out}/manifest.json) not found: "
@@ -439,7 +428,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     inputs = entry["inputs"]
     bench_root = bench_dir(out, run_id)
     bench = replay.Benchmark.open(bench_root)
-    run_dir = input_path(out, inputs["run_dir"])
+    run_dir = resolve_input(out, inputs["run_dir"])
     header = replay.read_run_header(run_dir)
     log = _find_episode_log(replay.episodes_file(run_dir), episode_id)
     task = bench.tasks[episode_id].task

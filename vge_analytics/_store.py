@@ -159,6 +159,18 @@ def _secure(con: duckdb.DuckDBPyConnection, out: Path) -> None:
     con.execute("SET lock_configuration = true")
 
 
+def resolve_input(out: str | Path, recorded: str) -> Path:
+    """An input path as the manifest records it (as given to `vge replay`): absolute, or
+    relative to the directory the replay ran in, which is not recorded: the current
+    directory is tried first, then OUT's parent (`vge replay ... --out OUT` run next to OUT).
+    Returns the path as recorded when neither exists (the caller reports it)."""
+    path = Path(recorded)
+    if path.is_absolute() or path.exists():
+        return path
+    beside = Path(out).resolve().parent / path
+    return beside if beside.exists() else path
+
+
 def _read_manifest(out: Path) -> dict:
     path = out / "manifest.json"
     if not path.exists():
@@ -233,6 +245,7 @@ def table_columns(out: str | Path | Store) -> Mapping[str, list[str]]:
 __all__ = [
     "PARTITIONED",
     "RUN_COLUMNS_FIXED",
+    "resolve_input",
     "TABLES",
     "Store",
     "clear_cache",

@@ -49,7 +49,7 @@ import replay
 from ._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
 from ._metrics import compose, run_query
 from ._registry import resolve_metrics
-from ._store import Store, open_store
+from ._store import Store, open_store, resolve_input
 
 DEFAULT_SWEEP_METRICS: tuple[str, ...] = ("SR", "SSR")
 
@@ -84,13 +84,14 @@ class _RunJob:
     lambdas: tuple[float, ...]
 
 
-def _resolve(path: str, what: str, run_id: str) -> Path:
-    p = Path(path)
+def _resolve(out: Path, path: str, what: str, run_id: str) -> Path:
+    p = resolve_input(out, path)
     if p.exists():
         return p
     raise SweepInputError(
         f"run {run_id}: {what} {path} recorded in manifest.json not found "
-        "(paths are kept as given to `vge replay`: run `vge sweep` from the same directory)"
+        "(paths are kept as given to `vge replay`: run `vge sweep` from the directory the "
+        "replay ran in, or next to OUT)"
     )
 
 
@@ -102,12 +103,12 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def _check_unchanged(entry, run_id: str) -> None:
+def _check_unchanged(out: Path, entry, run_id: str) -> None:
     """The inputs must be the ones OUT was replayed from (sha256 in the manifest)."""
     refs = [("episodes file", entry.inputs.episodes), ("tasks file", entry.inputs.tasks)]
     refs += [(f"SSM of {device}", ref) for device, ref in sorted(entry.inputs.ssm.items())]
     for what, ref in refs:
-        path = _resolve(ref.path, what, run_id)
+        path = _resolve(out, ref.path, what, run_id)
         if ref.sha256 is not None and _sha256(path) != ref.sha256:
             raise SweepInputError(
                 f"run {run_id}: {what} {ref.path} changed since OUT was replayed "
@@ -136,9 +137,9 @@ def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> 
     jobs = []
     for run in wanted:
         e = entries[run]
-        _check_unchanged(e, run)
-        episodes_file = _resolve(e.inputs.episodes.path, "episodes file", run)
-        bench = _resolve(e.inputs.bench, "benchmark directory", run)
+        _check_unchanged(store.out, e, run)
+        episodes_file = _resolve(store.out, e.inputs.episodes.path, "episodes file", run)
+        bench = _resolve(store.out, e.inputs.bench, "benchmark directory", run)
         ids = frozenset(eps.filter(pl.col("run_id") == run)["episode_id"].to_list())
         jobs.append(
             _RunJob(

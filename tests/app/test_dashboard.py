@@ -58,8 +58,8 @@ def test_input_path_falls_back_to_outs_parent(tmp_path, monkeypatch):
     out = tmp_path / "out"
     out.mkdir()
     monkeypatch.chdir("/")
-    assert dash.input_path(out, "bench") == tmp_path / "bench"
-    assert dash.input_path(out, "/abs/bench") == Path("/abs/bench")
+    assert dash.resolve_input(out, "bench") == tmp_path / "bench"
+    assert dash.resolve_input(out, "/abs/bench") == Path("/abs/bench")
 
 
 # ---------------------------------------------------------------------- leaderboard

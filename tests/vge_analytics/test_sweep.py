@@ -105,3 +105,23 @@ def test_sweep_refuses_changed_inputs(tmp_path: Path) -> None:
     (run / "episodes.jsonl").write_text(json.dumps(short) + "\n")
     with pytest.raises(va.SweepInputError, match="changed since OUT was replayed"):
         va.sweep(out, "2")
+
+
+def test_sweep_finds_inputs_next_to_out_from_another_directory(tmp_path, monkeypatch) -> None:
+    """The manifest keeps input paths as given; a sweep run elsewhere finds them beside OUT."""
+    import shutil
+
+    from replay import replay_runs
+    from vge_analytics import sweep
+
+    logs = Path(__file__).resolve().parents[2] / "logs"
+    work = tmp_path / "work"
+    shutil.copytree(logs / "bench", work / "bench")
+    shutil.copytree(logs / "runs" / "sim-human", work / "runs" / "sim-human")
+    monkeypatch.chdir(work)
+    replay_runs(["runs/sim-human"], "bench", "out", progress=False)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    table = sweep(work / "out", lambdas=[2, 5])
+    assert sorted(table["lambda"].to_list()) == [2.0, 5.0]
