@@ -14,7 +14,7 @@ import altair as alt
 import polars as pl
 
 from vge_analytics import ERROR_LABELS, ERROR_TYPES, SWITCH_CLASSES
-from vge_analytics._dashboard import ViewPicture
+from vge_analytics.dashboard import ViewPicture
 
 ERROR_COLORS: dict[str, str] = {
     "invalid_coord": "#1f4e9c",

@@ -18,7 +18,7 @@ import polars as pl
 import streamlit as st
 
 import vge_analytics as va
-from vge_analytics import _dashboard as dash
+from vge_analytics import dashboard as dash
 
 API: dict[str, Callable[..., Any]] = {
     "metrics": va.metrics,

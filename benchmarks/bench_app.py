@@ -103,7 +103,7 @@ def _trim(png: Path, width: int = 900) -> None:
 
 def save_screenshots(browser: Browser, base: str, out: Path, folder: Path) -> None:
     from vge_analytics import _browse as browse
-    from vge_analytics import _dashboard as dash
+    from vge_analytics import dashboard as dash
 
     runs = browse.runs(out)
     _, models = dash.run_choices(runs)
@@ -128,7 +128,7 @@ def main() -> None:
     args = parser.parse_args()
 
     from vge_analytics import _browse as browse
-    from vge_analytics import _dashboard as dash
+    from vge_analytics import dashboard as dash
 
     out = dash.check_out(args.out)
     summary = dash.out_summary(out)

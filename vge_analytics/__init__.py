@@ -29,6 +29,7 @@ of steps/goals where the result is computed from them); `by` lists grouping colu
 Errors are `replay.VGEError` subclasses with one-line messages.
 """
 
+from . import dashboard  # the functions behind the Streamlit pages
 from ._browse import episode_steps, episodes, facets, goals, runs, steps, steps_with_error
 from ._compare import Comparison, compare, mcnemar_exact
 from ._errors import (
@@ -61,6 +62,7 @@ from ._taxonomy import (
 )
 
 __all__ = [
+    "dashboard",
     "DEFAULT_BY",
     "ERROR_GROUPS",
     "ERROR_LABELS",

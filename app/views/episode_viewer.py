@@ -5,7 +5,7 @@ import functools
 import streamlit as st
 
 from app import _ui as ui
-from vge_analytics import _dashboard as dash
+from vge_analytics import dashboard as dash
 
 st.title("Episode viewer")
 run_ids = ui.runs_matching_facets(ui.call("runs"))

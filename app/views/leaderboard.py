@@ -4,7 +4,7 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _ui as ui
-from vge_analytics import _dashboard as dash
+from vge_analytics import dashboard as dash
 
 st.title("Leaderboard")
 st.caption(

@@ -21,7 +21,7 @@ import polars as pl
 import pytest
 
 import vge_analytics as va
-from vge_analytics import _dashboard as dash
+from vge_analytics import dashboard as dash
 
 from .browser import Browser, chromium_path
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from vge_analytics import _dashboard as dash
+from vge_analytics import dashboard as dash
 from vge_analytics.cli import main
 from vge_analytics.commands.app import streamlit_command
 

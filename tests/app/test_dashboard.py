@@ -1,4 +1,4 @@
-"""The dashboard's functions (`vge_analytics._dashboard`), against the analytics API they
+"""The dashboard's functions (`vge_analytics.dashboard`), against the analytics API they
 reshape and the replayed tiny synthetic benchmark."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from PIL import Image
 import replay
 import vge_analytics as va
 from vge_analytics import OutputDirError, compare, error_distribution, sql, switch_classes
-from vge_analytics import _dashboard as dash
+from vge_analytics import dashboard as dash
 
 # ------------------------------------------------------------------------------ OUT
 

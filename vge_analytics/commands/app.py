@@ -14,7 +14,7 @@ from pathlib import Path
 
 import typer
 
-from vge_analytics._dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
+from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
 
 
 def streamlit_command(
