@@ -35,7 +35,7 @@ KIND_NOUNS = {
     "cover": "cover",
     "drawer": "drawer",
     "basket": "basket",
-    "tank": "water tank",
+    "tank": "removable container",
     "tray": "tray",
     "cap": "cap",
     "head": "head",
