@@ -46,7 +46,7 @@ PAPER_ACTIONS: dict[str, int] = {
 }
 """Operable transitions (press, pull, push, rotate, grasp, timed_wait) per category."""
 
-KEEP_GRID = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.85, 1.0)
+KEEP_GRID = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.85, 1.0)
 DROP_GRID = (0.0, 0.15, 0.3, 0.45, 0.6, 0.75, 0.9)
 TARGET_COMPONENTS = 3712 / 968
 
@@ -73,7 +73,7 @@ def measure(category: str, keep: float, drop: float, n: int = 50) -> tuple[float
     return actions / n, components / n
 
 
-def calibrate(category: str, component_weight: float = 0.25) -> tuple[float, float]:
+def calibrate(category: str, component_weight: float = 0.5) -> tuple[float, float]:
     target = PAPER_ACTIONS[category] / PAPER_DEVICE_COUNTS[category]
     best: tuple[float, float, float] | None = None
     for keep in KEEP_GRID:
