@@ -22,7 +22,9 @@ from urllib.parse import quote
 import msgspec
 import pyarrow as pa
 
-from ._episode import EpisodeSetup, replay_episode, setup_episode
+from ._columnar import ColumnarBatch, EpisodeInput, replay_columnar
+from ._columnar_tables import ColumnarCache
+from ._episode import EpisodeResult, EpisodeSetup, replay_episode, setup_episode
 from ._errors import TaskError, VGEError
 from ._load import Benchmark, episode_decoder
 from ._machine import Machine
@@ -95,6 +97,10 @@ class BatchFailure:
     details: str
 
 
+COLUMNAR = os.environ.get("VGE_REPLAY_ENGINE", "columnar") != "scalar"
+"""Replay batches with the columnar engine (default) or, with `VGE_REPLAY_ENGINE=scalar`,
+episode by episode with `replay_episode` (the reference; same tables, slower)."""
+
 SETUP_CACHE_SIZE = 50_000
 """Episode setups (plans) kept per process; bounds memory whatever the number of tasks."""
 _IMAGE_CACHE_SIZE = 128
@@ -116,6 +122,9 @@ class WorkerState:
     setups: dict[str, EpisodeSetup | TaskError] = field(default_factory=dict)
     ssm_bytes: dict[str, bytes] = field(default_factory=dict)
     images: dict[tuple[str, str], ImageTuple | None] = field(default_factory=dict)
+    columnar: ColumnarCache | None = field(
+        default_factory=lambda: ColumnarCache() if COLUMNAR else None
+    )
 
     def setup(self, machine: Machine, task: Task) -> EpisodeSetup:
         got = self.setups.get(task.episode_id)
@@ -167,44 +176,122 @@ def process_batch(
 ) -> BatchResult:
     """Decode, check and replay each line of a batch, in order.
 
+    The replayable episodes of the batch are replayed together by the columnar engine
+    (`_columnar.py`); `VGE_REPLAY_ENGINE=scalar` (or `WorkerState.columnar = None`) uses
+    `replay_episode` per episode instead: both give the same tables. MCAP files always
+    come from `replay_episode`.
+
     The cyclic garbage collector is paused for the batch: the rows are acyclic (tuples,
     lists, strings), reference counting frees them, and the collector's scans of the
     growing batch otherwise cost a fifth of the replay time.
     """
-    outcomes: list[LineOutcome] = []
-    steps: list[tuple] = []
-    episodes: list[EpisodeRow] = []
-    goals: list[GoalRow] = []
+    outcomes: list[LineOutcome | None] = []
+    todo: list[tuple[int, int, EpisodeInput]] = []  # (outcome index, line number, episode)
     was_enabled = gc.isenabled()
     gc.disable()
     try:
         for number, raw in lines:
             try:
-                _process_line(state, ctx, number, raw, outcomes, steps, episodes, goals)
+                _prepare_line(state, ctx, number, raw, outcomes, todo)
             except Exception as exc:
                 exc.vge_line = number  # type: ignore[attr-defined]
                 raise
+        episodes = [e for _, _, e in todo]
+        scalar: dict[int, EpisodeResult] = {}
+        if state.columnar is not None:
+            try:
+                tables = replay_columnar(
+                    state.columnar,
+                    episodes,
+                    run_id=ctx.run_id,
+                    model=ctx.model,
+                    agent_kind=ctx.agent_kind,
+                )
+            except Exception as exc:
+                state.columnar.reset()
+                for _, number, e in todo:  # an episode at fault raises, naming its line
+                    _replay_scalar(ctx, number, e)
+                exc.vge_line = lines[0][0] if lines else None  # type: ignore[attr-defined]
+                raise
+        else:
+            scalar = {j: _replay_scalar(ctx, number, e) for j, (_, number, e) in enumerate(todo)}
+            tables = _scalar_tables([scalar[j] for j in range(len(todo))])
+        for j, (at, number, e) in enumerate(todo):
+            mcap_tmp = None
+            if ctx.wants_mcap(e.task.episode_id):
+                result = scalar.get(j) or _replay_scalar(ctx, number, e)
+                mcap_tmp = _write_mcap(state, ctx, number, e.machine, result)
+            outcomes[at] = LineOutcome(
+                number,
+                e.task.episode_id,
+                True,
+                None,
+                None,
+                tables.step_counts[j],
+                tables.goal_counts[j],
+                mcap_tmp,
+            )
         return BatchResult(
-            outcomes,
-            rows_to_table(steps, StepRow),
-            rows_to_table(episodes, EpisodeRow),
-            rows_to_table(goals, GoalRow),
+            [o for o in outcomes if o is not None], tables.steps, tables.episodes, tables.goals
         )
     finally:
         if was_enabled:
             gc.enable()
 
 
-def _process_line(
+def _replay_scalar(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeResult:
+    try:
+        return replay_episode(
+            e.machine,
+            e.task,
+            e.log,
+            lam=e.lam,
+            run_id=ctx.run_id,
+            model=ctx.model,
+            agent_kind=ctx.agent_kind,
+            setup=e.setup,
+        )
+    except Exception as exc:
+        exc.vge_line = number  # type: ignore[attr-defined]
+        raise
+
+
+def _scalar_tables(results: list[EpisodeResult]) -> ColumnarBatch:
+    return ColumnarBatch(
+        rows_to_table([t for r in results for t in r.step_tuples], StepRow),
+        rows_to_table([r.episode for r in results], EpisodeRow),
+        rows_to_table([g for r in results for g in r.goals], GoalRow),
+        [len(r.step_tuples) for r in results],
+        [len(r.goals) for r in results],
+    )
+
+
+def _write_mcap(
+    state: WorkerState, ctx: RunContext, number: int, machine: Machine, result: EpisodeResult
+) -> str:
+    mcap_tmp = f"{safe_file_name(result.episode.episode_id)}.L{number}.mcap.tmp"
+    source = ctx.image_source
+
+    def image(view: str, m: Machine = machine) -> ImageTuple | None:
+        return None if source is None else state.image(source, m, view)
+
+    with open(os.path.join(ctx.mcap_dir or "", mcap_tmp), "wb") as fh:
+        write_episode_mcap(
+            fh, machine, result, ssm_bytes=state.ssm(machine), image=image, library=ctx.library
+        )
+    return mcap_tmp
+
+
+def _prepare_line(
     state: WorkerState,
     ctx: RunContext,
     number: int,
     raw: bytes,
-    outcomes: list[LineOutcome],
-    steps: list[tuple],
-    episodes: list[EpisodeRow],
-    goals: list[GoalRow],
+    outcomes: list[LineOutcome | None],
+    todo: list[tuple[int, int, EpisodeInput]],
 ) -> None:
+    """Decode and check one line: a quarantine outcome, or an episode to replay (its
+    outcome is filled in after the replay)."""
     bench = state.bench
     try:
         log = episode_decoder.decode(raw)
@@ -238,41 +325,10 @@ def _process_line(
         reason = one_line(f"{exc} (tasks.jsonl line {entry.line})")
         outcomes.append(LineOutcome(number, eid, True, "task_error", reason))
         return
-    result = replay_episode(
-        machine,
-        task,
-        log,
-        lam=episode_lambda(ctx, task),
-        run_id=ctx.run_id,
-        model=ctx.model,
-        agent_kind=ctx.agent_kind,
-        setup=setup,
+    todo.append(
+        (len(outcomes), number, EpisodeInput(machine, task, setup, log, episode_lambda(ctx, task)))
     )
-    mcap_tmp = None
-    if ctx.wants_mcap(eid):
-        mcap_tmp = f"{safe_file_name(eid)}.L{number}.mcap.tmp"
-        source = ctx.image_source
-
-        def image(view: str, m: Machine = machine) -> ImageTuple | None:
-            return None if source is None else state.image(source, m, view)
-
-        with open(os.path.join(ctx.mcap_dir or "", mcap_tmp), "wb") as fh:
-            write_episode_mcap(
-                fh,
-                machine,
-                result,
-                ssm_bytes=state.ssm(machine),
-                image=image,
-                library=ctx.library,
-            )
-    steps.extend(result.step_tuples)  # tuples in StepRow order: the fast path to Arrow
-    episodes.append(result.episode)
-    goals.extend(result.goals)
-    outcomes.append(
-        LineOutcome(
-            number, eid, True, None, None, len(result.step_tuples), len(result.goals), mcap_tmp
-        )
-    )
+    outcomes.append(None)
 
 
 # ------------------------------------------------------------------ worker processes

@@ -155,21 +155,29 @@ def _parse_entry(entry: str, thinking: str) -> ParsedAction:
     kind = _KNOWN.get(name.lower())
     if kind is None:
         return _parse_entry_full(entry, thinking)
-    raw = params_a if params_a is not None else params_b
-    params: tuple[str, ...] = ()
-    if raw and not raw.isspace():
-        items = [p.strip() for p in raw.split(",")]
-        if len(items) > 1 and not items[-1]:
-            items.pop()  # one trailing comma
-        values = []
-        for item in items:
-            m = _FAST_ITEM.fullmatch(item)
-            if m is None:
-                return _parse_entry_full(entry, thinking)
-            values.append(normalize_param(m.group(2)))
-        params = tuple(values)
+    params = fast_params(params_a if params_a is not None else params_b)
+    if params is None:
+        return _parse_entry_full(entry, thinking)
     coord = (float(x), float(y)) if x is not None else None
     return ParsedAction(True, Action(kind, coord, params), None, call_text, thinking)
+
+
+def fast_params(raw: str | None) -> tuple[str, ...] | None:
+    """The params of a fast-path match (the text inside `params=[...]`, or None when absent),
+    normalised; None when an item is not a plain word or a quoted one (the full grammar
+    decides then). Shared with the columnar parser (`_columnar_parse.py`)."""
+    if not raw or raw.isspace():
+        return ()
+    items = [p.strip() for p in raw.split(",")]
+    if len(items) > 1 and not items[-1]:
+        items.pop()  # one trailing comma
+    values = []
+    for item in items:
+        m = _FAST_ITEM.fullmatch(item)
+        if m is None:
+            return None
+        values.append(normalize_param(m.group(2)))
+    return tuple(values)
 
 
 def _parse_entry_full(entry: str, thinking: str) -> ParsedAction:

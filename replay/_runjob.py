@@ -36,6 +36,10 @@ from ._reading import LineReader, RunInput
 from ._tables import TABLE_ROWS, arrow_schema
 from ._writer import PartWriter, remove_dir, swap_in
 
+CHUNK_LINES = 64
+"""Rows reach the Parquet writer in Arrow chunks of this many episode lines: a column's page
+layout depends on chunk boundaries, so cutting them by lines (counted from the start of the
+file) keeps the files independent of the batch size and the number of workers."""
 STATE_DIR = ".replay"
 """Private state under OUT: per-run quarantine records, the lock, staging and trash."""
 DIVERGENCE_FIELDS = ("feedback", "state", "view")
@@ -72,6 +76,23 @@ class Tally:
                     self.by_field[name] = self.by_field.get(name, 0) + item["counts"]
         if episodes.num_rows:
             self.episodes_diverged += pc.sum(pc.greater(episodes["diverged_steps"], 0)).as_py() or 0
+
+
+def rechunk(table: pa.Table, counts: list[int]) -> pa.Table:
+    """The table cut into chunks of `counts` rows (empty ones left out), zero-copy."""
+    pieces, at = [], 0
+    for n in counts:
+        if n:
+            pieces.append(table.slice(at, n))
+            at += n
+    return pa.concat_tables(pieces) if len(pieces) > 1 else table
+
+
+def drop_empty_chunks(table: pa.Table) -> pa.Table:
+    batches = table.to_batches()
+    if all(b.num_rows for b in batches):
+        return table
+    return pa.Table.from_batches([b for b in batches if b.num_rows], schema=table.schema)
 
 
 def keep_mask(n: int, drops: list[tuple[int, int]]) -> pa.Array:
@@ -125,6 +146,7 @@ class RunJob:
             for name, row_type in TABLE_ROWS.items()
         }
         self.seen: dict[str, int] = {}
+        self.items = 0  # episode lines taken so far (blank lines are not items)
         self.devices: dict[str, None] = {}
         self.tally = Tally()
         self._quarantine_path = self.staging / "quarantine.jsonl"
@@ -153,8 +175,14 @@ class RunJob:
         step_drops: list[tuple[int, int]] = []
         goal_drops: list[tuple[int, int]] = []
         episode_pos = step_pos = goal_pos = 0
-        for o in result.outcomes:
+        chunks: dict[int, list[int]] = {}  # chunk -> [steps, episodes, goals] rows
+        for j, o in enumerate(result.outcomes):
             tally.lines_read += 1
+            rows = chunks.setdefault((self.items + j) // CHUNK_LINES, [0, 0, 0])
+            if o.kind is None:
+                rows[0] += o.n_steps
+                rows[1] += 1
+                rows[2] += o.n_goals
             kind, reason = o.kind, o.reason
             if o.decoded and o.episode_id is not None:
                 first = self.seen.get(o.episode_id)
@@ -185,11 +213,15 @@ class RunJob:
                 goal_pos += o.n_goals
             if kind is not None:
                 self.quarantine(o.line, o.episode_id, kind, reason or "")
-        steps, episodes, goals = result.steps, result.episodes, result.goals
+        self.items += len(result.outcomes)
+        sizes = list(chunks.values())
+        steps = rechunk(result.steps, [c[0] for c in sizes])
+        episodes = rechunk(result.episodes, [c[1] for c in sizes])
+        goals = rechunk(result.goals, [c[2] for c in sizes])
         if drops:
-            steps = steps.filter(keep_mask(steps.num_rows, step_drops))
-            episodes = episodes.filter(keep_mask(episodes.num_rows, drops))
-            goals = goals.filter(keep_mask(goals.num_rows, goal_drops))
+            steps = drop_empty_chunks(steps.filter(keep_mask(steps.num_rows, step_drops)))
+            episodes = drop_empty_chunks(episodes.filter(keep_mask(episodes.num_rows, drops)))
+            goals = drop_empty_chunks(goals.filter(keep_mask(goals.num_rows, goal_drops)))
         tally.add_tables(steps, episodes, goals)
         self.writers["steps"].write(steps)
         self.writers["episodes"].write(episodes)

@@ -110,7 +110,8 @@ def _fail_after(monkeypatch: pytest.MonkeyPatch, target: object, name: str, n: i
 @pytest.mark.parametrize(
     ("target", "name", "n"),
     [
-        (_batch, "replay_episode", 20),  # mid-run, in the replay loop
+        (_batch, "replay_columnar", 2),  # mid-run, in the (columnar) replay
+        (_batch, "replay_episode", 20),  # mid-run, in the scalar replay loop
         (_writer.PartWriter, "_write_group", 2),  # mid-part, while writing Parquet
     ],
 )
@@ -123,6 +124,8 @@ def test_interrupted_replay_leaves_previous_output_intact(
     n: int,
 ) -> None:
     s, out = copy_sample, tmp_path / "out"
+    if name == "replay_episode":
+        monkeypatch.setattr("replay._batch.COLUMNAR", False)  # the scalar engine
     monkeypatch.setattr("replay._runner.BATCH_LINES", 4)
     monkeypatch.setattr("replay._writer.ROW_GROUP_ROWS", 16)
     monkeypatch.setattr("replay._writer.PART_ROWS", 64)

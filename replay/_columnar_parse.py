@@ -1,0 +1,204 @@
+"""Parsing the steps of a batch at once (SPEC 2), for the columnar replay.
+
+Most model outputs have one shape: `Thinking: ...` then one line `Action: Name(...)` in the
+canonical form that `_parse._FAST` recognises. For those, polars (Rust regex) finds the
+label, cuts the Thinking text and matches the call for the whole batch in a few passes. The
+gate is narrow on purpose, so that the Rust and Python semantics provably coincide:
+
+- the text is ASCII, starts with `Thinking:` and contains `action` (any case) exactly once,
+  as the line-start label `\\nAction:`. `_find_labels` then returns that one line label and
+  `_thinking` strips the text between `Thinking:` and it;
+- the entry after the label is matched with `_FAST`'s own pattern, its `\\s` and `\\d`
+  spelled as the ASCII classes Python uses on ASCII text (`str.isspace`, `[0-9]`); Rust's
+  leftmost-first semantics picks the same groups as Python's backtracking;
+- the name must be a known action and the params pass `_parse.fast_params` (Python, once
+  per distinct text).
+
+Every other step (other shapes, non-ASCII, parse failures, structured `action` records,
+steps without output) goes through `parse_log_step`, the scalar parser. A hypothesis test
+(`tests/replay/test_columnar.py`) checks the two paths agree.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import polars as pl
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from . import _parse
+from ._columnar_tables import ActionVocab
+from ._episode import parse_log_step
+from ._parse import _FAST, _KNOWN, ParsedAction, fast_params
+from ._records import LogStep
+
+_WS_CHARS = " \t\n\r\x0b\x0c\x1c\x1d\x1e\x1f"
+"""What Python's `str.isspace()` (so `str.strip()` and `re`'s `\\s`) means on ASCII."""
+_WS = r"[ \t\n\r\x0b\x0c\x1c-\x1f]"
+
+
+def ascii_pattern(pattern: str) -> str:
+    """A Python `re` pattern meant for ASCII text, spelled for the Rust regex engine."""
+    for esc in (r"\w", r"\W", r"\b", r"\B", r"\S", r"\D", r"\A", "(?i", "(?m", "(?s"):
+        if esc in pattern:
+            raise ValueError(f"{esc} has no checked ASCII translation")
+    return pattern.replace(r"\s", _WS).replace(r"\d", "[0-9]").replace(r"\Z", r"\z")
+
+
+FAST_CALL = "^" + ascii_pattern(_FAST.pattern)
+"""`_FAST.match(entry)` for ASCII entries."""
+_LABEL = "\nAction:"
+_BOLD_LABEL = "\n**Action:"
+_THINKING = "Thinking:"
+
+
+class ParsedSteps(NamedTuple):
+    """The parse of every step of a batch, as columns."""
+
+    aid: np.ndarray  # int64 action id (ActionVocab)
+    x: np.ndarray  # float64; 0 where there is no coord
+    y: np.ndarray
+    has_coord: np.ndarray  # bool
+    output: pa.Array  # string: the raw model output (null for structured actions)
+    action_raw: pa.Array  # string: the Action entry text
+    thinking: pa.Array  # string, null when empty
+    fast: int  # steps parsed by the vectorised path
+
+
+def parse_steps(steps: list[LogStep], vocab: ActionVocab) -> ParsedSteps:
+    """Parse every step; equal, step by step, to `parse_log_step`."""
+    n = len(steps)
+    texts = [s.output for s in steps]
+    output = pa.array(texts, pa.string())
+    aid = np.full(n, -1, np.int64)
+    x = np.zeros(n)
+    y = np.zeros(n)
+    has_coord = np.zeros(n, np.bool_)
+    if n == 0:
+        empty = pa.array([], pa.string())
+        return ParsedSteps(aid, x, y, has_coord, output, empty, empty, 0)
+    fast, call, thinking = _fast_path(output, vocab, aid, x, y, has_coord)
+    slow = np.flatnonzero(~fast)
+    if len(slow):
+        entries: list[str] = []
+        thoughts: list[str | None] = []
+        of_parsed = vocab.of_parsed
+        for i in slow.tolist():
+            text = texts[i]
+            parsed = _one_label(text) if text is not None else None
+            if parsed is None:
+                parsed = parse_log_step(steps[i])
+            aid[i] = of_parsed(parsed)
+            action = parsed.action
+            if action is not None and action.coord is not None:
+                x[i], y[i] = action.coord
+                has_coord[i] = True
+            entries.append(parsed.action_text)
+            thoughts.append(parsed.thinking or None)
+        mask = pa.array(~fast)
+        call = pc.replace_with_mask(call, mask, pa.array(entries, pa.string()))
+        thinking = pc.replace_with_mask(thinking, mask, pa.array(thoughts, pa.string()))
+    return ParsedSteps(aid, x, y, has_coord, output, call, thinking, int(fast.sum()))
+
+
+def _one_label(text: str) -> ParsedAction | None:
+    """`parse_action(text)` for a text starting with `Thinking:` whose only `action` (any
+    case) is its line-start label `\\nAction:` or `\\n**Action:`, or that has none; else None.
+
+    Then `_find_labels` returns that label (or none) and `_thinking` cuts after
+    `Thinking:`, so the entry alone is left to parse. (U+0130 is the one character whose
+    lowercase changes length, which sends `_find_labels` to its regexes: not covered.)
+    """
+    if not text.startswith(_THINKING) or "\u0130" in text:
+        return None
+    low = text.lower()
+    count = low.count("action")
+    if count == 0:
+        return ParsedAction(False, None, "no_action", "", text[len(_THINKING) :].strip())
+    if count != 1:
+        return None
+    for label in (_LABEL, _BOLD_LABEL):
+        at = text.find(label)
+        if at >= 0:
+            thinking = text[len(_THINKING) : at].strip()
+            return _parse._parse_entry(text[at + len(label) :], thinking)
+    return None
+
+
+def _fast_path(
+    output: pa.Array,
+    vocab: ActionVocab,
+    aid: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    has_coord: np.ndarray,
+) -> tuple[np.ndarray, pa.Array, pa.Array]:
+    """Parse the ASCII texts starting with `Thinking:` whose only `action` (any case) is
+    the label `\\nAction:` or `\\n**Action:` and whose entry `_FAST` matches with a known
+    name and plain params. Fills aid/x/y/has_coord for them and returns (mask of those
+    rows, entry texts, thinking texts), arbitrary at the other rows."""
+    o = pl.col("o")
+    plain, bold = pl.col("plain"), pl.col("bold")
+    at = pl.coalesce(plain + len(_LABEL), bold + len(_BOLD_LABEL))
+    frame = (
+        pl.DataFrame({"o": pl.Series("o", output)})
+        .with_columns(
+            plain=o.str.find(_LABEL, literal=True), bold=o.str.find(_BOLD_LABEL, literal=True)
+        )
+        .select(
+            gate=(
+                o.str.starts_with(_THINKING) & (o.str.count_matches("(?i)action") == 1)
+            ).fill_null(False),
+            at=at,
+            match=o.str.slice(at).str.extract_groups(FAST_CALL),
+            thinking=o.str.slice(
+                len(_THINKING), pl.coalesce(plain, bold) - len(_THINKING)
+            ).str.strip_chars(_WS_CHARS),
+        )
+    )
+    gate = (
+        frame["gate"].to_numpy()
+        & frame["at"].is_not_null().to_numpy()
+        & pc.string_is_ascii(output).fill_null(False).to_numpy(zero_copy_only=False)
+    )
+    m = pl.col("match").struct
+    parts = frame.select(
+        key=pl.concat_str(
+            m.field("2").str.to_lowercase(),
+            pl.coalesce(m.field("5"), m.field("6")).fill_null(""),
+            separator="\x00",
+        ),
+        x=m.field("3").cast(pl.Float64, strict=False),
+        y=m.field("4").cast(pl.Float64, strict=False),
+        call=m.field("1"),
+    )
+    keys = parts["key"].to_list()
+    ids = vocab.fast_ids
+    fast_aid = np.array([ids.get(k, -2) if k is not None else -1 for k in keys], np.int64)
+    for i in np.flatnonzero(gate & (fast_aid == -2)).tolist():  # -2: a key not seen yet
+        fast_aid[i] = ids[keys[i]] = _action_id(keys[i], vocab)
+    fast = gate & (fast_aid >= 0)
+    aid[fast] = fast_aid[fast]
+    xs = parts["x"].to_numpy()
+    coord = fast & ~np.isnan(xs)
+    x[coord] = xs[coord]
+    y[coord] = parts["y"].to_numpy()[coord]
+    has_coord[coord] = True
+    call = parts["call"].to_arrow().cast(pa.string())
+    thinking = frame["thinking"].replace("", None).to_arrow().cast(pa.string())
+    return fast, call, thinking
+
+
+def _action_id(key: str, vocab: ActionVocab) -> int:
+    """`name\\0raw params` of a fast match -> action id, or -1 when the full grammar must
+    decide (unknown name, params that are not plain items)."""
+    name, _, raw = key.partition("\x00")
+    kind = _KNOWN.get(name)
+    if kind is None:
+        return -1
+    params = fast_params(raw)
+    if params is None:
+        return -1
+    return vocab.of_action(kind, params)

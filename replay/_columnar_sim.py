@@ -1,0 +1,232 @@
+"""The sequential part of the columnar replay: device state, view, dashboard, goals, budgets
+and termination, one episode at a time (SPEC 3), recording one integer per step.
+
+The simulator itself is `replay.step`, called once per distinct situation: its result
+depends only on the situation (state, view, dashboard unlocked), the action, and which of
+the machine's rects (component bboxes of every view, dashboard regions) contain the point
+and whether it lies in 0..1000. So results are memoised per machine under one int key
+packing (action id, point id, situation id) (`step_keys`); a result id gives the next
+situation, the outcome and the states entered (`ColumnarCache.result`).
+
+Budgets and termination follow `replay_episode` exactly, but are computed at the few
+steps where something can happen: `B_local` only changes by -1 per step between goal
+completions, so the step at which a budget runs out is known in advance (`B - k`, exact in
+floats while |B| < 2**52; larger budgets go to the scalar path), and the loop only stops at
+completions and at that step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import ceil
+
+import numpy as np
+
+from ._columnar_tables import (
+    ACTION_SHIFT,
+    SITUATION_BITS,
+    VIEW_CODES,
+    ColumnarCache,
+    MachineTables,
+)
+from ._episode import EpisodeSetup
+from ._step import SimState, step
+from ._vocab import VIEW_ORDER
+
+EXACT_BUDGET = float(2**52)
+"""Budgets below this are decremented exactly (see the module docstring)."""
+
+
+@dataclass(slots=True)
+class EpisodeSim:
+    """What the loop found for one episode, besides the result id of each scored step."""
+
+    termination: str | None
+    taken: int  # scored steps
+    goals_completed: int
+    started: list[int | None]
+    completed_at: list[int | None]
+    dyn: list[int | None]
+    budget_global: float
+    events: list[tuple[int, int, float]]  # (step, goals completed, B_local after) per completion
+    budget_local: float  # B_local at reset
+
+
+def step_keys(
+    cache: ColumnarCache,
+    mts: list[MachineTables],
+    step_machine: np.ndarray,
+    aid: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    has_coord: np.ndarray,
+) -> tuple[list[int], list[int]]:
+    """Per step, the memo key without its situation (action id and point id, shifted), and
+    the point key itself.
+
+    The point key is the mask of the step's machine's rects containing (x, y), times 2,
+    plus 1 when the point lies in 0..1000; -1 when the action reads no coordinate (only
+    interactions and a switch to the dashboard do)."""
+    n = len(x)
+    keys = np.full(n, -1, np.int64)
+    idx = np.flatnonzero(cache.actions.cols["uses_coord"][aid] & has_coord)
+    if len(idx):
+        starts = np.array([mt.mask_start for mt in mts], np.int64)[step_machine[idx]]
+        counts = np.array([mt.mask_count for mt in mts], np.int64)[step_machine[idx]]
+        px, py = x[idx], y[idx]
+        in_range = (px >= 0.0) & (px <= 1000.0) & (py >= 0.0) & (py <= 1000.0)
+        keys[idx] = in_range
+        total = int(counts.sum())
+        if total:
+            first = np.cumsum(counts) - counts
+            owner = np.repeat(np.arange(len(idx)), counts)
+            rect = np.arange(total) - np.repeat(first - starts, counts)
+            r = cache.mask_rects
+            qx, qy = px[owner], py[owner]
+            inside = (r["x0"][rect] <= qx) & (qx <= r["x1"][rect])
+            inside &= (r["y0"][rect] <= qy) & (qy <= r["y1"][rect])
+            bits = np.where(inside, r["bit"][rect], 0)
+            nonempty = counts > 0
+            masks = np.bitwise_or.reduceat(bits, first[nonempty])
+            keys[idx[nonempty]] |= masks
+    uniq, inverse = np.unique(keys, return_inverse=True)
+    ids = cache.point_ids
+    pid = np.array([ids.setdefault(k, len(ids)) for k in uniq.tolist()], np.int64)[inverse]
+    return ((aid << ACTION_SHIFT) | (pid << SITUATION_BITS)).tolist(), keys.tolist()
+
+
+def simulate_episode(
+    cache: ColumnarCache,
+    mt: MachineTables,
+    setup: EpisodeSetup,
+    lam: float,
+    keys: list[int],
+    points: list[int],
+    aids: list[int],
+    x: list[float],
+    y: list[float],
+    has_coord: list[bool],
+    begin: int,
+    end: int,
+    rids: list[int],
+) -> EpisodeSim:
+    """Replay steps `begin..end` of the batch, appending the result id of each scored step
+    to `rids`; stops at termination (the remaining steps are truncated)."""
+    memo_get = mt.memo.get
+    next_of = cache.result_next
+    entered_of = cache.result_entered
+    record = rids.append
+    goals = setup.goals
+    n_goals = len(goals)
+    c_opt = setup.plan.c_opt
+    budget_global = lam * sum(c_opt)
+    k_global = ceil(budget_global) - 1  # the first step k with k + 1 >= B_global
+    b_base = b_start = lam * c_opt[0]  # B_local after step `base_k` (before any step: -1)
+    base_k = -1
+    k_local = base_k + ceil(b_base)  # the first step with B_local <= 0
+    situation = mt.situation(setup.start_state, VIEW_CODES[setup.initial_view], False)
+    started: list[int | None] = [None] * n_goals
+    completed_at: list[int | None] = [None] * n_goals
+    dyn: list[int | None] = [None] * n_goals
+    started[0] = 0
+    dyn[0] = mt.c_opt_dynamic(setup.start_state, setup.initial_view, False, goals[0])
+    events: list[tuple[int, int, float]] = []
+    current = 0
+    goal = goals[0]
+    termination = None
+    start = begin
+    while True:
+        deadline = begin + min(k_global, k_local)  # a budget runs out at this step
+        stop = deadline + 1 if deadline < end else end
+        for i in range(start, stop):
+            rid = memo_get(keys[i] | situation)
+            if rid is None:
+                rid = _resolve(
+                    cache, mt, keys[i] | situation, situation, points, aids, x, y, has_coord, i
+                )
+            record(rid)
+            situation = next_of[rid]
+            if goal in entered_of[rid]:
+                break
+        else:  # no goal completed up to `stop`
+            if stop == end and deadline >= end:
+                taken = end - begin  # the log ended first
+            else:
+                taken = deadline - begin + 1
+                termination = "budget_global" if taken >= budget_global else "budget_local"
+            break
+        # Step i completed the current goal (and maybe more): SPEC 3 bookkeeping.
+        k = i - begin
+        goal_index = current
+        completed = 0
+        for s in entered_of[rid]:
+            if current < n_goals and s == goals[current]:
+                completed_at[current] = k
+                if current != goal_index:
+                    started[current] = k  # became current and completed in this step
+                current += 1
+                completed += 1
+        b = b_base - (k - base_k)
+        if current < n_goals:
+            started[current] = k + 1
+        for c in range(goal_index + 1, min(current + 1, n_goals)):
+            b = max(b, lam * c_opt[c])
+        for c in range(goal_index + 1, current):
+            dyn[c] = 0  # completed in the same step it became current
+        events.append((i, completed, b))
+        b_base, base_k = b, k
+        taken = k + 1
+        if current >= n_goals:
+            termination = "success"
+            break
+        state, view, unlocked = mt.situations[situation]
+        goal = goals[current]
+        dyn[current] = mt.c_opt_dynamic(state, VIEW_ORDER[view], unlocked, goal)
+        if taken >= budget_global:
+            termination = "budget_global"
+            break
+        if b <= 0:
+            termination = "budget_local"
+            break
+        k_local = base_k + ceil(b)
+        start = i + 1
+    return EpisodeSim(
+        termination,
+        taken,
+        current,
+        started,
+        completed_at,
+        dyn,
+        budget_global,
+        events,
+        b_start,
+    )
+
+
+def _resolve(
+    cache: ColumnarCache,
+    mt: MachineTables,
+    key: int,
+    situation: int,
+    points: list[int],
+    aids: list[int],
+    x: list[float],
+    y: list[float],
+    has_coord: list[bool],
+    i: int,
+) -> int:
+    """The result of a step key not met before: from the canonical memo (the point key
+    restricted to the bits of the situation's view), else from the simulator."""
+    state, view, unlocked = mt.situations[situation]
+    aid = aids[i]
+    point = points[i]
+    canonical = (situation, aid, point & mt.view_bits[view] if point >= 0 else -1)
+    rid = mt.canonical.get(canonical)
+    if rid is None:
+        parsed = cache.actions.parsed(aid, x[i], y[i], has_coord[i])
+        after, outcome = step(mt.machine, SimState(state, VIEW_ORDER[view], unlocked), parsed)
+        nxt = mt.situation(after.state, VIEW_CODES[after.view], after.unlocked)
+        rid = cache.result(mt, nxt, cache.outcomes.of(mt, outcome), outcome.entered)
+        mt.canonical[canonical] = rid
+    mt.memo[key] = rid
+    return rid
