@@ -78,21 +78,37 @@ class Tally:
             self.episodes_diverged += pc.sum(pc.greater(episodes["diverged_steps"], 0)).as_py() or 0
 
 
-def rechunk(table: pa.Table, counts: list[int]) -> pa.Table:
-    """The table cut into chunks of `counts` rows (empty ones left out), zero-copy."""
-    pieces, at = [], 0
-    for n in counts:
-        if n:
-            pieces.append(table.slice(at, n))
-            at += n
-    return pa.concat_tables(pieces) if len(pieces) > 1 else table
+class ChunkWriter:
+    """Hands a table's rows to its PartWriter in chunks of CHUNK_LINES episode lines (one
+    Arrow chunk each, whatever the batches the rows came in)."""
 
+    def __init__(self, writer: PartWriter) -> None:
+        self.writer = writer
+        self.open: int | None = None  # the chunk being gathered
+        self.pieces: list[pa.Table] = []
 
-def drop_empty_chunks(table: pa.Table) -> pa.Table:
-    batches = table.to_batches()
-    if all(b.num_rows for b in batches):
-        return table
-    return pa.Table.from_batches([b for b in batches if b.num_rows], schema=table.schema)
+    def add(self, table: pa.Table, rows: list[tuple[int, int]]) -> None:
+        """`table` holds, in order, `n` rows of chunk `c` for each (c, n) of `rows`."""
+        at = 0
+        for chunk, n in rows:
+            if chunk != self.open:
+                self._flush()
+                self.open = chunk
+            if n:
+                self.pieces.append(table.slice(at, n))
+                at += n
+
+    def flush_complete(self, first_open: int | None) -> None:
+        """Write the gathered chunk if it is before chunk `first_open` (None: in any case)."""
+        if self.open is not None and (first_open is None or self.open < first_open):
+            self._flush()
+
+    def _flush(self) -> None:
+        if self.pieces:
+            table = self.pieces[0] if len(self.pieces) == 1 else pa.concat_tables(self.pieces)
+            self.writer.write(table.combine_chunks())
+        self.pieces = []
+        self.open = None
 
 
 def keep_mask(n: int, drops: list[tuple[int, int]]) -> pa.Array:
@@ -145,6 +161,7 @@ class RunJob:
             name: PartWriter(self.staging / name, arrow_schema(row_type))
             for name, row_type in TABLE_ROWS.items()
         }
+        self.chunks = {name: ChunkWriter(w) for name, w in self.writers.items()}
         self.seen: dict[str, int] = {}
         self.items = 0  # episode lines taken so far (blank lines are not items)
         self.devices: dict[str, None] = {}
@@ -175,14 +192,10 @@ class RunJob:
         step_drops: list[tuple[int, int]] = []
         goal_drops: list[tuple[int, int]] = []
         episode_pos = step_pos = goal_pos = 0
-        chunks: dict[int, list[int]] = {}  # chunk -> [steps, episodes, goals] rows
+        chunks: dict[int, list[int]] = {}  # chunk -> [steps, episodes, goals] rows kept
         for j, o in enumerate(result.outcomes):
             tally.lines_read += 1
             rows = chunks.setdefault((self.items + j) // CHUNK_LINES, [0, 0, 0])
-            if o.kind is None:
-                rows[0] += o.n_steps
-                rows[1] += 1
-                rows[2] += o.n_goals
             kind, reason = o.kind, o.reason
             if o.decoded and o.episode_id is not None:
                 first = self.seen.get(o.episode_id)
@@ -200,6 +213,9 @@ class RunJob:
             if o.kind is None:  # replayed by the worker
                 if kind is None:
                     tally.replayed += 1
+                    rows[0] += o.n_steps
+                    rows[1] += 1
+                    rows[2] += o.n_goals
                     if o.mcap_tmp is not None:
                         self._publish_mcap(o.mcap_tmp, o.episode_id)
                 else:  # a duplicate: drop its rows
@@ -213,19 +229,18 @@ class RunJob:
                 goal_pos += o.n_goals
             if kind is not None:
                 self.quarantine(o.line, o.episode_id, kind, reason or "")
-        self.items += len(result.outcomes)
-        sizes = list(chunks.values())
-        steps = rechunk(result.steps, [c[0] for c in sizes])
-        episodes = rechunk(result.episodes, [c[1] for c in sizes])
-        goals = rechunk(result.goals, [c[2] for c in sizes])
+        steps, episodes, goals = result.steps, result.episodes, result.goals
         if drops:
-            steps = drop_empty_chunks(steps.filter(keep_mask(steps.num_rows, step_drops)))
-            episodes = drop_empty_chunks(episodes.filter(keep_mask(episodes.num_rows, drops)))
-            goals = drop_empty_chunks(goals.filter(keep_mask(goals.num_rows, goal_drops)))
+            steps = steps.filter(keep_mask(steps.num_rows, step_drops))
+            episodes = episodes.filter(keep_mask(episodes.num_rows, drops))
+            goals = goals.filter(keep_mask(goals.num_rows, goal_drops))
         tally.add_tables(steps, episodes, goals)
-        self.writers["steps"].write(steps)
-        self.writers["episodes"].write(episodes)
-        self.writers["goals"].write(goals)
+        self.items += len(result.outcomes)
+        for k, (name, table) in enumerate(
+            (("steps", steps), ("episodes", episodes), ("goals", goals))
+        ):
+            self.chunks[name].add(table, [(c, rows[k]) for c, rows in chunks.items()])
+            self.chunks[name].flush_complete(self.items // CHUNK_LINES)
         return len(result.outcomes)
 
     def _publish_mcap(self, tmp_name: str, episode_id: str | None) -> None:
@@ -252,6 +267,8 @@ class RunJob:
 
     def commit(self, inputs: RunInputs) -> RunEntry:
         """Close the staged files and swap the run's partitions into OUT."""
+        for chunks in self.chunks.values():
+            chunks.flush_complete(None)
         files = {name: w.close() for name, w in self.writers.items()}
         self._quarantine.close()
         run_id = self.ctx.run_id
