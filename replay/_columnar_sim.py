@@ -230,3 +230,33 @@ def _resolve(
         mt.canonical[canonical] = rid
     mt.memo[key] = rid
     return rid
+
+
+def scored_progress(
+    sims: list[EpisodeSim], ep: np.ndarray, k: np.ndarray, scored: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per scored step: goals completed, goal index, B_local after the step (from the
+    completion events the loop recorded; between them B_local drops by 1 per step)."""
+    n = len(ep)
+    position = np.full(int(scored[-1]) + 1 if n else 0, -1, np.int64)
+    position[scored] = np.arange(n)
+    completed = np.zeros(n, np.int64)
+    base_value = np.zeros(n)
+    base_k = np.full(n, -1, np.int64)
+    marked = np.zeros(n, np.bool_)
+    first = np.flatnonzero(k == 0)
+    marked[first] = True
+    base_value[first] = [sims[e].budget_local for e in ep[first].tolist()]
+    events = [ev for sim in sims for ev in sim.events]
+    if events:
+        rows, counts, values = zip(*events, strict=True)
+        at = position[np.array(rows, np.int64)]
+        completed[at] = counts
+        marked[at] = True
+        base_value[at] = values
+        base_k[at] = k[at]
+    source = np.maximum.accumulate(np.where(marked, np.arange(n), 0))
+    b_local = base_value[source] - (k - base_k[source])
+    before = np.cumsum(completed) - completed  # goals completed before each step (batch)
+    episode_first = np.maximum.accumulate(np.where(k == 0, np.arange(n), 0))
+    return completed, before - before[episode_first], b_local

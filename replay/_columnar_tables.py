@@ -21,6 +21,7 @@ import numpy as np
 import pyarrow as pa
 
 from ._columnar_arrow import Vocab
+from ._episode import EpisodeSetup
 from ._machine import Machine
 from ._parse import Action, ParsedAction
 from ._plan import c_opt_dynamic, distances, target_components, target_rects
@@ -57,6 +58,8 @@ ACTION_SHIFT = SITUATION_BITS + POINT_BITS
 """A step's memo key packs (action id, point id, situation id) into one int: the action id
 (< ACTION_LIMIT < 2**20) from bit 40, the point id (< 2**24) from bit 16, the situation
 (< 2**16, machines with more states are replayed by the scalar path) below."""
+SETUP_LIMIT = 100_000
+"""Task setups whose row values are kept (`ColumnarCache.setup`)."""
 MEMO_LIMIT = 200_000
 """Step results memoised per machine; the memo is cleared when it grows past this."""
 ACTION_LIMIT = 1_000_000
@@ -87,6 +90,9 @@ class Columns:
         """Append one row (values in column order); returns its id."""
         self._pending.append(row)
         return self.n + len(self._pending) - 1
+
+    def __len__(self) -> int:
+        return self.n + len(self._pending)
 
     def fill(self, k: int, **values: Any) -> int:
         """Append `k` rows with one constant value per column."""
@@ -378,6 +384,22 @@ class MachineTables:
         cache.dist["swmask"][gb.dist_base + state] = mask
 
 
+class SetupInfo:
+    """Per task setup: the values of its episode rows that do not depend on the log."""
+
+    def __init__(self, setup: EpisodeSetup, mt: MachineTables) -> None:
+        names = mt.machine.states
+        self.setup = setup
+        self.goal_names = [names[g] for g in setup.goals]
+        self.c_opt = list(setup.plan.c_opt)
+        self.l_opt = sum(setup.plan.c_opt)
+        optimal = list(dict.fromkeys(list(setup.reset_states) + list(setup.plan.states)))
+        self.optimal_names = [names[s] for s in optimal]
+        self.optimal = [mt.state_base + s for s in optimal]  # global ids, first-visit order
+        self.reset = [mt.state_base + s for s in setup.reset_states]
+        self.initial_state = names[setup.initial_state]
+
+
 class ColumnarCache:
     """Per-process tables of the columnar replay (see the module docstring)."""
 
@@ -409,7 +431,16 @@ class ColumnarCache:
         self.result_ids: dict[tuple[int, int, int], int] = {}
         self.result_next: list[int] = []  # next situation id
         self.result_entered: list[tuple[int, ...]] = []  # states entered
-        self.results = Columns(state=np.int64, view=np.int64, unlocked=np.bool_, outcome=np.int64)
+        self.results = Columns(
+            state=np.int64,
+            view=np.int64,
+            unlocked=np.bool_,
+            outcome=np.int64,
+            entered_start=np.int64,  # the states entered, in `entered`
+            entered_count=np.int64,
+        )
+        self.entered = Columns(state=np.int64)  # global state ids (MachineTables.state_base)
+        self.setup_info: dict[int, SetupInfo] = {}
         # Arrow mirrors of the string vocabularies (codes -> columns with one `take`).
         lists = pa.list_(pa.string())
         self.state_array = Vocab(self.state_names)
@@ -433,6 +464,15 @@ class ColumnarCache:
         if len(self.actions) > ACTION_LIMIT or len(self.point_ids) >= 1 << POINT_BITS:
             self.reset()
 
+    def setup(self, setup: EpisodeSetup, mt: MachineTables) -> SetupInfo:
+        """What the episode and goal rows take from a task's setup, computed once."""
+        got = self.setup_info.get(id(setup))
+        if got is None or got.setup is not setup:
+            if len(self.setup_info) >= SETUP_LIMIT:
+                self.setup_info.clear()
+            got = self.setup_info[id(setup)] = SetupInfo(setup, mt)
+        return got
+
     def result(self, mt: MachineTables, situation: int, outcome_id: int, entered) -> int:
         """Id of a step result (what the memo stores)."""
         key = (mt.gid, situation, outcome_id)
@@ -442,5 +482,8 @@ class ColumnarCache:
             self.result_next.append(situation)
             self.result_entered.append(entered)
             state, view, unlocked = mt.situations[situation]
-            self.results.add(state, view, unlocked, outcome_id)
+            start = len(self.entered)
+            for s in entered:
+                self.entered.add(mt.state_base + s)
+            self.results.add(state, view, unlocked, outcome_id, start, len(entered))
         return got
