@@ -11,7 +11,7 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import pandas as pd
 import polars as pl
@@ -195,6 +195,27 @@ def group_by_picker(key: str, *, label: str = "Group by") -> tuple[str, ...]:
         options[f"model × {column.removeprefix('meta_')}"] = ("model", column)
     choice = st.selectbox(label, list(options), key=key)
     return options[choice]
+
+
+class Selection(NamedTuple):
+    """What a page's filter row chose: runs, categories, the grouping and the filters."""
+
+    runs: list[str]
+    categories: list[str]
+    by: tuple[str, ...]
+    where: dict[str, list]
+
+
+def filter_row(key: str) -> Selection:
+    """The row of pickers shared by the analysis pages: runs, category, group by."""
+    c1, c2, c3 = st.columns([3, 2, 2])
+    runs = c1.multiselect("Runs", call("runs")["run_id"].to_list(), placeholder="all runs")
+    categories = c2.multiselect(
+        "Category", call("column_values", "episodes", "category"), placeholder="all"
+    )
+    with c3:
+        by = group_by_picker(f"{key}_by")
+    return Selection(runs, categories, by, where(run_id=runs, category=categories))
 
 
 def labelled(df: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:

@@ -13,15 +13,7 @@ st.caption(
     "blue, execution in red, navigation in green, as in the paper's error pie."
 )
 
-runs = ui.call("runs")
-c1, c2, c3 = st.columns([3, 2, 2])
-chosen_runs = c1.multiselect("Runs", runs["run_id"].to_list(), placeholder="all runs")
-categories = c2.multiselect(
-    "Category", ui.call("column_values", "episodes", "category"), placeholder="all"
-)
-with c3:
-    by = ui.group_by_picker("errors_by")
-where = ui.where(run_id=chosen_runs, category=categories)
+chosen_runs, categories, by, where = ui.filter_row("errors")
 
 dist = ui.labelled(ui.call("error_distribution", by=list(by), where=where, labels=True), by)
 groups = ui.call("error_groups", by=list(by), where=where)
@@ -50,7 +42,7 @@ error_type = d1.selectbox(
 )
 drill_runs = d2.multiselect(
     "Runs",
-    runs["run_id"].to_list(),
+    ui.call("runs")["run_id"].to_list(),
     default=chosen_runs,
     placeholder="all runs",
     key="errors_drill_runs",

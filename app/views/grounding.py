@@ -13,15 +13,7 @@ st.caption(
     "EIR / TIR: share of interactions hitting any component / a target component (↑)."
 )
 
-runs = ui.call("runs")
-c1, c2, c3 = st.columns([3, 2, 2])
-chosen_runs = c1.multiselect("Runs", runs["run_id"].to_list(), placeholder="all runs")
-categories = c2.multiselect(
-    "Category", ui.call("column_values", "episodes", "category"), placeholder="all"
-)
-with c3:
-    by = ui.group_by_picker("grounding_by")
-where = ui.where(run_id=chosen_runs, category=categories)
+chosen_runs, categories, by, where = ui.filter_row("grounding")
 
 names = ["AvgDist", "AvgWDist", "EIR", "TIR"]
 table = ui.labelled(ui.call("metrics", by=list(by), metrics=names, where=where), by)

@@ -14,15 +14,7 @@ st.caption(
     "episodes; GVPE: all switches per completed goal (both ↓)."
 )
 
-runs = ui.call("runs")
-c1, c2, c3 = st.columns([3, 2, 2])
-chosen_runs = c1.multiselect("Runs", runs["run_id"].to_list(), placeholder="all runs")
-categories = c2.multiselect(
-    "Category", ui.call("column_values", "episodes", "category"), placeholder="all"
-)
-with c3:
-    by = ui.group_by_picker("navigation_by")
-where = ui.where(run_id=chosen_runs, category=categories)
+chosen_runs, categories, by, where = ui.filter_row("navigation")
 
 classes = ui.labelled(ui.call("switch_classes", by=list(by), where=where), by)
 ratios = ui.labelled(ui.call("metrics", by=list(by), metrics=["VSPS", "GVPE"], where=where), by)
