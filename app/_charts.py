@@ -103,19 +103,26 @@ def error_donut(dist: pl.DataFrame):
     return alt.layer(arcs, text).properties(width=360, height=340)
 
 
+def _share_axes(group_order: Sequence[str]) -> dict:
+    """One horizontal bar per group, its length the share of errors (0..100 %)."""
+    return {
+        "y": alt.Y(
+            "group:N",
+            sort=list(group_order),
+            title=None,
+            axis=alt.Axis(labelLimit=200, labelOverlap=False),
+        ),
+        "x": alt.X("share:Q", title="share of errors (%)", scale=alt.Scale(domain=[0, 100])),
+    }
+
+
 def error_stacked(dist: pl.DataFrame, group_order: Sequence[str]):
     """Stacked bars of error-type shares, one bar per group (columns: group, label, share)."""
     return (
         alt.Chart(_with_type_order(dist).to_pandas(), title="Error types")
         .mark_bar()
         .encode(
-            y=alt.Y(
-                "group:N",
-                sort=list(group_order),
-                title=None,
-                axis=alt.Axis(labelLimit=200, labelOverlap=False),
-            ),
-            x=alt.X("share:Q", title="share of errors (%)", scale=alt.Scale(domain=[0, 100])),
+            **_share_axes(group_order),
             color=_error_color(_bottom_legend(4)),
             order=alt.Order("type_order:Q"),
             tooltip=["group", "label", "count", alt.Tooltip("share:Q", format=".1f")],
@@ -143,13 +150,7 @@ def error_group_stacked(groups: pl.DataFrame, group_order: Sequence[str]):
         alt.Chart(data.to_pandas(), title="Error groups")
         .mark_bar()
         .encode(
-            y=alt.Y(
-                "group:N",
-                sort=list(group_order),
-                title=None,
-                axis=alt.Axis(labelLimit=200, labelOverlap=False),
-            ),
-            x=alt.X("share:Q", title="share of errors (%)", scale=alt.Scale(domain=[0, 100])),
+            **_share_axes(group_order),
             color=alt.Color(
                 "error_group:N",
                 title="Error group",
