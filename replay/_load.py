@@ -79,20 +79,39 @@ def load_machine(path: str | Path, device_id: str | None = None) -> Machine:
 def iter_lines(path: str | Path) -> Iterator[tuple[int, bytes]]:
     """(line number from 1, raw line) of a .jsonl or .jsonl.gz file, blank lines skipped.
 
-    A truncated gzip stream raises `InputError` after yielding what could be read.
+    A truncated gzip stream raises `InputError` after yielding what could be read (every
+    complete line). Read in blocks (`read1`: one read of the underlying stream each, so a
+    failing read loses nothing already decompressed) and split in bulk, several times
+    faster than line by line through `gzip`.
     """
     path = Path(path)
     opener = gzip.open if path.suffix == ".gz" else open
+    number = 0
     try:
         with opener(path, "rb") as fh:
-            for number, raw in enumerate(fh, start=1):
-                line = raw.strip()
+            rest = b""
+            while True:
+                block = fh.read1(_BLOCK)
+                if not block:
+                    break
+                lines = (rest + block).split(b"\n")
+                rest = lines.pop()
+                for raw in lines:
+                    number += 1
+                    line = raw.strip()
+                    if line:
+                        yield number, line
+            if rest:
+                line = rest.strip()
                 if line:
-                    yield number, line
+                    yield number + 1, line
     except FileNotFoundError:
         raise InputError(str(path), "file not found") from None
     except (OSError, EOFError) as exc:
         raise InputError(str(path), f"unreadable ({exc})") from None
+
+
+_BLOCK = 1 << 20
 
 
 def read_run_header(run_dir: str | Path) -> RunHeader:
