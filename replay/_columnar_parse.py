@@ -1,22 +1,24 @@
 """Parsing the steps of a batch at once (SPEC 2), for the columnar replay.
 
-Most model outputs have one shape: `Thinking: ...` then one line `Action: Name(...)` in the
-canonical form that `_parse._FAST` recognises. For those, polars (Rust regex) finds the
-label, cuts the Thinking text and matches the call for the whole batch in a few passes. The
-gate is narrow on purpose, so that the Rust and Python semantics provably coincide:
+Three tiers, each equal to `parse_log_step` on what it takes (`tests/replay/test_columnar.py`
+checks it on generated texts):
 
-- the text is ASCII, starts with `Thinking:` and contains `action` (any case) exactly once,
-  as the line-start label `\\nAction:`. `_find_labels` then returns that one line label and
-  `_thinking` strips the text between `Thinking:` and it;
-- the entry after the label is matched with `_FAST`'s own pattern, its `\\s` and `\\d`
-  spelled as the ASCII classes Python uses on ASCII text (`str.isspace`, `[0-9]`); Rust's
-  leftmost-first semantics picks the same groups as Python's backtracking;
-- the name must be a known action and the params pass `_parse.fast_params` (Python, once
-  per distinct text).
-
-Every other step (other shapes, non-ASCII, parse failures, structured `action` records,
-steps without output) goes through `parse_log_step`, the scalar parser. A hypothesis test
-(`tests/replay/test_columnar.py`) checks the two paths agree.
+1. polars (Rust regex), for the whole batch in a few passes: ASCII texts that start with
+   `Thinking:` and contain `action` (any case) exactly once, as the line-start label
+   `\\nAction:` or `\\n**Action:`. `_find_labels` then returns that one label and
+   `_thinking` strips the text between `Thinking:` and it. The entry after the label is
+   matched with `_FAST`'s own pattern, its `\\s` and `\\d` spelled as the ASCII classes
+   Python uses on ASCII text (`str.isspace`, `[0-9]`): Rust's leftmost-first semantics
+   picks the same groups as Python's backtracking (the plainest entries first with
+   `SIMPLE_CALL`, a subset of `_FAST` with the same groups, several times faster). The
+   name must be a known action and the params pass `_parse.fast_params` (in Python, once
+   per distinct call);
+2. Python, the entry only (`_known_labels`): texts starting with `Thinking:` whose labels
+   are easy to find with `str.find` (one as above, none, or two `\\nAction:`), non-ASCII
+   ones included, but not U+0130 (the one character whose lowercase is longer, which sends
+   `_find_labels` to its regexes): the entry goes to `_parse._parse_entry`;
+3. `parse_log_step` for everything else (other shapes, structured `action` records, steps
+   without output).
 """
 
 from __future__ import annotations
@@ -95,7 +97,7 @@ def parse_steps(steps: list[LogStep], vocab: ActionVocab) -> ParsedSteps:
         of_parsed = vocab.of_parsed
         for i in slow.tolist():
             text = texts[i]
-            parsed = _one_label(text) if text is not None else None
+            parsed = _known_labels(text) if text is not None else None
             if parsed is None:
                 parsed = parse_log_step(steps[i])
             aid[i] = of_parsed(parsed)
@@ -111,15 +113,10 @@ def parse_steps(steps: list[LogStep], vocab: ActionVocab) -> ParsedSteps:
     return ParsedSteps(aid, x, y, has_coord, output, call, thinking, int(fast.sum()))
 
 
-def _one_label(text: str) -> ParsedAction | None:
+def _known_labels(text: str) -> ParsedAction | None:
     """`parse_action(text)` for a text starting with `Thinking:` whose only `action` (any
     case) is its line-start label `\\nAction:` or `\\n**Action:`, that has none, or has two,
-    both `\\nAction:`; else None.
-
-    Then `_find_labels` returns that label (or none) and `_thinking` cuts after
-    `Thinking:`, so the entry alone is left to parse. (U+0130 is the one character whose
-    lowercase changes length, which sends `_find_labels` to its regexes: not covered.)
-    """
+    both `\\nAction:`; else None (see the module docstring)."""
     if not text.startswith(_THINKING) or "\u0130" in text:
         return None
     low = text.lower()

@@ -31,7 +31,7 @@ from ._columnar_tables import (
 )
 from ._episode import EpisodeSetup
 from ._step import SimState, step
-from ._vocab import VIEW_ORDER
+from ._vocab import SWITCH_VIEW, VIEW_ORDER
 
 EXACT_BUDGET = float(2**52)
 """Budgets below this are decremented exactly (see the module docstring)."""
@@ -215,21 +215,61 @@ def _resolve(
     has_coord: list[bool],
     i: int,
 ) -> int:
-    """The result of a step key not met before: from the canonical memo (the point key
-    restricted to the bits of the situation's view), else from the simulator."""
+    """The result of a step key not met before, from what `step` actually reads:
+
+    - the point only through the rects and regions of the situation's view (and whether it
+      is in range): the point key is restricted to the view's bits;
+    - not the device state, for a parse failure, a `Switch_view`, and an interaction whose
+      point is in no rect or region of the view (or that has none: an invalid action or a
+      null effect, whatever the action, so not even the action is read): their effect on
+      (view, dashboard) and their outcome are memoised per (view, dashboard, action, point);
+    - for the rest, per (situation, action, point).
+    The simulator runs once per new such key."""
     state, view, unlocked = mt.situations[situation]
     aid = aids[i]
     point = points[i]
-    canonical = (situation, aid, point & mt.view_bits[view] if point >= 0 else -1)
-    rid = mt.canonical.get(canonical)
-    if rid is None:
-        parsed = cache.actions.parsed(aid, x[i], y[i], has_coord[i])
-        after, outcome = step(mt.machine, SimState(state, VIEW_ORDER[view], unlocked), parsed)
-        nxt = mt.situation(after.state, VIEW_CODES[after.view], after.unlocked)
-        rid = cache.result(mt, nxt, cache.outcomes.of(mt, outcome), outcome.entered)
-        mt.canonical[canonical] = rid
+    where = point & mt.view_bits[view] if point >= 0 else -1
+    kind = cache.actions.types[aid]
+    if kind is None:  # a parse failure: nothing changes, the outcome depends on nothing else
+        oc = cache.failures.get(aid)
+        if oc is None:
+            _, oc = _simulate(cache, mt, state, view, unlocked, aid, x[i], y[i], has_coord[i])
+            cache.failures[aid] = oc
+        rid = cache.result(mt, situation, oc, ())
+    elif kind == SWITCH_VIEW or (cache.actions.is_interaction[aid] and where <= 1):
+        effect_key = (view, unlocked, aid if kind == SWITCH_VIEW else -1, where)
+        effect = mt.effects.get(effect_key)
+        if effect is None:
+            after, oc = _simulate(cache, mt, state, view, unlocked, aid, x[i], y[i], has_coord[i])
+            effect = mt.effects[effect_key] = (VIEW_CODES[after.view], after.unlocked, oc)
+        nxt = mt.situation(state, effect[0], effect[1])
+        rid = cache.result(mt, nxt, effect[2], ())
+    else:
+        canonical = (situation, aid, where)
+        rid = mt.canonical.get(canonical)
+        if rid is None:
+            after, oc = _simulate(cache, mt, state, view, unlocked, aid, x[i], y[i], has_coord[i])
+            nxt = mt.situation(after.state, VIEW_CODES[after.view], after.unlocked)
+            rid = cache.result(mt, nxt, oc, cache.outcomes.entered[oc])
+            mt.canonical[canonical] = rid
     mt.memo[key] = rid
     return rid
+
+
+def _simulate(
+    cache: ColumnarCache,
+    mt: MachineTables,
+    state: int,
+    view: int,
+    unlocked: bool,
+    aid: int,
+    x: float,
+    y: float,
+    has_coord: bool,
+) -> tuple[SimState, int]:
+    parsed = cache.actions.parsed(aid, x, y, has_coord)
+    after, outcome = step(mt.machine, SimState(state, VIEW_ORDER[view], unlocked), parsed)
+    return after, cache.outcomes.of(mt, outcome)
 
 
 def scored_progress(

@@ -144,6 +144,7 @@ class ActionVocab:
         self.ids: dict[tuple, int] = {}
         self.fast_ids: dict[str, int] = {}  # the columnar parser's keys -> id or -1
         self.types: list[str | None] = []
+        self.is_interaction: list[bool] = []
         self.params: list[tuple[str, ...]] = []
         self.details: list[str | None] = []
         self.cols = Columns(tcode=np.int8, uses_coord=np.bool_, detail=np.int64)
@@ -157,6 +158,7 @@ class ActionVocab:
         if got is None:
             got = self.ids[key] = len(self.types)
             self.types.append(kind)
+            self.is_interaction.append(kind in INTERACTIONS)
             self.params.append(params)
             self.details.append(None)
             uses = kind in INTERACTIONS or (kind == SWITCH_VIEW and params == (DASHBOARD,))
@@ -169,6 +171,7 @@ class ActionVocab:
         if got is None:
             got = self.ids[key] = len(self.types)
             self.types.append(None)
+            self.is_interaction.append(False)
             self.params.append(())
             self.details.append(detail)
             self.cols.add(-1, False, self.detail_names.code(detail))
@@ -200,6 +203,7 @@ class OutcomeVocab:
         self.details: list[str | None] = []
         self.components: list[str | None] = []
         self.entered_names: list[list[str]] = []
+        self.entered: list[tuple[int, ...]] = []  # machine state ids
         self.cols = Columns(
             kind=np.int8,
             switched=np.bool_,
@@ -230,6 +234,7 @@ class OutcomeVocab:
             self.details.append(outcome.detail)
             self.components.append(tr.component if tr is not None else None)
             self.entered_names.append([names[s] for s in outcome.entered])
+            self.entered.append(outcome.entered)
             self.cols.add(
                 KIND_CODES[outcome.kind],
                 outcome.switched,
@@ -315,8 +320,8 @@ class MachineTables:
             counts.append(len(pairs))
         cache.crect.extend(start=starts, count=counts)  # row gid * N_VIEWS + view
         self.memo: dict[int, int] = {}  # step key (see `step_keys`) | situation -> result
-        self.canonical: dict[tuple[int, int, int], int] = {}  # (situation, action, point
-        # key restricted to the situation's view) -> result: what the simulator depends on
+        self.canonical: dict[tuple[int, int, int], int] = {}  # see `_columnar_sim._resolve`
+        self.effects: dict[tuple[int, bool, int, int], tuple[int, bool, int]] = {}
         self.situations: list[tuple[int, int, bool]] = []  # (state, view code, unlocked)
         self._situation_ids: dict[tuple[int, int, bool], int] = {}
         self.goal_blocks: dict[int, GoalBlock] = {}
@@ -327,6 +332,8 @@ class MachineTables:
             self.memo.clear()
         if len(self.canonical) > MEMO_LIMIT:
             self.canonical.clear()
+        if len(self.effects) > MEMO_LIMIT:
+            self.effects.clear()
 
     def c_opt_dynamic(self, state: int, view: str, unlocked: bool, goal: int) -> int | None:
         """`_plan.c_opt_dynamic`, memoised."""
@@ -428,6 +435,7 @@ class ColumnarCache:
         # Point keys (rect mask * 2 + in range, or -1) -> small ids; 0 is "no point".
         self.point_ids: dict[int, int] = {-1: 0}
         # Memoised step results, shared by all machines: (machine, next situation, outcome).
+        self.failures: dict[int, int] = {}  # parse failure (action id) -> outcome id
         self.result_ids: dict[tuple[int, int, int], int] = {}
         self.result_next: list[int] = []  # next situation id
         self.result_entered: list[tuple[int, ...]] = []  # states entered

@@ -372,3 +372,57 @@ def test_runner_files_identical_with_either_engine(
     first, *rest = outs.values()
     assert all(d == first for d in rest)
     assert sum(name.endswith(".parquet") for name in first) == 3 * 3 + 1
+
+
+# ------------------------------------------------------------------ the scalar fallback
+
+
+def _wide_machine(n_components: int) -> replay.Machine:
+    """One state per component pair, each component a 10x10 button on the front view:
+    more components than the columnar masks hold when n_components > 62."""
+    from .machines import box, machine, tr
+
+    on = {
+        f"c{i:02d}": [
+            tr(
+                "B" if i % 2 == 0 else "A",
+                boxes=[box("front", 10 * (i % 90), 10 * (i // 90), 9, 9)],
+            )
+        ]
+        for i in range(n_components)
+    }
+    return machine({"A": on, "B": on}, "A")
+
+
+def test_episodes_the_columnar_path_leaves_to_the_scalar_one() -> None:
+    """Episodes on a machine too wide for the int masks and with an inexact budget
+    (lambda 1e17) are replayed by `replay_episode`, merged in place among the others."""
+    wide = _wide_machine(70)
+    wide_task = replay.Task(episode_id="wide", device_id="dev", goals=["B"])
+    doc = _case_docs()[0]
+    kettle = machine_of(_ssm_file(doc["ssm"]), doc["device_id"])
+    task = msgspec.convert(doc["task"], replay.Task)
+    press = [{"output": "Thinking: a.\nAction: Press(coord=[4, 4], params=[0])"}] * 3
+    batch = [
+        episode(kettle, task, doc["episode"]["steps"], 5.0),
+        episode(wide, wide_task, press, 5.0),
+        episode(kettle, task, doc["episode"]["steps"], 1e17),
+        episode(kettle, task, doc["episode"]["steps"], 0.5),
+    ]
+    check_batch(batch)
+    got = replay_columnar(ColumnarCache(), batch, run_id="run", model="model", agent_kind="vlm")
+    assert got.scalar_episodes == 2
+
+
+def test_non_finite_coordinates_fail_like_the_scalar_path() -> None:
+    """`1e999` parses to infinity; the scalar engine fails on it (OverflowError in the
+    repetition key) and the columnar engine, which leaves such episodes to it, too."""
+    doc = _case_docs()[0]
+    kettle = machine_of(_ssm_file(doc["ssm"]), doc["device_id"])
+    task = msgspec.convert(doc["task"], replay.Task)
+    text = "Thinking: far.\nAction: Press(coord=[1e999, 5], params=[0])"
+    batch = [episode(kettle, task, [{"output": text}], 5.0)]
+    with pytest.raises(OverflowError):
+        scalar_tables(batch)
+    with pytest.raises(OverflowError):
+        replay_columnar(ColumnarCache(), batch, run_id="run", model="model", agent_kind="vlm")
