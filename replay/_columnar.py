@@ -36,7 +36,7 @@ from ._columnar_sim import (
     step_keys,
 )
 from ._columnar_steps import step_table
-from ._columnar_tables import VIEW_CODES, ColumnarCache, MachineTables
+from ._columnar_tables import ColumnarCache, MachineTables, SetupInfo
 from ._episode import EpisodeSetup, replay_episode
 from ._machine import Machine
 from ._records import EpisodeLog, LogStep, Task
@@ -80,18 +80,19 @@ def replay_columnar(
     cache.check_size()
     counts = [len(e.log.steps) for e in episodes]
     steps = [s for e in episodes for s in e.log.steps]
+    infos = [cache.setup(e.setup, e.machine) for e in episodes]
     parsed = parse_steps(steps, cache.actions)
     head = (run_id, model, agent_kind)
-    scalar = _needs_scalar(cache, episodes, counts, parsed)
+    scalar = _needs_scalar(episodes, infos, counts, parsed)
     if not scalar:
-        batch = _replay(cache, episodes, steps, counts, parsed, head)
+        batch = _replay(cache, episodes, infos, steps, counts, parsed, head)
         batch.fast_parsed = parsed.fast
         return batch
-    return _merge(cache, episodes, steps, counts, parsed, head, scalar)
+    return _merge(cache, episodes, infos, steps, counts, parsed, head, scalar)
 
 
 def _needs_scalar(
-    cache: ColumnarCache, episodes: list[EpisodeInput], counts: list[int], parsed: ParsedSteps
+    episodes: list[EpisodeInput], infos: list[SetupInfo], counts: list[int], parsed: ParsedSteps
 ) -> list[int]:
     """Episodes for the scalar path: a machine too large for the int masks, a non-finite
     coordinate, or a budget too large to be decremented exactly in floats."""
@@ -101,16 +102,15 @@ def _needs_scalar(
         odd = set(np.repeat(np.arange(len(counts)), counts)[bad].tolist())
     return [
         i
-        for i, e in enumerate(episodes)
-        if i in odd
-        or not cache.tables(e.machine).supported
-        or not float(e.lam) * sum(e.setup.plan.c_opt) < EXACT_BUDGET
+        for i, (e, info) in enumerate(zip(episodes, infos, strict=True))
+        if i in odd or not info.mt.supported or not e.lam * info.l_opt < EXACT_BUDGET
     ]
 
 
 def _merge(
     cache: ColumnarCache,
     episodes: list[EpisodeInput],
+    infos: list[SetupInfo],
     steps: list[LogStep],
     counts: list[int],
     parsed: ParsedSteps,
@@ -137,6 +137,7 @@ def _merge(
     fast = _replay(
         cache,
         [episodes[i] for i in keep],
+        [infos[i] for i in keep],
         [steps[i] for i in rows.tolist()],
         [counts[i] for i in keep],
         sub,
@@ -188,6 +189,7 @@ def _reorder(a: pa.Table, b: pa.Table, counts: list[int], by_position: list[int]
 def _replay(
     cache: ColumnarCache,
     episodes: list[EpisodeInput],
+    infos: list[SetupInfo],
     steps: list[LogStep],
     counts: list[int],
     parsed: ParsedSteps,
@@ -198,13 +200,12 @@ def _replay(
     mts: list[MachineTables] = []
     where: dict[int, int] = {}
     ep_machine = np.zeros(n_eps, np.int64)
-    for e, ep in enumerate(episodes):
-        mt = cache.tables(ep.machine)
-        j = where.get(mt.gid)
+    for e, info in enumerate(infos):
+        j = where.get(info.mt.gid)
         if j is None:
-            j = where[mt.gid] = len(mts)
-            mts.append(mt)
-            mt.check_size()
+            j = where[info.mt.gid] = len(mts)
+            mts.append(info.mt)
+            info.mt.check_size()
         ep_machine[e] = j
     step_ep = np.repeat(np.arange(n_eps), counts)
 
@@ -217,15 +218,14 @@ def _replay(
     rids: list[int] = []
     sims: list[EpisodeSim] = []
     begin = 0
-    for e, ep in enumerate(episodes):
+    for e, info in enumerate(infos):
         end = begin + counts[e]
-        mt = mts[ep_machine[e]]
         sims.append(
             simulate_episode(
                 cache,
-                mt,
-                ep.setup,
-                float(ep.lam),
+                info.mt,
+                info.setup,
+                float(episodes[e].lam),
                 keys,
                 points,
                 aids,
@@ -249,25 +249,17 @@ def _replay(
     sep, k = step_ep[scored], step_k[scored]
     completed, goal_index, b_local = scored_progress(sims, sep, k, scored)
     first = k == 0
-    start_state = np.array([e.setup.start_state for e in episodes], np.int64)
-    start_view = np.array([VIEW_CODES[e.setup.initial_view] for e in episodes], np.int64)
-    goal_counts = [len(e.setup.goals) for e in episodes]
-    goal_states, dist_base, trect_base = [], [], []
-    for e, ep in enumerate(episodes):
-        mt = mts[ep_machine[e]]
-        for g in ep.setup.goals:
-            gb = mt.goal_block(cache, g)
-            goal_states.append(g)
-            dist_base.append(gb.dist_base)
-            trect_base.append(gb.base)
+    start_state = np.array([i.start_state for i in infos], np.int64)
+    start_view = np.array([i.start_view for i in infos], np.int64)
+    goal_counts = [len(i.goals) for i in infos]
     goal_slot = (np.cumsum(goal_counts) - goal_counts).astype(np.int64)[sep] + goal_index
     sc = Scored(
         ep=sep,
         machine=ep_machine[sep],
         goal_index=goal_index,
-        goal=np.array(goal_states, np.int64)[goal_slot],
-        dist_base=np.array(dist_base, np.int64)[goal_slot],
-        trect_base=np.array(trect_base, np.int64)[goal_slot],
+        goal=np.array([g for i in infos for g in i.goals], np.int64)[goal_slot],
+        dist_base=np.array([d for i in infos for d in i.dist_base], np.int64)[goal_slot],
+        trect_base=np.array([t for i in infos for t in i.trect_base], np.int64)[goal_slot],
         s0=np.where(first, start_state[sep], np.roll(s1, 1)),
         s1=s1,
         v0=np.where(first, start_view[sep], np.roll(v1, 1)),
@@ -287,7 +279,6 @@ def _replay(
         cache, episodes, steps, parsed, step_ep, step_k, scored, sc, cl, head, unlocked,
         b_local, budget_global, mts,
     )  # fmt: skip
-    infos = [cache.setup(e.setup, mts[ep_machine[i]]) for i, e in enumerate(episodes)]
     switched = cache.outcomes.cols["switched"][outcome]
     episodes_table, goals_table = episode_tables(
         cache, infos, episodes, sims, counts, head, sep, rid, goal_slot, switched, diverged

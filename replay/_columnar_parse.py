@@ -52,13 +52,16 @@ def ascii_pattern(pattern: str) -> str:
 FAST_CALL = "^" + ascii_pattern(_FAST.pattern)
 """`_FAST.match(entry)` for ASCII entries."""
 _PLAIN_NUMBER = r"(-?[0-9]+)"
+_PLAIN_PARAMS = r"params=\[([A-Za-z0-9_*.+\-, ]*)\]"
 SIMPLE_CALL = (
-    r"^ (([A-Za-z_]+)\((?:coord=\[" + _PLAIN_NUMBER + ", " + _PLAIN_NUMBER + r"\], )?"
-    r"params=\[([A-Za-z0-9_*.+\-, ]*)\]\))()\z"
+    r"^ (([A-Za-z_]+)\((?:coord=\[" + _PLAIN_NUMBER + ", " + _PLAIN_NUMBER + r"\]"
+    r"(?:, " + _PLAIN_PARAMS + ")?|" + _PLAIN_PARAMS + r")?\))\z"
 )
-"""The plainest entries, ` Name(coord=[x, y], params=[a, b])`: a subset of what
-`FAST_CALL` matches, and then with the same groups (call, name, x, y, params; group 6,
-`_FAST`'s params without coord, is empty here and `_groups` takes group 5 first)."""
+"""The plainest entries, ` Name(coord=[x, y], params=[a, b])` (coord and params optional):
+a subset of what `FAST_CALL` matches, and then with the same groups (call, name, x, y,
+params after coord, params alone). There `_parse_entry_full` would see the same call, so
+an unknown name is `unknown_action` with the call as its text (unless the name starts
+with `_`, which `_LEAD` would skip)."""
 _LABEL = "\nAction:"
 _BOLD_LABEL = "\n**Action:"
 _THINKING = "Thinking:"
@@ -182,7 +185,8 @@ def _fast_path(
         & pc.string_is_ascii(output).fill_null(False).to_numpy(zero_copy_only=False)
     )
     keys, xs, ys, call = _groups(frame["match"])
-    rest = np.flatnonzero(gate & np.array([k is None for k in keys], np.bool_))
+    simple = np.array([k is not None for k in keys], np.bool_)
+    rest = np.flatnonzero(gate & ~simple)
     if len(rest):
         sub = pl.DataFrame({"o": texts.gather(rest), "at": frame["at"].gather(rest)})
         sub_keys, sub_x, sub_y, sub_call = _groups(
@@ -198,9 +202,12 @@ def _fast_path(
     fast_aid = np.array([ids.get(k, -2) if k is not None else -1 for k in keys], np.int64)
     for i in np.flatnonzero(gate & (fast_aid == -2)).tolist():  # -2: a key not seen yet
         fast_aid[i] = ids[keys[i]] = _action_id(keys[i], vocab)
-    fast = gate & (fast_aid >= 0)
-    aid[fast] = fast_aid[fast]
-    coord = fast & ~np.isnan(xs)
+    known = gate & (fast_aid >= 0)
+    aid[known] = fast_aid[known]
+    unknown = gate & simple & (fast_aid == _UNKNOWN_NAME)
+    aid[unknown] = vocab.of_failure("unknown_action")
+    fast = known | unknown
+    coord = known & ~np.isnan(xs)
     x[coord] = xs[coord]
     y[coord] = ys[coord]
     has_coord[coord] = True
@@ -214,7 +221,7 @@ def _groups(match: pl.Series) -> tuple[list[str | None], np.ndarray, np.ndarray,
     m = pl.col("m").struct
     parts = pl.DataFrame({"m": match}).select(
         key=pl.concat_str(
-            m.field("2").str.to_lowercase(),
+            m.field("2"),
             pl.coalesce(m.field("5"), m.field("6")).fill_null(""),
             separator="\x00",
         ),
@@ -230,13 +237,17 @@ def _groups(match: pl.Series) -> tuple[list[str | None], np.ndarray, np.ndarray,
     )
 
 
+_UNKNOWN_NAME = -3
+
+
 def _action_id(key: str, vocab: ActionVocab) -> int:
-    """`name\\0raw params` of a fast match -> action id, or -1 when the full grammar must
-    decide (unknown name, params that are not plain items)."""
+    """`name\\0raw params` of a fast match -> action id; `_UNKNOWN_NAME` for a name that is
+    not an action (and does not start with `_`); -1 when the full grammar must decide
+    (params that are not plain items)."""
     name, _, raw = key.partition("\x00")
-    kind = _KNOWN.get(name)
+    kind = _KNOWN.get(name.lower())
     if kind is None:
-        return -1
+        return -1 if name.startswith("_") else _UNKNOWN_NAME
     params = fast_params(raw)
     if params is None:
         return -1

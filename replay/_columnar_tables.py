@@ -392,11 +392,18 @@ class MachineTables:
 
 
 class SetupInfo:
-    """Per task setup: the values of its episode rows that do not depend on the log."""
+    """Per task setup (and machine): what the replay of its episodes takes from it."""
 
-    def __init__(self, setup: EpisodeSetup, mt: MachineTables) -> None:
+    def __init__(self, cache: ColumnarCache, setup: EpisodeSetup, mt: MachineTables) -> None:
         names = mt.machine.states
         self.setup = setup
+        self.mt = mt
+        self.start_state = setup.start_state
+        self.start_view = VIEW_CODES[setup.initial_view]
+        self.goals = list(setup.goals)
+        blocks = [mt.goal_block(cache, g) for g in setup.goals]
+        self.dist_base = [b.dist_base for b in blocks]
+        self.trect_base = [b.base for b in blocks]
         self.goal_names = [names[g] for g in setup.goals]
         self.c_opt = list(setup.plan.c_opt)
         self.l_opt = sum(setup.plan.c_opt)
@@ -472,13 +479,13 @@ class ColumnarCache:
         if len(self.actions) > ACTION_LIMIT or len(self.point_ids) >= 1 << POINT_BITS:
             self.reset()
 
-    def setup(self, setup: EpisodeSetup, mt: MachineTables) -> SetupInfo:
-        """What the episode and goal rows take from a task's setup, computed once."""
+    def setup(self, setup: EpisodeSetup, machine: Machine) -> SetupInfo:
+        """What the replay takes from a task's setup, computed once."""
         got = self.setup_info.get(id(setup))
-        if got is None or got.setup is not setup:
+        if got is None or got.setup is not setup or got.mt.machine is not machine:
             if len(self.setup_info) >= SETUP_LIMIT:
                 self.setup_info.clear()
-            got = self.setup_info[id(setup)] = SetupInfo(setup, mt)
+            got = self.setup_info[id(setup)] = SetupInfo(self, setup, self.tables(machine))
         return got
 
     def result(self, mt: MachineTables, situation: int, outcome_id: int, entered) -> int:

@@ -317,6 +317,8 @@ _FRAGMENTS = st.sampled_from(
         "Timed_wait()", "Tap(coord=[3, 4])", "Rotate(coord=[5.5, -6], params=['1', \"2\"])",
         "Push(coord=[7 8])", "Pull(params=[a b])", "Grasp(coord=[1, 2], params=[0]).",
         "Press(coord=[1, 2], params=[0,])", "PRESS( coord = [ 9 , 9 ] )", "Transaction:",
+        "_Tap(coord=[1, 2])", "Tap()", "Foo(params=[a])", "Tap(coord=[1, 2], params=['x'])",
+        "press_it(coord=[1, 2], params=[0])", "Timed_wait(params=[])", "Press(params=[1 2])",
     ]
 )  # fmt: skip
 
