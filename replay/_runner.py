@@ -46,7 +46,7 @@ from ._runjob import STATE_DIR, RunJob, engine_version
 if TYPE_CHECKING:
     from rich.progress import Progress, TaskID
 
-BATCH_LINES = 512
+BATCH_LINES = 1024
 """Episode lines per batch (the unit of work of a worker; fixed, whatever the workers)."""
 AHEAD_PER_WORKER = 2
 """Batches in flight per worker process."""
