@@ -4,7 +4,7 @@ Usage (on the full synthetic benchmark):
 
     vge synth --out /tmp/vge-full --scale full
     .venv/bin/python benchmarks/bench_replay.py /tmp/vge-full [--workers 1,2]
-        [--engines columnar,scalar] [--repeat N] [--profile]
+        [--engines columnar,scalar] [--repeat N] [--stages] [--profile]
 
 DATA is a directory with `bench/` and `runs/*` (what `vge synth` writes). Measures:
 - bare decoding: the episode files read and decoded line by line with msgspec (typed, into
@@ -15,6 +15,8 @@ DATA is a directory with `bench/` and `runs/*` (what `vge synth` writes). Measur
   `--repeat N` runs each N times and keeps the one with the least CPU time (the machine
   may be shared: CPU time is the steadier measure);
 - MCAP: milliseconds per episode of `write_episode_mcap` on a sample of episodes;
+- with `--stages`: CPU time per stage of a one-worker replay of all runs (columnar engine),
+  in a fresh subprocess, from timers around the stage functions;
 - with `--profile`: a cProfile of a one-worker replay of the largest run, time split by
   module (runner code vs core engine vs libraries).
 Prints a Markdown report (the numbers in docs/PERFORMANCE.md come from it).
@@ -170,6 +172,63 @@ def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
     }
 
 
+_STAGES = """
+import collections, functools, json, sys, time
+import replay
+from replay import _batch, _columnar, _columnar_parse, _runjob, _writer
+seconds = collections.Counter()
+
+def timed(owner, name, label):
+    real = getattr(owner, name)
+    @functools.wraps(real)
+    def wrapper(*args, **kwargs):
+        t = time.process_time()
+        try:
+            return real(*args, **kwargs)
+        finally:
+            seconds[label] += time.process_time() - t
+    setattr(owner, name, wrapper)
+
+STAGES = [
+    (_batch, "process_batch", "worker side: process_batch (decode + replay + tables)"),
+    (_batch, "_prepare_line", "  decode, checks, machine compile and planning (cached)"),
+    (_batch.WorkerState, "setup", "    of which planning (once per task)"),
+    (_batch, "replay_columnar", "  columnar replay"),
+    (_columnar_parse, "_fast_path", "      of which the polars tier"),
+    (_columnar, "parse_steps", "    parse"),
+    (_columnar, "simulate_episode", "    sequential loop (simulator memoised)"),
+    (_columnar, "step_keys", "    point masks and memo keys"),
+    (_columnar, "classify", "    classification"),
+    (_columnar, "step_table", "    steps table (Arrow)"),
+    (_columnar, "episode_tables", "    episodes and goals tables (Arrow)"),
+    (_runjob.RunJob, "take", "main side: take (duplicates, tally, chunks, Parquet)"),
+    (_writer.PartWriter, "_write_group", "  Parquet writing"),
+]
+for owner, name, label in STAGES:
+    timed(owner, name, label)
+runs, bench = json.loads(sys.argv[1])
+t = time.process_time()
+m = replay.replay_runs(runs, bench, sys.argv[2], force=True, progress=False)
+total = time.process_time() - t
+order = [(label, seconds[label]) for _, _, label in STAGES]
+print(json.dumps({"total": total, "steps": m.content.totals.steps, "stages": order}))
+"""
+
+
+def stages(data: Path, out: Path) -> dict:
+    """CPU seconds per stage of a one-worker replay of all runs (columnar engine)."""
+    runs = [str(d) for d in sorted((data / "runs").iterdir()) if d.is_dir()]
+    env = {**os.environ, "VGE_REPLAY_ENGINE": "columnar", "POLARS_MAX_THREADS": "1"}
+    done = subprocess.run(
+        [sys.executable, "-c", _STAGES, json.dumps([runs, str(data / "bench")]), str(out)],
+        check=True,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
 def profile(data: Path, out: Path) -> list[tuple[str, float]]:
     """cProfile one-worker replay of the largest run (columnar engine); exclusive time by
     module group."""
@@ -219,6 +278,7 @@ def main() -> None:
     parser.add_argument("--engines", default="columnar")
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--mcap-episodes", type=int, default=200)
+    parser.add_argument("--stages", action="store_true")
     parser.add_argument("--profile", action="store_true")
     args = parser.parse_args()
     data: Path = args.data
@@ -293,6 +353,15 @@ def main() -> None:
             f"({m['episodes']} episodes, {m['episodes_with_images']} with view images; "
             f"getting the images: {m['image_ms_per_episode']:.1f} ms per episode, cached per view)"
         )
+        if args.stages:
+            st = stages(data, Path(tmp) / "stages")
+            n = st["steps"]
+            print(
+                f"\n| stage (1 worker, all runs, columnar; CPU {st['total']:.1f} s = "
+                f"{1e6 * st['total'] / n:.1f} µs/step) | CPU s | µs/step |\n|---|---:|---:|"
+            )
+            for name, sec in st["stages"]:
+                print(f"| {name} | {sec:.2f} | {1e6 * sec / n:.2f} |")
         if args.profile:
             print("\n| profile (1 worker, largest run): exclusive time | share |\n|---|---:|")
             shares = profile(data, Path(tmp) / "prof")
