@@ -1,14 +1,21 @@
-"""Arrow arrays from the columnar replay's numpy columns and integer codes."""
+"""Array helpers of the columnar replay: ragged ranges of table rows, and Arrow arrays
+from numpy columns and integer codes."""
 
 from __future__ import annotations
-
-from collections.abc import Sequence
 
 import numpy as np
 import pyarrow as pa
 
 STRING = pa.string()
 STRING_LIST = pa.list_(STRING)
+
+
+def ragged_rows(starts: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(owner, row) pairs: for each i, the rows starts[i] .. starts[i] + counts[i] - 1."""
+    owner = np.repeat(np.arange(len(counts)), counts)
+    first = np.cumsum(counts) - counts
+    row = np.arange(int(counts.sum())) - np.repeat(first - starts, counts)
+    return owner, row
 
 
 def numbers(values: np.ndarray, type_: pa.DataType, valid: np.ndarray | None = None) -> pa.Array:
@@ -23,24 +30,6 @@ def scatter(n: int, rows: np.ndarray, values: np.ndarray, fill: object = 0) -> n
     out = np.full(n, fill, dtype=values.dtype)
     out[rows] = values
     return out
-
-
-def strings(codes: np.ndarray, values: Sequence[str | None]) -> pa.Array:
-    """`values[code]` per element (a string column); a negative code is null."""
-    if len(codes) == 0:
-        return pa.array([], pa.string())
-    uniq, inverse = np.unique(codes, return_inverse=True)
-    small = pa.array([values[c] if c >= 0 else None for c in uniq.tolist()], pa.string())
-    return small.take(pa.array(inverse.astype(np.int32)))
-
-
-def string_lists(codes: np.ndarray, values: Sequence[Sequence[str]]) -> pa.Array:
-    """`list(values[code])` per element; a negative code is the empty list."""
-    if len(codes) == 0:
-        return pa.array([], STRING_LIST)
-    uniq, inverse = np.unique(codes, return_inverse=True)
-    small = pa.array([list(values[c]) if c >= 0 else [] for c in uniq.tolist()], STRING_LIST)
-    return small.take(pa.array(inverse.astype(np.int32)))
 
 
 def ragged_strings(counts: np.ndarray, values: pa.Array) -> pa.Array:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._classify import Classifier
+from ._columnar_arrow import ragged_rows
 from ._columnar_tables import (
     INTERACTABLE,
     KIND_CODES,
@@ -90,14 +91,6 @@ class Classified:
     weight: np.ndarray  # 0 = null
 
 
-def _ragged(starts: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(owner, row) pairs: for each i, rows starts[i] .. starts[i] + counts[i] - 1."""
-    owner = np.repeat(np.arange(len(counts)), counts)
-    first = np.cumsum(counts) - counts
-    row = np.arange(int(counts.sum())) - np.repeat(first - starts, counts)
-    return owner, row
-
-
 def _python_max3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """`max(a, 0.0, b)` with Python's rule (the first of equal values wins, so signs of
     zero match `rect_distance`)."""
@@ -123,7 +116,7 @@ def classify(cache: ColumnarCache, mts: list[MachineTables], sc: Scored) -> Clas
     # Hits: component rects of the step's machine in its view (any state).
     hit_steps = np.flatnonzero(ok & sc.has_coord & (tcode != T_SWITCH))
     crow = gids[hit_steps] * N_VIEWS + sc.v0[hit_steps]
-    owner, rect = _ragged(cache.crect["start"][crow], cache.crect["count"][crow])
+    owner, rect = ragged_rows(cache.crect["start"][crow], cache.crect["count"][crow])
     r = cache.comp_rects
     px, py = sc.x[hit_steps][owner], sc.y[hit_steps][owner]
     inside = (r["x0"][rect] <= px) & (px <= r["x1"][rect])
@@ -148,7 +141,7 @@ def classify(cache: ColumnarCache, mts: list[MachineTables], sc: Scored) -> Clas
     inter = np.flatnonzero(is_interaction)
     trow = sc.trect_base[inter] + sc.s0[inter] * N_VIEWS + sc.v0[inter]
     _fill_targets(cache, mts, sc, inter, trow)
-    owner, rect = _ragged(cache.trect["start"][trow], cache.trect["count"][trow])
+    owner, rect = ragged_rows(cache.trect["start"][trow], cache.trect["count"][trow])
     if len(owner):
         t = cache.target_rects
         step_of = inter[owner]

@@ -10,8 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 
-from ._columnar_arrow import ragged_strings
-from ._columnar_classify import _ragged
+from ._columnar_arrow import ragged_rows, ragged_strings
 from ._columnar_sim import EpisodeSim
 from ._columnar_tables import ColumnarCache, SetupInfo
 from ._rows import EpisodeRow, GoalRow
@@ -119,7 +118,7 @@ def _visited(
     first-visit order, as (counts, names), and State-F1 against the optimal path."""
     n = len(infos)
     res = cache.results
-    owner, row = _ragged(res["entered_start"][scored_rid], res["entered_count"][scored_rid])
+    owner, row = ragged_rows(res["entered_start"][scored_rid], res["entered_count"][scored_rid])
     reset_counts = np.array([len(i.reset) for i in infos], np.int64)
     reset = np.array([s for i in infos for s in i.reset], np.int64)
     ep = np.concatenate([np.repeat(np.arange(n), reset_counts), scored_ep[owner]])

@@ -22,6 +22,7 @@ from math import ceil
 
 import numpy as np
 
+from ._columnar_arrow import ragged_rows
 from ._columnar_tables import (
     ACTION_SHIFT,
     SITUATION_BITS,
@@ -76,11 +77,9 @@ def step_keys(
         px, py = x[idx], y[idx]
         in_range = (px >= 0.0) & (px <= 1000.0) & (py >= 0.0) & (py <= 1000.0)
         keys[idx] = in_range
-        total = int(counts.sum())
-        if total:
+        if counts.any():
             first = np.cumsum(counts) - counts
-            owner = np.repeat(np.arange(len(idx)), counts)
-            rect = np.arange(total) - np.repeat(first - starts, counts)
+            owner, rect = ragged_rows(starts, counts)
             r = cache.mask_rects
             qx, qy = px[owner], py[owner]
             inside = (r["x0"][rect] <= qx) & (qx <= r["x1"][rect])
