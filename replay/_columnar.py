@@ -20,6 +20,7 @@ mask holds, a non-finite coordinate) are replayed by `replay_episode` and merged
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pyarrow as pa
@@ -44,8 +45,7 @@ from ._rows import EpisodeRow, GoalRow, StepRow
 from ._tables import rows_to_table
 
 
-@dataclass(frozen=True)
-class EpisodeInput:
+class EpisodeInput(NamedTuple):
     """One decoded, set-up episode to replay."""
 
     machine: Machine
@@ -270,6 +270,7 @@ def _replay(
         x=parsed.x[scored],
         y=parsed.y[scored],
         has_coord=parsed.has_coord[scored],
+        point=np.array(points, np.int64)[scored],
     )
 
     # 3. Classification; 4. the tables.

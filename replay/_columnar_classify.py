@@ -66,6 +66,7 @@ class Scored:
     x: np.ndarray
     y: np.ndarray
     has_coord: np.ndarray
+    point: np.ndarray  # the point key (`_columnar_sim.step_keys`)
 
 
 @dataclass
@@ -190,13 +191,7 @@ def classify(cache: ColumnarCache, mts: list[MachineTables], sc: Scored) -> Clas
     error_type[missed & ~has_hits] = ERROR_CODES["invalid_coord"]
     error_type[missed & has_hits & ~hit_target] = ERROR_CODES["component_selection"]
     for i in np.flatnonzero(missed & has_hits & hit_target).tolist():
-        mt = mts[sc.machine[i]]
-        action = actions.parsed(int(sc.aid[i]), float(sc.x[i]), float(sc.y[i]), True).action
-        name, detail = Classifier(mt.machine)._interaction_error(
-            int(sc.s0[i]), int(sc.goal[i]), VIEW_ORDER[sc.v0[i]], action, [True], True
-        )
-        error_type[i] = ERROR_CODES[name]
-        error_detail[i] = codes(detail)
+        error_type[i], error_detail[i] = _target_miss(cache, mts[sc.machine[i]], sc, i)
 
     repetitive = _repetitive(sc, ok & ~is_switch_view, tcode, has_hits, hit_mask)
     dangerous = outcomes.cols["dangerous"][sc.outcome]
@@ -221,6 +216,22 @@ def classify(cache: ColumnarCache, mts: list[MachineTables], sc: Scored) -> Clas
         distance=distance,
         weight=weight,
     )
+
+
+def _target_miss(cache: ColumnarCache, mt: MachineTables, sc: Scored, i: int) -> tuple[int, int]:
+    """(error type, detail code) of an interaction on a target without progress, by the
+    scalar classifier; it reads the transitions of (state, goal) whose rects in the view
+    hold the point, so it is memoised on (state, goal, view, action, rects holding it)."""
+    s0, goal, view, aid = int(sc.s0[i]), int(sc.goal[i]), int(sc.v0[i]), int(sc.aid[i])
+    key = (s0, goal, view, aid, int(sc.point[i]) & mt.view_bits[view])
+    got = mt.target_misses.get(key)
+    if got is None:
+        action = cache.actions.parsed(aid, float(sc.x[i]), float(sc.y[i]), True).action
+        name, detail = Classifier(mt.machine)._interaction_error(
+            s0, goal, VIEW_ORDER[view], action, [True], True
+        )
+        got = mt.target_misses[key] = (ERROR_CODES[name], cache.details.code(detail))
+    return got
 
 
 def _fill_targets(

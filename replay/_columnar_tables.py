@@ -213,18 +213,19 @@ class OutcomeVocab:
         )
 
     def of(self, mt: MachineTables, outcome: Outcome) -> int:
+        """The id of an outcome. A transition's outcome is a function of the machine and
+        the transition (`_step._apply`); the others carry no transition nor entered state."""
         tr = outcome.transition
-        key = (
-            mt.gid if tr is not None else -1,
-            outcome.kind,
-            outcome.text,
-            outcome.detail,
-            -1 if tr is None else (tr.source, tr.component, tr.index),
-            outcome.entered,
-            outcome.dangerous,
-            outcome.switched,
-            outcome.unlocked_now,
-        )
+        if tr is not None:
+            key: tuple = (mt.gid, tr.source, tr.component, tr.index)
+        else:
+            key = (
+                outcome.kind,
+                outcome.text,
+                outcome.detail,
+                outcome.switched,
+                outcome.unlocked_now,
+            )
         got = self.ids.get(key)
         if got is None:
             got = self.ids[key] = len(self.texts)
@@ -322,6 +323,7 @@ class MachineTables:
         self.memo: dict[int, int] = {}  # step key (see `step_keys`) | situation -> result
         self.canonical: dict[tuple[int, int, int], int] = {}  # see `_columnar_sim._resolve`
         self.effects: dict[tuple[int, bool, int, int], tuple[int, bool, int]] = {}
+        self.target_misses: dict[tuple[int, ...], tuple[int, int]] = {}
         self.situations: list[tuple[int, int, bool]] = []  # (state, view code, unlocked)
         self._situation_ids: dict[tuple[int, int, bool], int] = {}
         self.goal_blocks: dict[int, GoalBlock] = {}
@@ -334,6 +336,8 @@ class MachineTables:
             self.canonical.clear()
         if len(self.effects) > MEMO_LIMIT:
             self.effects.clear()
+        if len(self.target_misses) > MEMO_LIMIT:
+            self.target_misses.clear()
 
     def c_opt_dynamic(self, state: int, view: str, unlocked: bool, goal: int) -> int | None:
         """`_plan.c_opt_dynamic`, memoised."""
