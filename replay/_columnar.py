@@ -12,8 +12,9 @@ faster, by splitting the work by nature:
 4. build the Arrow columns from numpy arrays and integer codes (`_columnar_arrow`), with
    no per-row Python tuples.
 
-Episodes this path does not cover (a machine with more rects or components than an int64
-mask holds, a non-finite coordinate) are replayed by `replay_episode` and merged in order.
+Episodes this path does not cover (a machine with more rects, components or states than
+its int masks and memo keys hold, a global budget of 2**52 steps or more, a non-finite
+coordinate) are replayed by `replay_episode` and merged in order.
 `tests/replay/test_columnar.py` checks the equality, table against table.
 """
 

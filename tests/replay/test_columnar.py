@@ -132,13 +132,19 @@ def test_hand_worked_cases(doc: dict) -> None:
 
 
 def test_hand_worked_cases_in_one_batch() -> None:
-    """All cases at once, each twice (memoised results are reused across episodes)."""
+    """All cases at once, each twice (memoised results are reused across episodes), and
+    each once more with an empty log."""
     batch = []
     for doc in _case_docs() * 2:
         machine = machine_of(_ssm_file(doc["ssm"]), doc["device_id"])
         task = msgspec.convert(doc["task"], replay.Task)
         batch.append(episode(machine, task, doc["episode"]["steps"], float(doc["lambda"])))
+        batch.append(episode(machine, task, [], float(doc["lambda"])))
     check_batch(batch)
+
+
+def test_empty_batch() -> None:
+    check_batch([])
 
 
 def _sample_batches(size: int):
