@@ -19,6 +19,7 @@ another call of a known action (`multiple_actions`). Parsing never raises.
 from __future__ import annotations
 
 import re
+from math import isfinite
 
 import msgspec
 
@@ -159,6 +160,8 @@ def _parse_entry(entry: str, thinking: str) -> ParsedAction:
     if params is None:
         return _parse_entry_full(entry, thinking)
     coord = (float(x), float(y)) if x is not None else None
+    if coord is not None and not (isfinite(coord[0]) and isfinite(coord[1])):
+        return _parse_entry_full(entry, thinking)  # which calls it malformed
     return ParsedAction(True, Action(kind, coord, params), None, call_text, thinking)
 
 
@@ -318,7 +321,10 @@ def _to_coord(items: list[str]) -> tuple[float, float]:
         s = item.strip()
         if not _NUMBER.fullmatch(s):
             raise _Malformed
-        values.append(float(s))
+        value = float(s)
+        if not isfinite(value):  # `1e999`, or hundreds of digits: not a coordinate
+            raise _Malformed
+        values.append(value)
     return values[0], values[1]
 
 
@@ -334,7 +340,7 @@ def action_from_record(type_: str, coord: list[float] | None, params: list) -> P
         return ParsedAction(False, None, "unknown_action", text, "")
     point: tuple[float, float] | None = None
     if coord is not None:
-        if len(coord) != 2 or any(v != v or v in (float("inf"), float("-inf")) for v in coord):
+        if len(coord) != 2 or not all(isfinite(v) for v in coord):
             return ParsedAction(False, None, "malformed", text, "")
         point = (float(coord[0]), float(coord[1]))
     action = Action(kind, point, tuple(normalize_param(p) for p in params))

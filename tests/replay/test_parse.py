@@ -143,6 +143,8 @@ CASES: list[tuple[str, str, Action | None]] = [
     ("Action: Press(coord=[1, 2], params=['0)", "malformed", None),
     ("Action:", "malformed", None),
     ("Action: Press(,)", "malformed", None),
+    ("Action: Press(coord=[1e999, 5], params=[0])", "malformed", None),
+    ("Action: Press(coord=[" + "9" * 400 + ", 5], params=[0])", "malformed", None),
     ("Action: Press(coord=[1, 2], params=[,])", "malformed", None),
     ("Action: Press(coord=[1, 2], params=[ ])", OK, Action("press", (1.0, 2.0), ())),
     ("Action: Press(coord=[1, 2],, params=[0])", "malformed", None),
