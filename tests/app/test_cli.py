@@ -27,7 +27,7 @@ def test_not_a_replay_output(tmp_path, capsys):
 
 def test_streamlit_command(tiny_out):
     cmd = streamlit_command(tiny_out, port=8600, headless=True, address="127.0.0.1")
-    assert cmd[1:4] == ["-m", "streamlit", "run"]
+    assert cmd[1:4] == ["-m", "vge_analytics._serve", "run"]  # streamlit run, warmed up
     assert Path(cmd[4]) == dash.app_script() and dash.app_script().name == "streamlit_app.py"
     assert cmd[cmd.index("--server.port") + 1] == "8600"
     assert cmd[cmd.index("--server.headless") + 1] == "true"

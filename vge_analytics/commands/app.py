@@ -1,6 +1,7 @@
 """`vge app [OUT]`: the Streamlit dashboard over a replay output directory.
 
-Runs `streamlit run app/streamlit_app.py -- --out OUT` with the same Python. The app reads
+Runs `streamlit run app/streamlit_app.py -- --out OUT` with the same Python (through
+`vge_analytics._serve`, which warms the libraries and OUT up first). The app reads
 OUT from `--out` (and from the `VGE_APP_OUT` environment variable, which this command also
 sets), so it can be started by hand with either.
 """
@@ -20,11 +21,12 @@ from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
 def streamlit_command(
     out: Path, *, port: int, headless: bool, address: str | None = None
 ) -> list[str]:
-    """The `python -m streamlit run ...` argument list that serves the dashboard for OUT."""
+    """The argument list that serves the dashboard for OUT: `streamlit run ...` through
+    `vge_analytics._serve`, which warms the libraries and OUT up before the server listens."""
     cmd = [
         sys.executable,
         "-m",
-        "streamlit",
+        "vge_analytics._serve",
         "run",
         str(app_script()),
         "--server.port",

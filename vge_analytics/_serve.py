@@ -1,0 +1,43 @@
+"""`python -m vge_analytics._serve <streamlit run arguments>`: Streamlit, warmed up first.
+
+`vge app` starts the dashboard through this module rather than `python -m streamlit`: before
+the server listens it imports the heavy libraries and opens the replay output (DuckDB views,
+Parquet footers) and runs the leaderboard's default query, all in the server process, so the
+first page a person opens does not pay for them (they are most of a cold first load).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+
+def _warm(out: str) -> None:
+    import importlib
+
+    import vge_analytics as va
+
+    # The dashboard's own helpers (and through them streamlit, altair, pandas, polars):
+    # the page scripts import the same module objects.
+    for module in ("app._ui", "app._charts"):
+        importlib.import_module(module)
+
+    try:
+        va.runs(out)
+        va.metrics(out)
+    except va.AnalyticsError:
+        pass  # the app itself reports a bad OUT to the person, in the page
+
+
+def main() -> int:
+    out = os.environ.get("VGE_APP_OUT")
+    if out:
+        _warm(out)
+    from streamlit.web import cli
+
+    sys.argv = ["streamlit", *sys.argv[1:]]
+    return cli.main()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
