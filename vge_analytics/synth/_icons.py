@@ -8,6 +8,8 @@ from collections.abc import Callable
 
 from PIL import ImageDraw
 
+from ._strokes import radial_ticks
+
 Color = tuple[int, int, int] | tuple[int, int, int, int]
 Box = tuple[float, float, float, float]
 
@@ -71,18 +73,7 @@ def sun(d: ImageDraw.ImageDraw, box: Box, ink: Color) -> None:
     w = _lw(s)
     r = s * 0.16
     d.ellipse((cx - r, cy - r, cx + r, cy + r), outline=ink, width=w)
-    for k in range(8):
-        a = k * math.pi / 4
-        d.line(
-            (
-                cx + math.cos(a) * r * 1.5,
-                cy + math.sin(a) * r * 1.5,
-                cx + math.cos(a) * r * 2.3,
-                cy + math.sin(a) * r * 2.3,
-            ),
-            fill=ink,
-            width=w,
-        )
+    radial_ticks(d, cx, cy, r, 1.5, 2.3, (k * math.pi / 4 for k in range(8)), fill=ink, width=w)
 
 
 def light(d: ImageDraw.ImageDraw, box: Box, ink: Color) -> None:

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from PIL import ImageDraw
 
 from ._shapes import darker, lighter
+from ._strokes import radial_ticks
 
 Rect = tuple[float, float, float, float]
 # (view, (x0, y0, x1, y1) as fractions of the body's rectangle in that view, painter)
@@ -85,18 +86,8 @@ def _clock_face(d, r: Rect, body, text_fn) -> None:
         outline=(40, 40, 40),
         width=5,
     )
-    for k in range(12):
-        a = math.radians(k * 30)
-        d.line(
-            (
-                cx + math.cos(a) * rad * 0.8,
-                cy + math.sin(a) * rad * 0.8,
-                cx + math.cos(a) * rad * 0.92,
-                cy + math.sin(a) * rad * 0.92,
-            ),
-            fill=(40, 40, 40),
-            width=4,
-        )
+    hours = (math.radians(k * 30) for k in range(12))
+    radial_ticks(d, cx, cy, rad, 0.8, 0.92, hours, fill=(40, 40, 40), width=4)
     d.line((cx, cy, cx + rad * 0.45, cy - rad * 0.2), fill=(30, 30, 30), width=7)
     d.line((cx, cy, cx - rad * 0.1, cy - rad * 0.7), fill=(30, 30, 30), width=5)
     d.line((cx, cy, cx + rad * 0.3, cy + rad * 0.55), fill=(200, 40, 40), width=3)

@@ -13,6 +13,7 @@ from PIL import Image, ImageDraw, ImageFont
 from ._geometry import Palette, Part
 from ._icons import draw_icon
 from ._shapes import darker, ink_on, lighter
+from ._strokes import radial_ticks
 
 RGB = tuple[int, int, int]
 
@@ -183,35 +184,17 @@ def paint_knob(d, w, h, part: Part, pal: Palette) -> None:
     ink = ink_on(pal.body)
     r_out = s * 0.48
     # Ticks around the knob.
-    for k in range(9):
-        a = math.radians(-225 + k * 33.75)
-        d.line(
-            (
-                cx + math.cos(a) * r_out * 0.84,
-                cy + math.sin(a) * r_out * 0.84,
-                cx + math.cos(a) * r_out,
-                cy + math.sin(a) * r_out,
-            ),
-            fill=ink,
-            width=max(1, round(s * 0.025)),
-        )
+    ticks = (math.radians(-225 + k * 33.75) for k in range(9))
+    radial_ticks(d, cx, cy, r_out, 0.84, 1, ticks, fill=ink, width=max(1, round(s * 0.025)))
     r = s * 0.36
     d.ellipse((cx - r, cy - r, cx + r, cy + r), fill=darker(body, 0.3))
     r2 = r * 0.88
     d.ellipse((cx - r2, cy - r2, cx + r2, cy + r2), fill=body)
     # Grip ridges and the pointer.
-    for k in range(12):
-        a = math.radians(k * 30)
-        d.line(
-            (
-                cx + math.cos(a) * r2 * 0.8,
-                cy + math.sin(a) * r2 * 0.8,
-                cx + math.cos(a) * r2,
-                cy + math.sin(a) * r2,
-            ),
-            fill=darker(body, 0.25),
-            width=max(1, round(s * 0.02)),
-        )
+    ridges = (math.radians(k * 30) for k in range(12))
+    radial_ticks(
+        d, cx, cy, r2, 0.8, 1, ridges, fill=darker(body, 0.25), width=max(1, round(s * 0.02))
+    )
     a = math.radians(-90 + 35 * (part.style.variant - 1.5))
     d.line(
         (cx, cy, cx + math.cos(a) * r2 * 0.85, cy + math.sin(a) * r2 * 0.85),
@@ -265,18 +248,10 @@ def paint_wheel(d, w, h, part: Part, pal: Palette) -> None:
     cx, cy, s = _round_base(d, w, h, color)
     r = s * 0.47
     d.ellipse((cx - r, cy - r, cx + r, cy + r), fill=color)
-    for k in range(24):
-        a = math.radians(k * 15)
-        d.line(
-            (
-                cx + math.cos(a) * r * 0.8,
-                cy + math.sin(a) * r * 0.8,
-                cx + math.cos(a) * r,
-                cy + math.sin(a) * r,
-            ),
-            fill=lighter(color, 0.4),
-            width=max(1, round(s * 0.03)),
-        )
+    ridges = (math.radians(k * 15) for k in range(24))
+    radial_ticks(
+        d, cx, cy, r, 0.8, 1, ridges, fill=lighter(color, 0.4), width=max(1, round(s * 0.03))
+    )
     d.ellipse((cx - r * 0.3, cy - r * 0.3, cx + r * 0.3, cy + r * 0.3), fill=lighter(color, 0.2))
 
 
@@ -516,18 +491,10 @@ def paint_cap(d, w, h, part: Part, pal: Palette) -> None:
         cx, cy, s = _round_base(d, w, h, color)
         r = s * 0.47
         d.ellipse((cx - r, cy - r, cx + r, cy + r), fill=color)
-        for k in range(16):
-            a = math.radians(k * 22.5)
-            d.line(
-                (
-                    cx + math.cos(a) * r * 0.75,
-                    cy + math.sin(a) * r * 0.75,
-                    cx + math.cos(a) * r,
-                    cy + math.sin(a) * r,
-                ),
-                fill=darker(color, 0.35),
-                width=max(1, round(s * 0.03)),
-            )
+        ridges = (math.radians(k * 22.5) for k in range(16))
+        radial_ticks(
+            d, cx, cy, r, 0.75, 1, ridges, fill=darker(color, 0.35), width=max(1, round(s * 0.03))
+        )
     return _label(d, part, _inset(w, h, 0.25), ink_on(color), color)
 
 
