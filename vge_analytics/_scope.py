@@ -111,6 +111,20 @@ def _normalise_filter(value: object) -> tuple[list[object], bool]:
     return [v for v in values if v is not None], any(v is None for v in values)
 
 
+def _filter_condition(expr: str, sql_type: str, value: object, params: list[object]) -> str:
+    """The SQL condition of one filter on `expr` (a value or several; None matches null); its
+    bound parameter is appended to `params`."""
+    values, allow_null = _normalise_filter(value)
+    terms = []
+    if values:
+        # The type name comes from DuckDB's own DESCRIBE of a scalar column.
+        terms.append(f"{expr} IN (SELECT unnest(CAST(? AS {sql_type}[])))")
+        params.append(values)
+    if allow_null:
+        terms.append(f"{expr} IS NULL")
+    return "(" + " OR ".join(terms) + ")" if terms else "FALSE"
+
+
 def build_scope(
     store: Store,
     grain: str,
@@ -156,15 +170,7 @@ def build_scope(
     for col, value in where.items():
         table = source_table(store, grain, col)
         sql_type = store.columns[table][col]
-        values, allow_null = _normalise_filter(value)
-        terms = []
-        if values:
-            # The type name comes from DuckDB's own DESCRIBE of a scalar column.
-            terms.append(f"{resolved[col]} IN (SELECT unnest(CAST(? AS {sql_type}[])))")
-            params.append(values)
-        if allow_null:
-            terms.append(f"{resolved[col]} IS NULL")
-        conditions.append("(" + " OR ".join(terms) + ")" if terms else "FALSE")
+        conditions.append(_filter_condition(resolved[col], sql_type, value, params))
     return Scope(
         grain=grain,
         keys=[(resolved[c], c) for c in by],
@@ -187,14 +193,7 @@ def run_keys_scope(store: Store, by: Sequence[str], where: Filters) -> Scope | N
     params: list[object] = []
     for col, value in run_filters.items():
         sql_type = store.columns["runs"][col]
-        values, allow_null = _normalise_filter(value)
-        terms = []
-        if values:
-            terms.append(f"g.{quote_ident(col)} IN (SELECT unnest(CAST(? AS {sql_type}[])))")
-            params.append(values)
-        if allow_null:
-            terms.append(f"g.{quote_ident(col)} IS NULL")
-        conditions.append("(" + " OR ".join(terms) + ")" if terms else "FALSE")
+        conditions.append(_filter_condition(f"g.{quote_ident(col)}", sql_type, value, params))
     return Scope(
         grain="runs",
         keys=[(f"g.{quote_ident(c)}", c) for c in by],
@@ -262,14 +261,7 @@ def grouped_aggregate(
     conditions = []
     for col, value in outer_where.items():
         sql_type = store.columns["runs"][col]
-        values, allow_null = _normalise_filter(value)
-        alts = []
-        if values:
-            alts.append(f"r.{quote_ident(col)} IN (SELECT unnest(CAST(? AS {sql_type}[])))")
-            params.append(values)
-        if allow_null:
-            alts.append(f"r.{quote_ident(col)} IS NULL")
-        conditions.append("(" + " OR ".join(alts) + ")" if alts else "FALSE")
+        conditions.append(_filter_condition(f"r.{quote_ident(col)}", sql_type, value, params))
     out_keys = [f"r.{quote_ident(c)}" if c in run_cols else f"i.{quote_ident(c)}" for c in by]
     out_sel = [f"{e} AS {quote_ident(c)}" for e, c in zip(out_keys, by, strict=True)]
     out_sel += [f"i.{quote_ident(name)}" for _, name in extra_keys]
