@@ -30,7 +30,7 @@ from ._columnar_tables import (
     ColumnarCache,
     MachineTables,
 )
-from ._episode import EpisodeSetup
+from ._episode import EpisodeSetup, advance_goals, refreshed_budget
 from ._step import SimState, step
 from ._vocab import SWITCH_VIEW, VIEW_ORDER
 
@@ -157,22 +157,9 @@ def simulate_episode(
         # Step i completed the current goal (and maybe more): SPEC 3 bookkeeping.
         k = i - begin
         goal_index = current
-        completed = 0
-        for s in entered_of[rid]:
-            if current < n_goals and s == goals[current]:
-                completed_at[current] = k
-                if current != goal_index:
-                    started[current] = k  # became current and completed in this step
-                current += 1
-                completed += 1
-        b = b_base - (k - base_k)
-        if current < n_goals:
-            started[current] = k + 1
-        for c in range(goal_index + 1, min(current + 1, n_goals)):
-            b = max(b, lam * c_opt[c])
-        for c in range(goal_index + 1, current):
-            dyn[c] = 0  # completed in the same step it became current
-        events.append((i, completed, b))
+        current = advance_goals(entered_of[rid], goals, current, k, started, completed_at, dyn)
+        b = refreshed_budget(b_base - (k - base_k), lam, c_opt, goal_index, current)
+        events.append((i, current - goal_index, b))
         b_base, base_k = b, k
         taken = k + 1
         if current >= n_goals:

@@ -7,6 +7,7 @@ always give the same rows.
 from __future__ import annotations
 
 import datetime as _dt
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from ._classify import Classifier
@@ -103,6 +104,42 @@ def parse_log_step(log_step: LogStep) -> ParsedAction:
     return _NO_ACTION
 
 
+def advance_goals(
+    entered: Sequence[int],
+    goals: Sequence[int],
+    current: int,
+    k: int,
+    started: list[int | None],
+    completed_at: list[int | None],
+    dyn: list[int | None],
+) -> int:
+    """SPEC 3 goal bookkeeping for step k, which entered `entered` (in order): each goal reached
+    in turn completes at k (one that became current in this very step also starts there, with
+    C_opt_dyn 0), and the next goal starts at k + 1. Returns the new current goal index."""
+    first = current
+    n_goals = len(goals)
+    for s in entered:
+        if current < n_goals and s == goals[current]:
+            completed_at[current] = k
+            if current != first:
+                started[current] = k  # became current and completed in this step
+                dyn[current] = 0
+            current += 1
+    if first < current < n_goals:
+        started[current] = k + 1
+    return current
+
+
+def refreshed_budget(
+    budget_local: float, lam: float, c_opt: Sequence[int], first: int, current: int
+) -> float:
+    """B_local after goals `first` .. `current - 1` completed in one step (SPEC 3): at least
+    lam * C_opt of every goal that became current in it, the new current one included."""
+    for c in range(first + 1, min(current + 1, len(c_opt))):
+        budget_local = max(budget_local, lam * c_opt[c])
+    return budget_local
+
+
 def _first_visit_order(states: list[int]) -> list[int]:
     seen: dict[int, None] = {}
     for s in states:
@@ -190,15 +227,9 @@ def replay_episode(
         goal = goals[current]
         sim, outcome = step(machine, sim, parsed)
 
-        completed = 0
-        for s in outcome.entered:
-            visited.append(s)
-            if current < n_goals and s == goals[current]:
-                completed_at[current] = k
-                if current != goal_index:
-                    started[current] = k  # became current and completed in this step
-                current += 1
-                completed += 1
+        visited.extend(outcome.entered)
+        current = advance_goals(outcome.entered, goals, current, k, started, completed_at, dyn)
+        completed = current - goal_index
         taken += 1
         steps_used[goal_index] += 1
         switched = outcome.switched
@@ -207,12 +238,7 @@ def replay_episode(
             switches[goal_index] += 1
         budget_local -= 1
         if completed:
-            if current < n_goals:
-                started[current] = k + 1
-            for c in range(goal_index + 1, min(current + 1, n_goals)):
-                budget_local = max(budget_local, lam * c_opt[c])
-            for c in range(goal_index + 1, current):
-                dyn[c] = 0  # completed in the same step it became current
+            budget_local = refreshed_budget(budget_local, lam, c_opt, goal_index, current)
             if current < n_goals:
                 dyn[current] = c_opt_dynamic(
                     machine, sim.state, sim.view, sim.unlocked, goals[current]
