@@ -170,7 +170,6 @@ def _sample_batches(size: int):
             yield run.name, batch
 
 
-@pytest.mark.skipif(not (LOGS / "runs").is_dir(), reason="no bundled sample")
 def test_bundled_sample() -> None:
     """Every run of `logs/`, in batches of 200 episodes, one cache for all (as a worker)."""
     shared = ColumnarCache()
@@ -196,13 +195,12 @@ def _machines() -> list[tuple[replay.Machine, list[replay.Task]]]:
         out.setdefault(doc["device_id"], (machine, []))[1].append(
             msgspec.convert(doc["task"], replay.Task)
         )
-    if (LOGS / "bench").is_dir():
-        bench = replay.Benchmark.open(LOGS / "bench")
-        devices = list(_SAMPLE_DEVICES)
-        devices += [d for d in sorted(bench.ssm_paths) if bench.machine(d).has_dashboard][:1]
-        for device in devices:
-            tasks = [e.task for e in bench.tasks.values() if e.task.device_id == device][:4]
-            out[device] = (bench.machine(device), tasks)
+    bench = replay.Benchmark.open(LOGS / "bench")
+    devices = list(_SAMPLE_DEVICES)
+    devices += [d for d in sorted(bench.ssm_paths) if bench.machine(d).has_dashboard][:1]
+    for device in devices:
+        tasks = [e.task for e in bench.tasks.values() if e.task.device_id == device][:4]
+        out[device] = (bench.machine(device), tasks)
     return list(out.values())
 
 
@@ -357,7 +355,6 @@ def _digests(out: Path) -> dict[str, str]:
     }
 
 
-@pytest.mark.skipif(not (LOGS / "runs").is_dir(), reason="no bundled sample")
 def test_runner_files_identical_with_either_engine(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
