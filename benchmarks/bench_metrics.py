@@ -6,7 +6,7 @@ Usage (on the replayed full synthetic benchmark):
     vge replay /tmp/vge-full/runs/* --bench /tmp/vge-full/bench --out /tmp/vge-full-out
     .venv/bin/python benchmarks/bench_metrics.py /tmp/vge-full-out [--times 10] [--repeats 7]
 
-The suite is what `vge metrics` + `vge errors` compute: all twelve SPEC 6 metrics per run
+The suite is what `vge metrics` + `vge errors` compute: all twelve PROTOCOL §6 metrics per run
 (grouped by run_id, model), the error-type distribution per run (and the error groups derived
 from it) and the switch classes per run. It is timed
 

@@ -41,7 +41,7 @@ from pathlib import Path
 import orjson
 
 import replay
-from replay._load import episode_decoder
+from replay.io._load import episode_decoder
 
 CORES = os.cpu_count() or 1
 RUNNER_MODULES = (
@@ -133,7 +133,7 @@ def end_to_end(data: Path, out: Path, workers: int, engine: str) -> dict[str, fl
 def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
     """Replay `n` episodes of the largest run; time `write_episode_mcap` alone, with the
     view images (the CLI's image source) fetched beforehand."""
-    from replay._batch import as_image_tuple
+    from replay.io._batch import as_image_tuple
     from vge_analytics.commands.replay import image_source
 
     bench = replay.Benchmark.open(data / "bench")
@@ -175,7 +175,8 @@ def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
 _STAGES = """
 import collections, functools, json, sys, time
 import replay
-from replay import _batch, _columnar, _columnar_parse, _runjob, _writer
+from replay.io import _batch, _runjob, _writer
+from replay.kernel import _columnar, _columnar_parse
 seconds = collections.Counter()
 
 def timed(owner, name, label):

@@ -1,21 +1,20 @@
 """Deterministic replay engine for VGEBench-style logs.
 
-Public API: records (SPEC 1), the action parser (SPEC 2), the compiled machine and the pure
-step function (SPEC 3), the planner (SPEC 4), classification and episode replay (SPEC 5),
-and the loaders/validators. Everything else is private.
+The public API, by layer: `semantics` holds the rules as a readable reference (records,
+action grammar, compiled machine, pure step function, planner, classification, episode
+replay; PROTOCOL §1-§5), `kernel` the fast batch engine proven identical to it, `io` the
+loaders, the runner behind `vge replay` and its outputs (PROTOCOL §7). Everything not named
+here is private.
 """
 
-from ._classify import Classification, Classifier
-from ._episode import (
-    EpisodeResult,
-    EpisodeSetup,
-    parse_log_step,
-    replay_episode,
-    setup_episode,
-    timestamp_seconds,
-)
-from ._errors import ConfigError, InputError, Problem, SSMError, TaskError, VGEError
-from ._load import (
+# The rules (the readable reference engine): records, grammar, machine, step, planner,
+# classification, episode replay, and the output rows and their Arrow schema.
+from ._errors import ConfigError, InputError, Problem, SSMError, TaskError, VGEError, WorkerError
+from ._version import ENGINE_VERSION
+
+# Input and output: loading and validating, the runner (`vge replay`), manifest, quarantine, MCAP,
+# JSON Schemas.
+from .io._load import (
     Benchmark,
     decode_state_machine,
     episodes_file,
@@ -26,7 +25,21 @@ from ._load import (
     validate_benchmark,
     validate_run,
 )
-from ._machine import (
+from .io._manifest import Manifest, ManifestFile, RunEntry, read_manifest
+from .io._mcap import BenchImages, ImageSource, write_episode_mcap
+from .io._quarantine import QUARANTINE_KINDS, QuarantineRecord
+from .io._runner import replay_runs
+from .io._schemas import schema_documents, write_schemas
+from .semantics._classify import Classification, Classifier
+from .semantics._episode import (
+    EpisodeResult,
+    EpisodeSetup,
+    parse_log_step,
+    replay_episode,
+    setup_episode,
+    timestamp_seconds,
+)
+from .semantics._machine import (
     CompiledTransition,
     Machine,
     compile_machine,
@@ -34,8 +47,8 @@ from ._machine import (
     rect_distance,
     validate_machine,
 )
-from ._parse import PARSE_DETAILS, Action, ParsedAction, action_from_record, parse_action
-from ._plan import (
+from .semantics._parse import PARSE_DETAILS, Action, ParsedAction, action_from_record, parse_action
+from .semantics._plan import (
     Plan,
     PlannedStep,
     c_opt_dynamic,
@@ -45,7 +58,7 @@ from ._plan import (
     target_components,
     target_rects,
 )
-from ._records import (
+from .semantics._records import (
     INPUT_RECORDS,
     SCHEMA_VERSION,
     ActionRecord,
@@ -60,9 +73,10 @@ from ._records import (
     Task,
     Transition,
 )
-from ._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
-from ._step import Outcome, SimState, reset, step
-from ._vocab import (
+from .semantics._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
+from .semantics._step import Outcome, SimState, reset, step
+from .semantics._tables import TABLE_ROWS, arrow_schema, rows_to_table
+from .semantics._vocab import (
     ACTION_NAMES,
     AXONOMETRIC_VIEWS,
     DEFAULT_LAMBDA,
@@ -78,15 +92,13 @@ from ._vocab import (
     normalize_params,
 )
 
-ENGINE_VERSION = "0.1.0"
-"""Changes whenever replay output for the same inputs may change (invalidates caches)."""
-
 __all__ = [
     "ACTION_NAMES",
     "AXONOMETRIC_VIEWS",
     "Action",
     "ActionRecord",
     "BBox",
+    "BenchImages",
     "Benchmark",
     "Classification",
     "Classifier",
@@ -105,9 +117,12 @@ __all__ = [
     "FEEDBACK_KINDS",
     "GoalRow",
     "INPUT_RECORDS",
+    "ImageSource",
     "InputError",
     "LogStep",
     "Machine",
+    "Manifest",
+    "ManifestFile",
     "ORTHOGRAPHIC_VIEWS",
     "OUTPUT_RECORDS",
     "Outcome",
@@ -116,6 +131,9 @@ __all__ = [
     "Plan",
     "PlannedStep",
     "Problem",
+    "QUARANTINE_KINDS",
+    "QuarantineRecord",
+    "RunEntry",
     "RunHeader",
     "SCHEMA_VERSION",
     "SSMError",
@@ -125,13 +143,16 @@ __all__ = [
     "StateDef",
     "StateMachine",
     "StepRow",
+    "TABLE_ROWS",
     "TERMINATIONS",
     "Task",
     "TaskError",
     "Transition",
     "VGEError",
     "VIEW_ORDER",
+    "WorkerError",
     "action_from_record",
+    "arrow_schema",
     "c_opt_dynamic",
     "compile_machine",
     "decode_state_machine",
@@ -146,9 +167,15 @@ __all__ = [
     "parse_log_step",
     "plan_goals",
     "progressing",
+    "read_manifest",
     "read_run_header",
+    "rect_contains",
+    "rect_distance",
     "replay_episode",
+    "replay_runs",
     "reset",
+    "rows_to_table",
+    "schema_documents",
     "setup_episode",
     "step",
     "target_components",
@@ -157,35 +184,6 @@ __all__ = [
     "validate_benchmark",
     "validate_machine",
     "validate_run",
-    "rect_contains",
-    "rect_distance",
-]
-
-from ._tables import TABLE_ROWS, arrow_schema, rows_to_table  # noqa: E402
-
-__all__ += ["TABLE_ROWS", "arrow_schema", "rows_to_table"]
-
-from ._schemas import schema_documents, write_schemas  # noqa: E402
-
-__all__ += ["schema_documents", "write_schemas"]
-
-# --- replay runner (vge replay): batches, workers, quarantine, manifest, MCAP
-from ._errors import WorkerError  # noqa: E402
-from ._manifest import Manifest, ManifestFile, RunEntry, read_manifest  # noqa: E402
-from ._mcap import BenchImages, ImageSource, write_episode_mcap  # noqa: E402
-from ._quarantine import QUARANTINE_KINDS, QuarantineRecord  # noqa: E402
-from ._runner import replay_runs  # noqa: E402
-
-__all__ += [
-    "BenchImages",
-    "ImageSource",
-    "Manifest",
-    "ManifestFile",
-    "QUARANTINE_KINDS",
-    "QuarantineRecord",
-    "RunEntry",
-    "WorkerError",
-    "read_manifest",
-    "replay_runs",
     "write_episode_mcap",
+    "write_schemas",
 ]

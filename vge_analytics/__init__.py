@@ -1,15 +1,15 @@
 """VGE Analytics: metrics, error taxonomy, comparisons and sweeps over replay output.
 
-Every function takes `out`, a replay output directory (SPEC 7; the views are opened once per
+Every function takes `out`, a replay output directory (PROTOCOL §7; the views are opened once per
 directory and cached), and returns polars DataFrames with stable column names.
 
-Metrics (SPEC 6, one registry, SQL in `vge_analytics/sql/`):
+Metrics (PROTOCOL §6, one registry, SQL in `vge_analytics/sql/`):
     metrics(out, by=("run_id", "model"), metrics=None, where=None)
     episode_terms(out, metrics=None, where=None)   per-episode numerators/denominators
     polars_metrics(out, by=..., metrics=...)       the same numbers computed with polars
     metric_table(), registry(), get_metric(name), METRIC_NAMES, MAIN_TABLE
 
-Error taxonomy and navigation (SPEC 5):
+Error taxonomy and navigation (PROTOCOL §5):
     error_distribution(out, by, where), error_groups(out, by, where),
     switch_classes(out, by, where)
 

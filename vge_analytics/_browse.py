@@ -67,7 +67,7 @@ def _select(
 
 
 def episodes(out, where: Filters = None, columns: Sequence[str] | None = None) -> pl.DataFrame:
-    """Episode rows (SPEC 7 columns), filtered by any column of episodes or runs (e.g.
+    """Episode rows (PROTOCOL §7 columns), filtered by any column of episodes or runs (e.g.
     `{"run_id": [...], "category": "Microwave", "meta_history": 3}`), sorted by run_id,
     episode_id. `columns` limits the columns returned."""
     return _select(out, "episodes", where, columns, ["run_id", "episode_id"])

@@ -13,7 +13,7 @@ class AnalyticsError(VGEError):
 
 
 class OutputDirError(AnalyticsError):
-    """OUT is not a readable replay output directory (SPEC 7)."""
+    """OUT is not a readable replay output directory (PROTOCOL §7)."""
 
 
 class UnknownMetricError(ConfigError, AnalyticsError):

@@ -177,7 +177,7 @@ def render_markdown(
 
 _KEY_TITLES = {"model": "Model", "run_id": "Run"}
 
-_LATEX_SPECIAL = {
+_LATEX_ESCAPES = {
     "\\": r"\textbackslash{}",
     "&": r"\&",
     "%": r"\%",
@@ -192,7 +192,7 @@ _LATEX_SPECIAL = {
 
 
 def latex_escape(text: str) -> str:
-    return "".join(_LATEX_SPECIAL.get(ch, ch) for ch in text)
+    return "".join(_LATEX_ESCAPES.get(ch, ch) for ch in text)
 
 
 def render_latex(

@@ -1,6 +1,6 @@
 """The view images of a device, wherever they come from.
 
-`view_image` looks, in order, at `BENCH/images/<device_id>/<view>.png|jpg` (SPEC 1.1), at the
+`view_image` looks, in order, at `BENCH/images/<device_id>/<view>.png|jpg` (PROTOCOL §1.1), at the
 SSM's `images` extension, and finally, for devices of the synthetic categories, renders the view
 (`vge_analytics.synth`) and caches the PNG on disk. The cache lives under `$VGE_CACHE_DIR`, else
 `$XDG_CACHE_HOME/vge-analytics`, else `~/.cache/vge-analytics`, keyed by a hash of the SSM, the

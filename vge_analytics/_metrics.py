@@ -1,4 +1,4 @@
-"""SPEC 6 metrics in DuckDB: the registry's SQL, grouped by any column, at query time.
+"""PROTOCOL §6 metrics in DuckDB: the registry's SQL, grouped by any column, at query time.
 
 One statement per call: for each grain the requested metrics need (episodes, steps, goals),
 one aggregate over that table (joined to episodes/runs only when a grouping or filter column
@@ -138,14 +138,14 @@ def metrics(
     metrics: MetricNames = None,
     where: Filters = None,
 ) -> pl.DataFrame:
-    """SPEC 6 metrics per group, as a polars DataFrame.
+    """PROTOCOL §6 metrics per group, as a polars DataFrame.
 
     - `out`: a replay output directory (or an open `Store`).
     - `by`: grouping columns (list or comma-separated string) of runs or episodes (model,
       category, device_id, n_goals, agent_kind, termination, `meta_<facet>`...); step columns
       (e.g. `action_type`) only with metrics computed from steps. Default: run_id, model.
       An empty list gives one row over everything.
-    - `metrics`: names as SPEC 6 writes them (default: all twelve, in SPEC order).
+    - `metrics`: names as PROTOCOL §6 writes them (default: all twelve, in that order).
     - `where`: `{column: value or list of values}` filters (bound, never formatted).
 
     Columns: the group columns, then one Float64 column per metric (null for an empty group).

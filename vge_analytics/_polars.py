@@ -1,7 +1,7 @@
-"""The SPEC 6 metrics again, written in polars, as an independent check of the DuckDB SQL.
+"""The metrics of PROTOCOL §6 again, written in polars, as an independent check of the DuckDB SQL.
 
 Same inputs (the Parquet files of OUT, read directly), same definitions, written a second
-time from SPEC 6 without going through the registry's SQL; `test_polars_agrees` checks that
+time from PROTOCOL §6 without going through the registry's SQL; `test_polars_agrees` checks that
 both give the same numbers (to 1e-9) on the hand-worked runs and on the bundled sample.
 Grouping supports the columns of runs and episodes (the default: run_id, model).
 """
@@ -97,7 +97,7 @@ def polars_metrics(
     by: GroupBy = None,
     metrics: str | Sequence[str] | None = None,
 ) -> pl.DataFrame:
-    """SPEC 6 metrics per group computed with polars (same columns as `metrics`)."""
+    """PROTOCOL §6 metrics per group computed with polars (same columns as `metrics`)."""
     out = Path(out).resolve()
     names = [m.name for m in resolve_metrics(metrics)]
     by_cols = list(parse_by(by))

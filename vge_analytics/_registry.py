@@ -1,4 +1,4 @@
-"""The metric registry (SPEC 6): every metric defined once, in `vge_analytics/sql/<name>.sql`.
+"""The metric registry (PROTOCOL §6): every metric defined once, in `vge_analytics/sql/<name>.sql`.
 
 Each file holds a header of `-- key: value` lines (name, direction, unit, aggregation level,
 grain, version, definition, null rule) and two SQL aggregate expressions, the numerator and
@@ -46,7 +46,7 @@ METRIC_NAMES: tuple[str, ...] = (
     "AvgDist",
     "AvgWDist",
 )
-"""Every metric, in SPEC 6 order (the order of the paper's tables)."""
+"""Every metric, in PROTOCOL §6 order (the order of the paper's tables)."""
 
 MAIN_TABLE: tuple[str, ...] = METRIC_NAMES[:9]
 """The paper's Table 2 (main results): SR SSR SPL State-F1 EIR TIR VSPS GVPE EER."""
@@ -159,7 +159,7 @@ def _parse(name: str, filename: str, text: str) -> Metric:
 
 @cache
 def registry() -> dict[str, Metric]:
-    """All metrics by name, in SPEC 6 order (files are read once, on first use)."""
+    """All metrics by name, in PROTOCOL §6 order (files are read once, on first use)."""
     out: dict[str, Metric] = {}
     base = resources.files("vge_analytics") / "sql"
     for name in METRIC_NAMES:
@@ -169,7 +169,7 @@ def registry() -> dict[str, Metric]:
 
 
 def get_metric(name: str) -> Metric:
-    """The metric called `name` (exactly as SPEC 6 writes it); unknown names are an error."""
+    """The metric called `name` (exactly as PROTOCOL §6 writes it); unknown names are an error."""
     metrics = registry()
     if name in metrics:
         return metrics[name]

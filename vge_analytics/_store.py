@@ -1,4 +1,4 @@
-"""A replay output directory (SPEC 7) opened as DuckDB views, cached per directory.
+"""A replay output directory (PROTOCOL §7) opened as DuckDB views, cached per directory.
 
 `open_store(out)` returns one `Store` per OUT directory (re-opened when the directory's
 contents change): an in-memory DuckDB connection with the views `steps episodes goals runs`

@@ -1,4 +1,4 @@
-"""The error taxonomy and the switch classes (SPEC 5), per group, in DuckDB.
+"""The error taxonomy and the switch classes (PROTOCOL §5), per group, in DuckDB.
 
 The queries live in `sql/error_distribution.sql` and `sql/switch_classes.sql`; they read a
 relation `scoped` (one row per scored step of the selection, with the group key `__g`, a

@@ -269,7 +269,7 @@ def view_boxes(
 ) -> list[Box]:
     """Every component box of `view`, each with its role.
 
-    Targets are the target components of `state` for `goal` (SPEC 4) drawn with their
+    Targets are the target components of `state` for `goal` (PROTOCOL §4) drawn with their
     transitions' bboxes from that state, or, with `targets`, those components' boxes.
     """
     boxes: list[Box] = []
@@ -419,7 +419,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     `vge replay --mcap` would write)."""
     # The replay's file naming (not public): should it change, the file is not found and the
     # episode is made on demand below, byte-identical, so only the speed depends on it.
-    from replay._batch import safe_file_name
+    from replay.io._batch import safe_file_name
 
     path = Path(out) / "mcap" / run_id / f"{safe_file_name(episode_id)}.mcap"
     if path.is_file():
@@ -859,7 +859,7 @@ CLASSIFICATION_FIELDS: tuple[str, ...] = (
     "eer_valid",
     "completed_goals",
 )
-"""The step's classification (SPEC 5) as the viewer lists it."""
+"""The step's classification (PROTOCOL §5) as the viewer lists it."""
 
 
 def step_classification(row: Mapping[str, object]) -> pl.DataFrame:

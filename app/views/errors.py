@@ -9,7 +9,7 @@ from vge_analytics import dashboard as dash
 
 st.title("Errors")
 st.caption(
-    "Share of each error type among all errors of a group (SPEC 5 taxonomy): grounding in "
+    "Share of each error type among all errors of a group (the paper's error taxonomy): grounding in "
     "blue, execution in red, navigation in green, as in the paper's error pie."
 )
 

@@ -8,7 +8,7 @@ from vge_analytics import dashboard as dash
 
 st.title("Leaderboard")
 st.caption(
-    "Every SPEC 6 metric per group, computed from the replayed steps. Best value per column "
+    "The paper's twelve metrics per group, computed from the replayed steps. Best value per column "
     "in bold green (↑ higher is better, ↓ lower). Click a header to sort."
 )
 

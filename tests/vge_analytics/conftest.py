@@ -91,7 +91,7 @@ def write_run(root: Path, header: dict, episodes: list[dict]) -> Path:
 
 
 def replay_to(out: Path, run_dirs: list[Path], bench: Path) -> Path:
-    """Replay runs into OUT with the replay engine's writer (SPEC 7 layout)."""
+    """Replay runs into OUT with the replay engine's writer (PROTOCOL §7 layout)."""
     import replay
 
     replay.replay_runs([str(r) for r in run_dirs], str(bench), str(out), progress=False)

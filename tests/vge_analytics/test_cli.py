@@ -1,4 +1,4 @@
-"""The commands: formats (json list of objects with SPEC names, latex marks), exit codes and
+"""The commands: formats (json list of objects with the paper's metric names, latex marks), exit codes and
 one-line errors."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 
 from vge_analytics.cli import main
 
-SPEC6 = ["SR", "SSR", "SPL", "State-F1", "EIR", "TIR", "VSPS", "GVPE", "EER", "PSR",
+PAPER_METRICS = ["SR", "SSR", "SPL", "State-F1", "EIR", "TIR", "VSPS", "GVPE", "EER", "PSR",
          "AvgDist", "AvgWDist"]  # fmt: skip
 
 
@@ -26,7 +26,7 @@ def test_metrics_json(capsys, hand_out: Path) -> None:
     rows = json.loads(out)
     assert isinstance(rows, list) and len(rows) == 2
     for row in rows:
-        assert list(row) == ["run_id", "model", *SPEC6]
+        assert list(row) == ["run_id", "model", *PAPER_METRICS]
     assert rows[0]["SR"] == 100 * 4 / 7  # full precision
 
 
@@ -56,7 +56,7 @@ def test_metrics_latex_table2_shape(capsys, hand_out: Path) -> None:
 
 def test_metrics_main_table(capsys, hand_out: Path) -> None:
     code, out, _ = run(capsys, "metrics", str(hand_out), "--metrics", "main", "-f", "json")
-    assert code == 0 and list(json.loads(out)[0]) == ["run_id", "model", *SPEC6[:9]]
+    assert code == 0 and list(json.loads(out)[0]) == ["run_id", "model", *PAPER_METRICS[:9]]
 
 
 def test_metrics_markdown_and_csv(capsys, hand_out: Path) -> None:
@@ -64,7 +64,7 @@ def test_metrics_markdown_and_csv(capsys, hand_out: Path) -> None:
     assert code == 0
     assert "| n_goals | SR \u2191 |" in out and "**100.00**" in out and "<u>75.00</u>" in out
     code, out, _ = run(capsys, "metrics", str(hand_out), "-f", "csv")
-    assert out.splitlines()[0] == ",".join(["run_id", "model", *SPEC6])
+    assert out.splitlines()[0] == ",".join(["run_id", "model", *PAPER_METRICS])
     code, out, _ = run(capsys, "metrics", str(hand_out))
     assert code == 0 and "SR \u2191" in out and "VSPS \u2193" in out
 

@@ -1,10 +1,10 @@
-"""Every SPEC 6 metric equals the value worked out by hand on the hand-worked episodes.
+"""Every PROTOCOL §6 metric equals the value worked out by hand on the hand-worked episodes.
 
 The runs (see conftest): `kettle-vlm` = kettle cases a-g, `oven-human` = dashboard cases
 a-e of `tests/data/hand_worked/`, replayed with `replay.replay_runs`. The per-step and
 per-episode facts used below are the hand-worked `expected` values of those files (worked out
-from the SPEC, not by running the engine); the metric values are derived from them here, by
-hand, with SPEC 6:
+from the protocol, not by running the engine); the metric values are derived from them here, by
+hand, with PROTOCOL §6:
 
 Kettle run, per episode (S, goals done/n, L_opt, L_act, |V|, |O|, |V&O|, switches, vsps):
   a: S=1, 2/2, L_opt 3, L_act 10 -> SPL 3/10;  V {Standby LidOpen Boiling BoilingComplete},

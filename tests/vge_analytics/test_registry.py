@@ -1,4 +1,4 @@
-"""The metric registry: names as SPEC 6 writes them, complete metadata, SQL files parsed."""
+"""The metric registry: names as PROTOCOL §6 writes them, complete metadata, SQL files parsed."""
 
 from __future__ import annotations
 
@@ -7,17 +7,17 @@ import pytest
 import vge_analytics as va
 from vge_analytics._store import quote_ident
 
-SPEC6 = ("SR", "SSR", "SPL", "State-F1", "EIR", "TIR", "VSPS", "GVPE", "EER", "PSR",
+PAPER_METRICS = ("SR", "SSR", "SPL", "State-F1", "EIR", "TIR", "VSPS", "GVPE", "EER", "PSR",
          "AvgDist", "AvgWDist")  # fmt: skip
 
 
 def test_names_and_order_are_spec6() -> None:
-    assert va.METRIC_NAMES == SPEC6
-    assert tuple(va.registry()) == SPEC6
-    assert SPEC6[:9] == va.MAIN_TABLE
+    assert va.METRIC_NAMES == PAPER_METRICS
+    assert tuple(va.registry()) == PAPER_METRICS
+    assert PAPER_METRICS[:9] == va.MAIN_TABLE
 
 
-@pytest.mark.parametrize("name", SPEC6)
+@pytest.mark.parametrize("name", PAPER_METRICS)
 def test_metadata(name: str) -> None:
     m = va.get_metric(name)
     assert m.name == name
@@ -32,9 +32,9 @@ def test_metadata(name: str) -> None:
 
 
 def test_directions_and_units_follow_the_paper() -> None:
-    lower = {n for n in SPEC6 if va.get_metric(n).direction == "lower"}
+    lower = {n for n in PAPER_METRICS if va.get_metric(n).direction == "lower"}
     assert lower == {"VSPS", "GVPE", "AvgDist", "AvgWDist"}
-    ratios = {n for n in SPEC6 if va.get_metric(n).unit != "percent"}
+    ratios = {n for n in PAPER_METRICS if va.get_metric(n).unit != "percent"}
     assert ratios == {"VSPS", "GVPE", "AvgDist", "AvgWDist"}
     assert va.get_metric("SR").scale == 100.0 and va.get_metric("VSPS").scale == 1.0
     assert va.get_metric("GVPE").level == "run-level ratio"
@@ -52,7 +52,7 @@ def test_unknown_names() -> None:
 
 def test_metric_table() -> None:
     table = va.metric_table()
-    assert table["metric"].to_list() == list(SPEC6)
+    assert table["metric"].to_list() == list(PAPER_METRICS)
     assert {"direction", "unit", "level", "version", "definition"} <= set(table.columns)
 
 

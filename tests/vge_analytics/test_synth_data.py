@@ -32,7 +32,7 @@ CATEGORIES = (
 )
 DASHBOARD_REQUIRED = {"WashingMachine", "Microwave", "CoffeeMachine", "AirFryer"}
 
-SPECIAL = ("immediate", "timed_wait")
+NON_COMPONENTS = ("immediate", "timed_wait")
 ACTIONS = ("press", "rotate", "push", "pull", "grasp")
 ORTHO_FACES = {"front", "back", "left", "right", "top", "bottom"}
 SIZES = {"tiny", "small", "medium", "large"}
@@ -137,7 +137,7 @@ def _edges(ucsm: dict, allowed: set[str] | None = None) -> dict[str, set[str]]:
     """Adjacency of the machine, keeping only special components and `allowed` ones."""
     adj: dict[str, set[str]] = {s: set() for s in ucsm["states"]}
     for state, component, t in _transitions(ucsm):
-        if allowed is not None and component not in SPECIAL and component not in allowed:
+        if allowed is not None and component not in NON_COMPONENTS and component not in allowed:
             continue
         adj[state].add(t["next_state"])
     return adj
@@ -166,9 +166,9 @@ def _totals() -> dict[str, object]:
     per = {}
     for c in CATEGORIES:
         u = UCSMS[c]
-        comps = {comp for _, comp, _ in _transitions(u) if comp not in SPECIAL}
+        comps = {comp for _, comp, _ in _transitions(u) if comp not in NON_COMPONENTS}
         per[c] = (len(u["states"]), sum(1 for _ in _transitions(u)), len(comps))
-    names = {comp for c in CATEGORIES for _, comp, _ in _transitions(UCSMS[c])} - set(SPECIAL)
+    names = {comp for c in CATEGORIES for _, comp, _ in _transitions(UCSMS[c])} - set(NON_COMPONENTS)
     return {
         "states": sum(v[0] for v in per.values()),
         "transitions": sum(v[1] for v in per.values()),
@@ -196,7 +196,7 @@ def test_ucsm_structure(category):
         on = body.get("on")
         assert isinstance(on, dict) and on, f"{state}: no transitions"
         for component, trans in on.items():
-            assert component in SPECIAL or re.fullmatch(r"[a-z][a-z0-9_]*", component), component
+            assert component in NON_COMPONENTS or re.fullmatch(r"[a-z][a-z0-9_]*", component), component
             assert isinstance(trans, list) and trans, f"{state}.{component}: empty list"
             for t in trans:
                 where = f"{category}:{state}.{component}"
@@ -243,7 +243,7 @@ def test_actions_and_parameters(category):
             seen = set()
             for t in trans:
                 where = f"{category}:{state}.{component}"
-                if component in SPECIAL:
+                if component in NON_COMPONENTS:
                     assert "atomic_action" not in t and "parameter" not in t, where
                     continue
                 action = t.get("atomic_action")
@@ -325,7 +325,7 @@ def test_catalog(category):
     if category in DASHBOARD_REQUIRED:
         assert cat["dashboard"], f"{category} must have a dashboard"
     assert isinstance(cat["device_noun"], str) and cat["device_noun"]
-    used = {comp for _, comp, _ in _transitions(u) if comp not in SPECIAL}
+    used = {comp for _, comp, _ in _transitions(u) if comp not in NON_COMPONENTS}
     assert set(cat["components"]) == used, (
         f"catalog-only {sorted(set(cat['components']) - used)}, "
         f"ucsm-only {sorted(used - set(cat['components']))}")
@@ -381,10 +381,10 @@ def test_kettle_follows_paper_listing():
         t.pop("atomic_action", None)
         t.pop("parameter", None)
     assert ours == paper
-    real = [(c, t) for _, c, t in _transitions(UCSMS["ElectricKettle"]) if c not in SPECIAL]
+    real = [(c, t) for _, c, t in _transitions(UCSMS["ElectricKettle"]) if c not in NON_COMPONENTS]
     assert all("atomic_action" in t for _, t in real)
     by = {(s, c, t["next_state"]): (t["atomic_action"], t["parameter"])
-          for s, c, t in _transitions(UCSMS["ElectricKettle"]) if c not in SPECIAL}
+          for s, c, t in _transitions(UCSMS["ElectricKettle"]) if c not in NON_COMPONENTS}
     assert by[("Standby", "power_button", "Boiling")] == ("push", ["1"])
     assert by[("Boiling", "power_button", "Standby")] == ("push", ["0"])
     assert by[("Standby", "lid_release_button", "LidOpen")] == ("push", ["1"])

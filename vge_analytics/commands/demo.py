@@ -59,7 +59,7 @@ def demo(
     emit(
         for_people(df, DEFAULT_BY),
         "table",
-        title="Main results (SPEC 6): \u2191 higher is better, \u2193 lower is better",
+        title="Main results, the paper's metrics: \u2191 higher is better, \u2193 lower is better",
     )
     quarantined = manifest.quarantined
     console.print(

@@ -1,4 +1,4 @@
-"""`vge metrics OUT`: the paper's main table (SPEC 6), plus PSR and the distance metrics."""
+"""`vge metrics OUT`: the paper's main table (PROTOCOL §6), plus PSR and the distance metrics."""
 
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ def metrics(
     metric_names: str = typer.Option(
         None,
         "--metrics",
-        help="Metrics to show, comma-separated (default: all twelve, in SPEC 6 order); "
+        help="Metrics to show, comma-separated (default: all twelve, in the paper's order); "
         "'main' = the paper's Table 2 (SR SSR SPL State-F1 EIR TIR VSPS GVPE EER).",
     ),
     where: list[str] = typer.Option(
@@ -52,7 +52,7 @@ def metrics(
     ),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
-    """The paper's main table: SPEC 6 metrics per run or per any grouping.
+    """The paper's main table: its twelve metrics per run or per any grouping.
 
     SR SSR SPL State-F1 EIR TIR VSPS GVPE EER PSR AvgDist AvgWDist; in table, markdown and
     latex the best value of each metric is bold and the second best underlined.
@@ -63,7 +63,7 @@ def metrics(
     df = compute_metrics(out, by=by_cols, metrics=chosen, where=parse_where(where))
     if fmt in ("table", "markdown", "latex"):
         df = for_people(df, by_cols)
-    emit(df, fmt, title="Metrics (SPEC 6): \u2191 higher is better, \u2193 lower is better")
+    emit(df, fmt, title="The paper's metrics: \u2191 higher is better, \u2193 lower is better")
 
 
 def register(app: typer.Typer) -> None:

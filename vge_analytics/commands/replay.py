@@ -21,7 +21,7 @@ from replay import BenchImages, ConfigError, ImageSource, Manifest, replay_runs
 
 def image_source(bench: Path) -> ImageSource:
     """`vge_analytics._images.view_image` bound to the benchmark when available, else the
-    plain file lookup `BENCH/images/<device_id>/<view>.png|jpg` (SPEC 1.1)."""
+    plain file lookup `BENCH/images/<device_id>/<view>.png|jpg` (PROTOCOL §1.1)."""
     try:
         from vge_analytics._images import view_image  # type: ignore[import-not-found]
     except ImportError:
@@ -79,7 +79,8 @@ def replay_command(
     force: bool = typer.Option(False, "--force", help="Replay runs even when up to date."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
 ) -> None:
-    """Replay logged episodes against the SSMs and write the tables of SPEC 7.
+    """Replay logged episodes against the SSMs and write the steps, episodes, goals and runs tables
+    (Parquet), and MCAP files on request.
 
     Exit code 0 when every record replayed, 2 when some were quarantined, 1 on fatal errors.
     """

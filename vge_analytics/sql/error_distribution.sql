@@ -1,7 +1,7 @@
 -- query: error_distribution
 -- version: 1
 -- definition: Error-type distribution per group (the paper's error pie): for each of the
---   seven SPEC 5 error types, the number of scored steps with that error_type and its share of
+--   seven PROTOCOL §5 error types, the number of scored steps with that error_type and its share of
 --   all the group's errors, in percent. Every type appears for every group (count 0 when
 --   absent); the shares of a group add up to 100, or are null when the group has no error.
 -- input: `scoped`, the scored steps of the selection counted per group and error_type: the

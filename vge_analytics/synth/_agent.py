@@ -1,5 +1,5 @@
 """A simulated agent: plays one task through the pure simulator (`replay.reset`/`replay.step`)
-and returns the log steps (SPEC 1.4).
+and returns the log steps (PROTOCOL §1.4).
 
 The agent knows, as a simulation, which transitions make progress (`replay.progressing`),
 and a `Profile` decides how often it acts on that knowledge: whether it finds the view that
@@ -7,7 +7,7 @@ shows the target, picks the right component, action and parameters, aims well, w
 a process runs, keeps to the output format, and remembers within its history window what
 failed (so it does not repeat it, corrects its aim, and changes its action after an
 'operational_error'). It plays until the episode terminates under the lambda budgets
-(SPEC 3), so a replay of its log ends exactly at the last step.
+(PROTOCOL §3), so a replay of its log ends exactly at the last step.
 """
 
 from __future__ import annotations
@@ -112,7 +112,7 @@ class AgentStep:
 
 
 class BudgetTracker:
-    """SPEC 3 budgets and goal completion, step by step (docs/SEMANTICS.md order)."""
+    """PROTOCOL §3 budgets and goal completion, step by step (docs/SEMANTICS.md order)."""
 
     def __init__(self, c_opt: tuple[int, ...], goals: tuple[int, ...], lam: float) -> None:
         self.c_opt = c_opt

@@ -289,7 +289,7 @@ class Geometry:
         return frame.rect_px(project_box(view, self.dims, part.box))
 
     def bboxes(self) -> dict[str, dict[str, list[int]]]:
-        """component -> view -> `[x, y, w, h, W, H]` (SPEC 1.2)."""
+        """component -> view -> `[x, y, w, h, W, H]` (PROTOCOL §1.2)."""
         out: dict[str, dict[str, list[int]]] = {}
         for part in self.parts:
             per: dict[str, list[int]] = {}
@@ -301,7 +301,7 @@ class Geometry:
         return out
 
     def regions(self) -> list[dict]:
-        """The dashboard extension's regions (SPEC 1.2)."""
+        """The dashboard extension's regions (PROTOCOL §1.2)."""
         if self.panel is None:
             return []
         out = []

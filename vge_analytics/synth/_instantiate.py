@@ -1,4 +1,4 @@
-"""UCSM + catalog -> one device's SSM (paper format + SPEC 1.2 extensions), and back.
+"""UCSM + catalog -> one device's SSM (paper format + PROTOCOL §1.2 extensions), and back.
 
 `instantiate_device` runs the logical half (`_logic`), decides what the layout needs
 (which views each component is visible in, whether the device has a dashboard), lays the
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from ._catalog import PAPER_DEVICE_COUNTS, available_categories, load_catalog
 from ._geometry import DASHBOARD, STANDARD_VIEWS, Geometry
 from ._layout import LayoutError, LayoutInput, layout, logical_form
-from ._logic import SPECIAL, DeviceLogic, instantiate_logic
+from ._logic import NON_COMPONENTS, DeviceLogic, instantiate_logic
 from ._rng import rng_for
 
 PAPER_DASHBOARDS = 144
@@ -134,7 +134,7 @@ def _assemble(logic: DeviceLogic, geometry: Geometry) -> dict:
                     "next_state": t["next_state"],
                     "transition_description": t["transition_description"],
                 }
-                if comp not in SPECIAL:
+                if comp not in NON_COMPONENTS:
                     item["bbox"] = [
                         {"coordinate": coord, "view": view}
                         for view, coord in sorted(
@@ -177,7 +177,7 @@ def layout_input_from_ssm(ssm, device_id: str) -> LayoutInput | None:
     seen: dict[str, set[str]] = {}
     for sdef in ssm.states.values():
         for comp, trans in sdef.on.items():
-            if comp in SPECIAL:
+            if comp in NON_COMPONENTS:
                 continue
             bucket = seen.setdefault(comp, set())
             for t in trans:
@@ -214,7 +214,7 @@ def geometry_matches(ssm, geometry: Geometry) -> bool:
     bboxes = geometry.bboxes()
     for sdef in ssm.states.values():
         for comp, trans in sdef.on.items():
-            if comp in SPECIAL:
+            if comp in NON_COMPONENTS:
                 continue
             want = bboxes.get(comp)
             if want is None:

@@ -48,7 +48,7 @@ from ._shapes import (
     BODY_DIMS,
     DEFAULT_DIMS_BY_SIZE,
     DEVICE_SCALE,
-    KIND_ASPECT,
+    KIND_PROPORTION,
     ORIENTED_KINDS,
     SIZE_FRACTION,
     darker,
@@ -340,7 +340,7 @@ class _Placer:
         if spec.size == "large":
             w = fw * rng.uniform(0.42, 0.62)
             h = fh * rng.uniform(0.5, 0.72)
-            aspect = KIND_ASPECT.get(spec.kind, 1.0)
+            aspect = KIND_PROPORTION.get(spec.kind, 1.0)
             if spec.kind in ORIENTED_KINDS:
                 if orientation == "v":
                     w = min(w, h / aspect)
@@ -349,7 +349,7 @@ class _Placer:
             return w, h
         scale = DEVICE_SCALE.get(self.catalog.size, 0.7)
         s = SIZE_FRACTION.get(spec.size, 0.19) * scale * min(fw, fh) * rng.uniform(0.85, 1.15)
-        aspect = KIND_ASPECT.get(spec.kind, 1.0)
+        aspect = KIND_PROPORTION.get(spec.kind, 1.0)
         if spec.kind in ORIENTED_KINDS and orientation == "v":
             aspect = 1.0 / aspect
         w = s * math.sqrt(aspect)
@@ -590,7 +590,7 @@ def _place_panel(
         orientation = _orientation(name, spec, machine, rng)
         frac = {"tiny": 0.3, "small": 0.34, "medium": 0.4, "large": 0.5}.get(spec.size, 0.34)
         s = base * frac * rng.uniform(0.9, 1.1)
-        aspect = KIND_ASPECT.get(spec.kind, 1.0)
+        aspect = KIND_PROPORTION.get(spec.kind, 1.0)
         if spec.kind in ORIENTED_KINDS and orientation == "v":
             aspect = 1.0 / aspect
         if spec.kind == "button" and rng.random() < 0.5:

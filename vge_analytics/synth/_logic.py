@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from ._catalog import load_catalog, load_ucsm
 
-SPECIAL = ("immediate", "timed_wait")
+NON_COMPONENTS = ("immediate", "timed_wait")
 
 OPTIONAL_KEEP = 0.3
 """Default chance that a device has a given optional component."""
@@ -106,7 +106,7 @@ def instantiate_logic(
     for sname, sdef in ucsm["states"].items():
         on: dict[str, list[dict]] = {}
         for comp, trans in sdef["on"].items():
-            if comp not in SPECIAL and comp not in kept:
+            if comp not in NON_COMPONENTS and comp not in kept:
                 continue
             on[comp] = [_vary(t, variations.get(comp)) for t in trans]
         states[sname] = {"description": sdef["description"], "on": on}
@@ -116,7 +116,7 @@ def instantiate_logic(
     reachable = _reachable(states, ucsm["initial_state"])
     states = {s: d for s, d in states.items() if s in reachable}
     states = _drop_functions(states, ucsm["initial_state"], set(catalog.goal_phrases), drop_p, rng)
-    used = {c for d in states.values() for c in d["on"] if c not in SPECIAL}
+    used = {c for d in states.values() for c in d["on"] if c not in NON_COMPONENTS}
     machine = {"name": ucsm["name"], "initial_state": ucsm["initial_state"], "states": states}
     return DeviceLogic(device_id, category, tuple(n for n in names if n in used), machine)
 
@@ -182,7 +182,7 @@ def _drop_functions(
     one, every component keeps a use, and at least two goal states remain."""
 
     def used(st: dict[str, dict]) -> set[str]:
-        return {c for d in st.values() for c in d["on"] if c not in SPECIAL}
+        return {c for d in st.values() for c in d["on"] if c not in NON_COMPONENTS}
 
     for sname in list(states):
         draw = rng.random()

@@ -1,5 +1,5 @@
 """Simulated runs: which runs a synthetic benchmark has, their headers (`run.json`), and the
-episode lines (SPEC 1.4) their agents write."""
+episode lines (PROTOCOL §1.4) their agents write."""
 
 from __future__ import annotations
 

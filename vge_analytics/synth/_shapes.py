@@ -45,7 +45,7 @@ SIZE_FRACTION = {"tiny": 0.13, "small": 0.19, "medium": 0.27, "large": 0.62}
 DEVICE_SCALE = {"handheld": 1.0, "small": 0.82, "medium": 0.64, "large": 0.5}
 
 # Width / height of a component's outline on its main face, per kind (None: chosen per part).
-KIND_ASPECT: dict[str, float] = {
+KIND_PROPORTION: dict[str, float] = {
     "button": 1.0,
     "touch_pad": 1.3,
     "key": 1.2,

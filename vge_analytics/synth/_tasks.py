@@ -27,7 +27,7 @@ _OTHER_START_VIEWS = ("back", "left", "right", "top")
 
 @dataclass(frozen=True, slots=True)
 class TaskRecord:
-    """One line of `tasks.jsonl` (SPEC 1.3)."""
+    """One line of `tasks.jsonl` (PROTOCOL §1.3)."""
 
     episode_id: str
     device_id: str

@@ -1,4 +1,4 @@
-"""What a simulated VLM writes: the `Thinking:` text and the `Action:` line (SPEC 2), with
+"""What a simulated VLM writes: the `Thinking:` text and the `Action:` line (PROTOCOL §2), with
 the harmless decorations real models add and the format slips they make.
 
 Texts are built from the catalog (what a component looks like, its printed label, where it
@@ -139,7 +139,7 @@ SLIP_KINDS = ("unknown_action", "multiple_actions", "no_action", "malformed")
 
 
 def slip_text(kind: str, thinking: str, action: replay.Action, alternative: replay.Action) -> str:
-    """A response that fails to parse with detail `kind` (SPEC 2)."""
+    """A response that fails to parse with detail `kind` (PROTOCOL §2)."""
     coord = action.coord or (500.0, 500.0)
     x, y = round(coord[0]), round(coord[1])
     if kind == "unknown_action":

@@ -103,7 +103,7 @@ def test_view_image_renders_and_caches_synthetic_views(tmp_path):
 def test_view_image_prefers_files_then_the_images_extension(tmp_path):
     device = _devices()[1]
     bench, machine = _bench_with(tmp_path, device)
-    # SPEC 1.1 file wins.
+    # PROTOCOL §1.1 file wins.
     folder = bench / "images" / device.device_id
     folder.mkdir(parents=True)
     buf = io.BytesIO()

@@ -1,0 +1,1 @@
+"""Input and output: loading benchmarks and logs, batches, Parquet parts, manifest, quarantine, MCAP, the runner."""

@@ -1,0 +1,351 @@
+"""Reading inputs (PROTOCOL §1): SSM/UCSM files, tasks, run headers, episode logs; and the
+validator behind `vge validate`. Every error names the file (and line)."""
+
+from __future__ import annotations
+
+import gzip
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import msgspec
+
+from .._errors import InputError, Problem, SSMError, TaskError, VGEError
+from ..semantics._machine import Machine, compile_machine, validate_machine
+from ..semantics._records import EpisodeLog, RunHeader, StateMachine, Task
+
+_BYTE = re.compile(r"byte (\d+)")
+_ssm_decoder = msgspec.json.Decoder(StateMachine)
+_task_decoder = msgspec.json.Decoder(Task)
+_run_decoder = msgspec.json.Decoder(RunHeader)
+episode_decoder = msgspec.json.Decoder(EpisodeLog)
+
+
+def _line_of(data: bytes, message: str) -> int | None:
+    m = _BYTE.search(message)
+    if not m:
+        return None
+    return data.count(b"\n", 0, int(m.group(1))) + 1
+
+
+def decode_error_message(exc: Exception) -> str:
+    """msgspec's message, made readable: 'Expected `str`, got `int` - at `$.goals[0]`'."""
+    return str(exc).replace("`", "")
+
+
+def _read(path: Path) -> bytes:
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(str(path), "file not found") from None
+    except OSError as exc:
+        raise InputError(str(path), f"cannot read: {exc.strerror or exc}") from None
+    if path.suffix == ".gz":
+        try:
+            data = gzip.decompress(data)
+        except (OSError, EOFError) as exc:
+            raise InputError(str(path), f"not a valid gzip file: {exc}") from None
+    return data
+
+
+def decode_state_machine(path: str | Path) -> StateMachine:
+    """Decode an SSM/UCSM JSON file (no semantic validation)."""
+    path = Path(path)
+    data = _read(path)
+    try:
+        return _ssm_decoder.decode(data)
+    except msgspec.DecodeError as exc:
+        msg = decode_error_message(exc)
+        raise InputError(str(path), msg, _line_of(data, msg)) from None
+
+
+def load_ssm(path: str | Path) -> StateMachine:
+    """Decode and validate an SSM; raises `SSMError` listing every error, `InputError` on bad JSON."""
+    ssm = decode_state_machine(path)
+    errors = [p for p in validate_machine(ssm, str(path)) if p.severity == "error"]
+    if errors:
+        raise SSMError(errors)
+    return ssm
+
+
+def load_machine(path: str | Path, device_id: str | None = None) -> Machine:
+    """Decode, validate and compile an SSM file; the device id defaults to the file stem."""
+    path = Path(path)
+    ssm = decode_state_machine(path)
+    return compile_machine(ssm, device_id=device_id or path.stem, source=str(path))
+
+
+def iter_lines(path: str | Path) -> Iterator[tuple[int, bytes]]:
+    """(line number from 1, raw line) of a .jsonl or .jsonl.gz file, blank lines skipped.
+
+    A truncated gzip stream raises `InputError` after yielding what could be read (every
+    complete line). Read in blocks (`read1`: one read of the underlying stream each, so a
+    failing read loses nothing already decompressed) and split in bulk, several times
+    faster than line by line through `gzip`.
+    """
+    path = Path(path)
+    opener = gzip.open if path.suffix == ".gz" else open
+    number = 0
+    try:
+        with opener(path, "rb") as fh:
+            rest = b""
+            while True:
+                block = fh.read1(_BLOCK)
+                if not block:
+                    break
+                lines = (rest + block).split(b"\n")
+                rest = lines.pop()
+                for raw in lines:
+                    number += 1
+                    line = raw.strip()
+                    if line:
+                        yield number, line
+            if rest:
+                line = rest.strip()
+                if line:
+                    yield number + 1, line
+    except FileNotFoundError:
+        raise InputError(str(path), "file not found") from None
+    except (OSError, EOFError) as exc:
+        raise InputError(str(path), f"unreadable ({exc})") from None
+
+
+_BLOCK = 1 << 20
+
+
+def read_run_header(run_dir: str | Path) -> RunHeader:
+    path = Path(run_dir) / "run.json"
+    data = _read(path)
+    try:
+        header = _run_decoder.decode(data)
+    except msgspec.DecodeError as exc:
+        msg = decode_error_message(exc)
+        raise InputError(str(path), msg, _line_of(data, msg)) from None
+    if not header.run_id.strip():
+        raise InputError(str(path), "run_id is empty")
+    return header
+
+
+def episodes_file(run_dir: str | Path) -> Path:
+    """`episodes.jsonl` or `episodes.jsonl.gz` of a run directory."""
+    run_dir = Path(run_dir)
+    for name in ("episodes.jsonl", "episodes.jsonl.gz"):
+        candidate = run_dir / name
+        if candidate.exists():
+            return candidate
+    raise InputError(str(run_dir / "episodes.jsonl"), "file not found (nor episodes.jsonl.gz)")
+
+
+@dataclass
+class TaskEntry:
+    task: Task
+    line: int
+
+
+@dataclass
+class Benchmark:
+    """A benchmark directory (PROTOCOL §1.1), loaded lazily: machines compile on first use."""
+
+    root: Path
+    tasks: dict[str, TaskEntry] = field(default_factory=dict)
+    task_problems: list[Problem] = field(default_factory=list)
+    ssm_paths: dict[str, Path] = field(default_factory=dict)
+    _machines: dict[str, Machine | VGEError] = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def open(cls, root: str | Path) -> Benchmark:
+        root = Path(root)
+        if not root.is_dir():
+            raise InputError(str(root), "benchmark directory not found")
+        ssm_dir = root / "ssm"
+        if not ssm_dir.is_dir():
+            raise InputError(str(ssm_dir), "benchmark has no ssm/ directory")
+        bench = cls(root=root)
+        bench.ssm_paths = {p.stem: p for p in sorted(ssm_dir.glob("*.json"))}
+        tasks_path = root / "tasks.jsonl"
+        if not tasks_path.exists():
+            raise InputError(str(tasks_path), "file not found")
+        for number, line in iter_lines(tasks_path):
+            try:
+                task = _task_decoder.decode(line)
+            except msgspec.DecodeError as exc:
+                bench.task_problems.append(
+                    Problem(f"{tasks_path}:{number}", "", decode_error_message(exc))
+                )
+                continue
+            if task.episode_id in bench.tasks:
+                first = bench.tasks[task.episode_id].line
+                bench.task_problems.append(
+                    Problem(
+                        f"{tasks_path}:{number}",
+                        f"episode {task.episode_id!r}",
+                        f"duplicate episode_id (first on line {first}); this line is ignored",
+                    )
+                )
+                continue
+            bench.tasks[task.episode_id] = TaskEntry(task, number)
+        return bench
+
+    @property
+    def tasks_path(self) -> Path:
+        return self.root / "tasks.jsonl"
+
+    def machine(self, device_id: str) -> Machine:
+        """The compiled machine of a device; raises the (cached) load error."""
+        got = self._machines.get(device_id)
+        if got is None:
+            path = self.ssm_paths.get(device_id)
+            if path is None:
+                got = InputError(
+                    str(self.root / "ssm" / f"{device_id}.json"), "unknown device: no such SSM file"
+                )
+            else:
+                try:
+                    got = load_machine(path, device_id)
+                except VGEError as exc:
+                    got = exc
+            self._machines[device_id] = got
+        if isinstance(got, VGEError):
+            raise got
+        return got
+
+
+def validate_benchmark(root: str | Path) -> list[Problem]:
+    """Every problem of a benchmark: SSMs, UCSMs, tasks (PROTOCOL §1.1-1.3, 4)."""
+    from ..semantics._episode import setup_episode
+
+    root = Path(root)
+    bench = Benchmark.open(root)
+    problems: list[Problem] = []
+    for device_id, path in bench.ssm_paths.items():
+        try:
+            ssm = decode_state_machine(path)
+        except InputError as exc:
+            problems.append(
+                Problem(exc.path if exc.line is None else f"{exc.path}:{exc.line}", "", exc.message)
+            )
+            continue
+        problems.extend(validate_machine(ssm, str(path)))
+        if ssm.device_id is not None and ssm.device_id != device_id:
+            problems.append(
+                Problem(
+                    str(path),
+                    "device_id",
+                    f"device_id {ssm.device_id!r} differs from the file name; the file name is used",
+                    "warning",
+                )
+            )
+        for view, ref in (ssm.images or {}).items():
+            if not (root / ref.path).exists():
+                problems.append(
+                    Problem(
+                        str(path), f"images.{view}", f"image file {ref.path!r} not found", "warning"
+                    )
+                )
+    ucsm_dir = root / "ucsm"
+    if ucsm_dir.is_dir():
+        for path in sorted(ucsm_dir.glob("*.json")):
+            try:
+                ucsm = decode_state_machine(path)
+            except InputError as exc:
+                problems.append(
+                    Problem(
+                        exc.path if exc.line is None else f"{exc.path}:{exc.line}", "", exc.message
+                    )
+                )
+                continue
+            problems.extend(validate_machine(ucsm, str(path), require_geometry=False))
+    problems.extend(bench.task_problems)
+    for episode_id, entry in bench.tasks.items():
+        where = f"{bench.tasks_path}:{entry.line}"
+        try:
+            machine = bench.machine(entry.task.device_id)
+        except InputError:
+            problems.append(
+                Problem(
+                    where, f"episode {episode_id!r}", f"unknown device {entry.task.device_id!r}"
+                )
+            )
+            continue
+        except VGEError:
+            problems.append(
+                Problem(
+                    where,
+                    f"episode {episode_id!r}",
+                    f"device {entry.task.device_id!r} has an invalid SSM",
+                )
+            )
+            continue
+        try:
+            setup = setup_episode(machine, entry.task)
+        except TaskError as exc:
+            problems.append(Problem(where, f"episode {episode_id!r}", str(exc).split(": ", 1)[-1]))
+            continue
+        if len(entry.task.instructions) not in (0, len(entry.task.goals)):
+            problems.append(
+                Problem(
+                    where,
+                    f"episode {episode_id!r}",
+                    f"{len(entry.task.instructions)} instructions for {len(entry.task.goals)} goals",
+                    "warning",
+                )
+            )
+        stated = entry.task.c_opt
+        if stated is not None and list(stated) != list(setup.plan.c_opt):
+            problems.append(
+                Problem(
+                    where,
+                    f"episode {episode_id!r}",
+                    f"stated c_opt {list(stated)} differs from the computed {list(setup.plan.c_opt)}; the computed one is used",
+                    "warning",
+                )
+            )
+    return problems
+
+
+def validate_run(run_dir: str | Path, bench: Benchmark) -> list[Problem]:
+    """Problems of a run directory: header, episode lines, unknown or duplicate episodes."""
+    problems: list[Problem] = []
+    run_dir = Path(run_dir)
+    try:
+        read_run_header(run_dir)
+    except InputError as exc:
+        problems.append(
+            Problem(exc.path if exc.line is None else f"{exc.path}:{exc.line}", "", exc.message)
+        )
+    try:
+        path = episodes_file(run_dir)
+    except InputError as exc:
+        problems.append(Problem(exc.path, "", exc.message))
+        return problems
+    seen: dict[str, int] = {}
+    try:
+        for number, line in iter_lines(path):
+            where = f"{path}:{number}"
+            try:
+                log = episode_decoder.decode(line)
+            except msgspec.DecodeError as exc:
+                problems.append(Problem(where, "", decode_error_message(exc)))
+                continue
+            if log.episode_id in seen:
+                problems.append(
+                    Problem(
+                        where,
+                        f"episode {log.episode_id!r}",
+                        f"duplicate episode (first on line {seen[log.episode_id]})",
+                    )
+                )
+                continue
+            seen[log.episode_id] = number
+            if log.episode_id not in bench.tasks:
+                problems.append(
+                    Problem(
+                        where,
+                        f"episode {log.episode_id!r}",
+                        "unknown episode id (not in tasks.jsonl)",
+                    )
+                )
+    except InputError as exc:
+        problems.append(Problem(exc.path, "", exc.message))
+    return problems

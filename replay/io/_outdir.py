@@ -1,0 +1,120 @@
+"""The output directory as a whole: the up-to-date check of a run (its inputs' sha256, the
+options, the engine version), the files rebuilt from every run the manifest holds
+(`quarantine.jsonl`, `runs/runs.parquet`, `manifest.json`), and the writer lock."""
+
+from __future__ import annotations
+
+import fcntl
+import shutil
+from collections.abc import Iterable
+from pathlib import Path
+from typing import BinaryIO
+
+import pyarrow.parquet as pq
+
+from .._errors import ConfigError
+from .._version import ENGINE_VERSION
+from ..semantics._records import SCHEMA_VERSION
+from ..semantics._vocab import DEFAULT_LAMBDA
+from ._manifest import (
+    Hasher,
+    ManifestFile,
+    RunEntry,
+    RunInputs,
+    RunOptions,
+    encode_manifest,
+    runs_table,
+    totals_of,
+)
+from ._reading import RunInput
+from ._runjob import STATE_DIR
+from ._writer import atomic_write, atomic_write_bytes
+
+
+def run_inputs(run: RunInput, bench_dir: str, hasher: Hasher, devices: Iterable[str]) -> RunInputs:
+    ssm_dir = Path(bench_dir) / "ssm"
+    return RunInputs(
+        run_dir=run.run_dir,
+        run_json=hasher.ref(Path(run.run_dir) / "run.json"),
+        episodes=hasher.ref(run.episodes),
+        bench=bench_dir,
+        tasks=hasher.ref(Path(bench_dir) / "tasks.jsonl"),
+        ssm={d: hasher.ref(ssm_dir / f"{d}.json") for d in sorted(devices)},
+    )
+
+
+def up_to_date(
+    prev: RunEntry, run: RunInput, bench_dir: str, options: RunOptions, hasher: Hasher, out: Path
+) -> RunInputs | None:
+    """The run's current inputs if `prev` replayed exactly them (and its outputs exist)."""
+    if prev.engine_version != ENGINE_VERSION or prev.options != options:
+        return None
+    now = run_inputs(run, bench_dir, hasher, prev.inputs.ssm)
+    same = (
+        now.run_json.sha256 == prev.inputs.run_json.sha256
+        and now.episodes.sha256 == prev.inputs.episodes.sha256
+        and now.tasks.sha256 == prev.inputs.tasks.sha256
+        and all(now.ssm[d].sha256 == ref.sha256 for d, ref in prev.inputs.ssm.items())
+    )
+    if not same:
+        return None
+    outputs = prev.outputs
+    expected = [*outputs.steps, *outputs.episodes, *outputs.goals]
+    if outputs.mcap is not None:
+        expected.append(outputs.mcap)
+    expected.append(f"{STATE_DIR}/quarantine/{prev.run_id}.jsonl")
+    if not all((out / p).exists() for p in expected):
+        return None
+    return now
+
+
+# ------------------------------------------------------------------------- publishing
+
+
+def publish(out: Path, entries: dict[str, RunEntry]) -> ManifestFile:
+    """Rewrite quarantine.jsonl, runs/runs.parquet and manifest.json from the run entries."""
+    runs = [entries[k] for k in sorted(entries)]
+    qdir = out / STATE_DIR / "quarantine"
+
+    def write_quarantine(fh: BinaryIO) -> None:
+        for r in runs:
+            path = qdir / f"{r.run_id}.jsonl"
+            if path.exists():
+                with open(path, "rb") as src:
+                    shutil.copyfileobj(src, fh)
+
+    atomic_write(out / "quarantine.jsonl", write_quarantine)
+    (out / "runs").mkdir(exist_ok=True)
+    table = runs_table(runs, DEFAULT_LAMBDA)
+    atomic_write(out / "runs" / "runs.parquet", lambda fh: pq.write_table(table, fh))
+    manifest = ManifestFile(
+        engine_version=ENGINE_VERSION,
+        schema_version=SCHEMA_VERSION,
+        totals=totals_of(runs),
+        runs=runs,
+    )
+    atomic_write_bytes(out / "manifest.json", encode_manifest(manifest))
+    return manifest
+
+
+class OutputLock:
+    """One `vge replay` at a time per output directory (released if the process dies)."""
+
+    def __init__(self, state_dir: Path) -> None:
+        state_dir.mkdir(parents=True, exist_ok=True)
+        self.path = state_dir / "lock"
+
+    def __enter__(self) -> OutputLock:
+        self._fh = open(self.path, "wb")  # noqa: SIM115
+        try:
+            fcntl.flock(self._fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self._fh.close()
+            raise ConfigError(
+                f"{self.path.parent.parent}: another vge replay is writing to this directory"
+            ) from None
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        fcntl.flock(self._fh, fcntl.LOCK_UN)
+        self._fh.close()

@@ -1,0 +1,126 @@
+"""Reading the runs: run directories and headers, and an episodes file in batches of lines,
+replayed in order in-process or by worker processes (at most `ahead` batches in flight)."""
+
+from __future__ import annotations
+
+import os
+from collections import deque
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from pathlib import Path
+
+from .._errors import ConfigError, InputError, WorkerError
+from ..semantics._records import RunHeader
+from ._batch import (
+    BatchFailure,
+    BatchResult,
+    RunContext,
+    WorkerState,
+    guarded_batch,
+    run_batch,
+)
+from ._load import episodes_file, iter_lines, read_run_header
+
+
+@dataclass(frozen=True)
+class RunInput:
+    """A run directory as given, its header (run.json) and its episodes file."""
+
+    run_dir: str  # as given
+    header: RunHeader
+    episodes: Path
+
+
+def check_run_id(run_id: str, path: Path) -> None:
+    """A run id names directories (`run_id=<id>`, `mcap/<id>`): refuse what would break them."""
+    bad = (
+        run_id.startswith(".")
+        or any(c in run_id for c in "/\\=%")
+        or any(c.isspace() or ord(c) < 32 for c in run_id)
+    )
+    if bad:
+        raise InputError(
+            str(path),
+            f"run_id {run_id!r} cannot name a partition directory "
+            "(no '/', '\\', '=', '%', whitespace, or leading '.')",
+        )
+
+
+def read_runs(run_dirs: Sequence[str | os.PathLike[str]]) -> list[RunInput]:
+    runs: dict[str, RunInput] = {}
+    for given in run_dirs:
+        run_dir = str(given)
+        if not Path(run_dir).is_dir():
+            raise InputError(run_dir, "run directory not found")
+        header = read_run_header(run_dir)
+        check_run_id(header.run_id, Path(run_dir) / "run.json")
+        other = runs.get(header.run_id)
+        if other is not None:
+            raise ConfigError(
+                f"run_id {header.run_id!r} appears in two run directories: "
+                f"{other.run_dir} and {run_dir}"
+            )
+        runs[header.run_id] = RunInput(run_dir, header, episodes_file(run_dir))
+    return [runs[k] for k in sorted(runs)]
+
+
+class LineReader:
+    """Lines of an episodes file in batches; a read error ends the file (kept in `error`)."""
+
+    def __init__(self, path: Path, batch_lines: int) -> None:
+        self.path = path
+        self.batch_lines = batch_lines
+        self.last_line = 0
+        self.error: InputError | None = None
+
+    def batches(self) -> Iterator[list[tuple[int, bytes]]]:
+        batch: list[tuple[int, bytes]] = []
+        lines = iter_lines(self.path)
+        while True:
+            try:
+                item = next(lines)
+            except StopIteration:
+                break
+            except InputError as exc:
+                self.error = exc
+                break
+            self.last_line = item[0]
+            batch.append(item)
+            if len(batch) >= self.batch_lines:
+                yield batch
+                batch = []
+        if batch:
+            yield batch
+
+
+def ordered_results(
+    batches: Iterator[list[tuple[int, bytes]]],
+    ctx: RunContext,
+    pools: list[ProcessPoolExecutor],
+    local: WorkerState,
+    ahead: int,
+) -> Iterator[BatchResult | BatchFailure]:
+    """Results in batch order, with at most `ahead` batches in flight; batch k goes to
+    `pools[k % len(pools)]` (in-process with `local` when there are no pools)."""
+    if not pools:
+        for batch in batches:
+            yield guarded_batch(local, ctx, batch)
+        return
+    pending: deque[Future[BatchResult | BatchFailure]] = deque()
+    try:
+        for k, batch in enumerate(batches):
+            pending.append(pools[k % len(pools)].submit(run_batch, ctx, batch))
+            if len(pending) >= ahead:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
+    except BrokenProcessPool:
+        raise WorkerError(
+            f"{ctx.file}: a replay worker process died (killed or out of memory; a script "
+            "calling replay_runs with workers > 1 needs an `if __name__ == '__main__':` guard)"
+        ) from None
+    finally:
+        for future in pending:
+            future.cancel()

@@ -1,0 +1,1 @@
+"""The rules, as a readable reference: records, action grammar, machine, pure step, planner, classification, episode replay."""

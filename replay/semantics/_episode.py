@@ -1,0 +1,371 @@
+"""Replay one logged episode: simulator + goals + budgets + classification -> rows.
+
+This is the inner loop of `vge replay`. It is pure: the same machine, task, log and lambda
+always give the same rows.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from .._errors import TaskError
+from ._classify import Classifier
+from ._machine import Machine
+from ._parse import ParsedAction, action_from_record, parse_action
+from ._plan import Plan, c_opt_dynamic, plan_goals
+from ._records import EpisodeLog, LogStep, Task
+from ._rows import CLASSIFICATION_FIELDS, EpisodeRow, GoalRow, StepRow
+from ._step import reset, step
+from ._vocab import DASHBOARD, FEEDBACK_KINDS
+
+_NO_ACTION = ParsedAction(False, None, "no_action", "", "")
+_HITS_AT = CLASSIFICATION_FIELDS.index("hit_components")
+_UNCLASSIFIED_HEAD = (None,) * _HITS_AT
+_UNCLASSIFIED_TAIL = (None,) * (len(CLASSIFICATION_FIELDS) - _HITS_AT - 1)
+
+
+@dataclass(frozen=True, slots=True)
+class EpisodeSetup:
+    """Everything about an episode that does not depend on the log (cacheable per task)."""
+
+    goals: tuple[int, ...]
+    initial_state: int
+    reset_states: tuple[int, ...]
+    start_state: int
+    initial_view: str
+    plan: Plan
+
+
+def setup_episode(machine: Machine, task: Task) -> EpisodeSetup:
+    """Resolve and check a task against its machine; raises TaskError with a clear message."""
+    where = f"episode {task.episode_id!r}: "
+    if not task.goals:
+        raise TaskError(f"{where}no goals")
+    unknown = [g for g in task.goals if g not in machine.state_index]
+    if unknown:
+        raise TaskError(f"{where}unknown goal state(s) {', '.join(map(repr, unknown))}")
+    init_name = task.initial_state or machine.states[machine.initial]
+    if init_name not in machine.state_index:
+        raise TaskError(f"{where}unknown initial_state {init_name!r}")
+    view = task.initial_view.lower()
+    if view not in machine.views or view == DASHBOARD:
+        offered = ", ".join(v for v in machine.views if v != DASHBOARD)
+        raise TaskError(f"{where}initial_view {task.initial_view!r} is not one of: {offered}")
+    goals = tuple(machine.state_index[g] for g in task.goals)
+    init = machine.state_index[init_name]
+    sim, reset_states = reset(machine, init, view)
+    plan = plan_goals(machine, sim.state, view, False, goals, where=where)
+    return EpisodeSetup(goals, init, reset_states, sim.state, view, plan)
+
+
+class EpisodeResult:
+    """Rows of one replayed episode. Step rows are kept as tuples in `StepRow` field order
+    (the fast path to Arrow); `steps` builds the typed rows on first use."""
+
+    __slots__ = ("step_tuples", "episode", "goals", "_steps")
+
+    def __init__(self, step_tuples: list[tuple], episode: EpisodeRow, goals: list[GoalRow]) -> None:
+        self.step_tuples = step_tuples
+        self.episode = episode
+        self.goals = goals
+        self._steps: list[StepRow] | None = None
+
+    @property
+    def steps(self) -> list[StepRow]:
+        if self._steps is None:
+            self._steps = [StepRow(*t) for t in self.step_tuples]
+        return self._steps
+
+
+def timestamp_seconds(value: float | str | None) -> float | None:
+    """Recorded timestamp -> seconds since the epoch (ISO strings without zone are UTC)."""
+    if value is None:
+        return None
+    if isinstance(value, (int, float)):
+        return float(value)
+    try:
+        parsed = _dt.datetime.fromisoformat(value.strip().replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    if parsed.tzinfo is None:
+        parsed = parsed.replace(tzinfo=_dt.UTC)
+    return parsed.timestamp()
+
+
+def parse_log_step(log_step: LogStep) -> ParsedAction:
+    """The action of a log step: raw text is parsed, a structured action is checked."""
+    if log_step.output is not None:
+        return parse_action(log_step.output)
+    if log_step.action is not None:
+        a = log_step.action
+        return action_from_record(a.type, a.coord, a.params)
+    return _NO_ACTION
+
+
+def advance_goals(
+    entered: Sequence[int],
+    goals: Sequence[int],
+    current: int,
+    k: int,
+    started: list[int | None],
+    completed_at: list[int | None],
+    dyn: list[int | None],
+) -> int:
+    """PROTOCOL §3 goal bookkeeping for step k, which entered `entered` (in order): each goal reached
+    in turn completes at k (one that became current in this very step also starts there, with
+    C_opt_dyn 0), and the next goal starts at k + 1. Returns the new current goal index."""
+    first = current
+    n_goals = len(goals)
+    for s in entered:
+        if current < n_goals and s == goals[current]:
+            completed_at[current] = k
+            if current != first:
+                started[current] = k  # became current and completed in this step
+                dyn[current] = 0
+            current += 1
+    if first < current < n_goals:
+        started[current] = k + 1
+    return current
+
+
+def refreshed_budget(
+    budget_local: float, lam: float, c_opt: Sequence[int], first: int, current: int
+) -> float:
+    """B_local after goals `first` .. `current - 1` completed in one step (PROTOCOL §3): at least
+    lam * C_opt of every goal that became current in it, the new current one included."""
+    for c in range(first + 1, min(current + 1, len(c_opt))):
+        budget_local = max(budget_local, lam * c_opt[c])
+    return budget_local
+
+
+def _first_visit_order(states: list[int]) -> list[int]:
+    seen: dict[int, None] = {}
+    for s in states:
+        seen.setdefault(s, None)
+    return list(seen)
+
+
+def replay_episode(
+    machine: Machine,
+    task: Task,
+    log: EpisodeLog,
+    *,
+    lam: float,
+    run_id: str,
+    model: str,
+    agent_kind: str,
+    setup: EpisodeSetup | None = None,
+) -> EpisodeResult:
+    """Re-execute a logged episode (PROTOCOL §3-5) and return its step, episode and goal rows."""
+    if setup is None:
+        setup = setup_episode(machine, task)
+    names = machine.states
+    goals = setup.goals
+    n_goals = len(goals)
+    plan = setup.plan
+    c_opt = plan.c_opt
+    lam = float(lam)
+    budget_global = lam * sum(c_opt)
+    budget_local = lam * c_opt[0]
+
+    sim, _ = reset(machine, setup.initial_state, setup.initial_view)
+    visited: list[int] = list(setup.reset_states)
+    classifier = Classifier(machine)
+    classify = classifier.classify
+    has_dashboard = bool(machine.dashboard_regions)
+
+    # Per-goal bookkeeping.
+    started: list[int | None] = [None] * n_goals
+    completed_at: list[int | None] = [None] * n_goals
+    steps_used = [0] * n_goals
+    switches = [0] * n_goals
+    dyn: list[int | None] = [None] * n_goals
+    started[0] = 0
+    dyn[0] = c_opt_dynamic(machine, sim.state, sim.view, sim.unlocked, goals[0])
+
+    current = 0
+    taken = 0
+    termination: str | None = None
+    n_switches = 0
+    diverged_steps = 0
+    truncated_steps = 0
+    rows: list[tuple] = []
+    head = (run_id, model, agent_kind, task.episode_id, machine.device_id, machine.category)
+
+    for k, log_step in enumerate(log.steps):
+        parsed = parse_log_step(log_step)
+        action = parsed.action
+        if action is not None:
+            coord = action.coord
+            x, y = coord if coord is not None else (None, None)
+            action_type = action.type
+            params = list(action.params)
+        else:
+            x = y = action_type = None
+            params = []
+        ts = log_step.timestamp
+        if ts is not None:
+            ts = timestamp_seconds(ts)
+        if termination is not None:
+            truncated_steps += 1
+            # Field order: StepRow (see _rows.py); nothing after termination is scored.
+            rows.append(
+                (
+                    *head, k, None, None, None, None, None, action_type, parsed.action_text,
+                    parsed.thinking or None, log_step.output, x, y, params, parsed.ok,
+                    parsed.detail, None, None, None, None, [], None, None, None, None,
+                    *_UNCLASSIFIED_HEAD, [], *_UNCLASSIFIED_TAIL,
+                    None, None, True, log_step.feedback, log_step.state, log_step.view, None, [], ts,
+                )
+            )  # fmt: skip
+            continue
+
+        before = sim
+        goal_index = current
+        goal = goals[current]
+        sim, outcome = step(machine, sim, parsed)
+
+        visited.extend(outcome.entered)
+        current = advance_goals(outcome.entered, goals, current, k, started, completed_at, dyn)
+        completed = current - goal_index
+        taken += 1
+        steps_used[goal_index] += 1
+        switched = outcome.switched
+        if switched:
+            n_switches += 1
+            switches[goal_index] += 1
+        budget_local -= 1
+        if completed:
+            budget_local = refreshed_budget(budget_local, lam, c_opt, goal_index, current)
+            if current < n_goals:
+                dyn[current] = c_opt_dynamic(
+                    machine, sim.state, sim.view, sim.unlocked, goals[current]
+                )
+
+        cls = classify(goal_index, goal, before, parsed, outcome, sim, completed)
+
+        if current >= n_goals:
+            termination = "success"
+        elif taken >= budget_global:
+            termination = "budget_global"
+        elif budget_local <= 0:
+            termination = "budget_local"
+
+        state_after = names[sim.state]
+        diverged_fields = []
+        recorded_feedback = log_step.feedback
+        recorded_state = log_step.state
+        recorded_view = log_step.view
+        diverged = None
+        if recorded_feedback is not None or recorded_state is not None or recorded_view is not None:
+            if recorded_feedback is not None:
+                mine = outcome.kind if recorded_feedback in FEEDBACK_KINDS else outcome.text
+                if recorded_feedback != mine:
+                    diverged_fields.append("feedback")
+            if recorded_state is not None and recorded_state != state_after:
+                diverged_fields.append("state")
+            if recorded_view is not None and recorded_view.lower() != sim.view:
+                diverged_fields.append("view")
+            diverged = bool(diverged_fields)
+            if diverged:
+                diverged_steps += 1
+
+        tr = outcome.transition
+        # Field order: StepRow (see _rows.py); `cls` is the CLASSIFICATION_FIELDS block.
+        rows.append(
+            (
+                *head, k, goal_index, names[goal], before.view, sim.view,
+                sim.unlocked if has_dashboard else None, action_type, parsed.action_text,
+                parsed.thinking or None, log_step.output, x, y, params, parsed.ok, parsed.detail,
+                outcome.kind, outcome.text, names[before.state], state_after,
+                [names[s] for s in outcome.entered], tr.component if tr is not None else None,
+                outcome.dangerous, switched, completed,
+                *cls,
+                budget_global - taken, budget_local, False,
+                recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts,
+            )
+        )  # fmt: skip
+
+    if termination is None:
+        termination = "log_ended"
+    goals_completed = current
+    success = goals_completed == n_goals
+    l_opt = sum(c_opt)
+    l_act = taken
+    spl = (l_opt / max(l_act, l_opt) if l_opt else 1.0) if success else 0.0
+    visited_set = set(visited)
+    optimal_list = list(setup.reset_states) + list(plan.states)
+    optimal_set = set(optimal_list)
+    state_f1 = 2.0 * len(visited_set & optimal_set) / (len(visited_set) + len(optimal_set))
+    vsps_switches = sum(switches[g] for g in range(n_goals) if completed_at[g] is not None)
+    vsps = vsps_switches / goals_completed if goals_completed else None
+
+    common = dict(
+        zip(
+            ("run_id", "model", "agent_kind", "episode_id", "device_id", "category"),
+            head,
+            strict=True,
+        )
+    )
+    episode = EpisodeRow(
+        **common,
+        n_goals=n_goals,
+        goals_completed=goals_completed,
+        success=success,
+        termination=termination,
+        L_opt=l_opt,
+        L_act=l_act,
+        spl=spl,
+        state_f1=state_f1,
+        n_switches=n_switches,
+        vsps_switches=vsps_switches,
+        vsps=vsps,
+        n_steps=len(log.steps),
+        truncated_steps=truncated_steps,
+        diverged_steps=diverged_steps,
+        lam=lam,
+        budget_global=budget_global,
+        initial_state=names[setup.initial_state],
+        initial_view=setup.initial_view,
+        goals=[names[g] for g in goals],
+        c_opt=list(c_opt),
+        c_opt_stated=list(task.c_opt) if task.c_opt is not None else None,
+        visited_states=[names[s] for s in _first_visit_order(visited)],
+        optimal_states=[names[s] for s in _first_visit_order(optimal_list)],
+    )
+    instructions = task.instructions
+    goal_rows = [
+        GoalRow(
+            **common,
+            n_goals=n_goals,
+            goal_index=g,
+            goal_state=names[goals[g]],
+            instruction=instructions[g] if g < len(instructions) else None,
+            c_opt=c_opt[g],
+            c_opt_dyn=dyn[g],
+            reached=started[g] is not None,
+            completed=completed_at[g] is not None,
+            started_step=started[g],
+            completed_step=completed_at[g],
+            steps_used=steps_used[g],
+            switches=switches[g],
+            perfect=(
+                completed_at[g] is not None and dyn[g] is not None and steps_used[g] <= dyn[g]
+            ),
+        )
+        for g in range(n_goals)
+    ]
+    return EpisodeResult(rows, episode, goal_rows)
+
+
+__all__ = [
+    "EpisodeResult",
+    "EpisodeSetup",
+    "TaskError",
+    "parse_log_step",
+    "replay_episode",
+    "setup_episode",
+    "timestamp_seconds",
+]

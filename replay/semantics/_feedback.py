@@ -1,0 +1,70 @@
+"""Feedback texts, in one place (PROTOCOL §3: the kind is the contract, the text may improve)."""
+
+from __future__ import annotations
+
+from ._vocab import (
+    FB_INVALID,
+    FB_NULL,
+    FB_OPERATIONAL,
+    FB_SWITCHED,
+    FB_TRANSITION,
+    FB_UNLOCKED,
+    FB_WAIT_NO_EFFECT,
+)
+
+_INVALID_REASONS = {
+    "no_action": "no action was found; answer with one 'Action:' line such as "
+    "Press(coord=[x, y], params=[0]).",
+    "multiple_actions": "exactly one action per response is allowed.",
+    "unknown_action": "unknown action; use Press, Rotate, Push, Pull, Grasp, Switch_view "
+    "or Timed_wait.",
+    "malformed": "the action could not be parsed; use ActionName(coord=[x, y], params=[...]).",
+    "axonometric_view": "physical interactions are not allowed in an axonometric view; "
+    "use Switch_view first.",
+    "missing_coord": "this action needs a target: coord=[x, y].",
+    "out_of_range": "coordinates must lie within the image, 0..1000 on both axes.",
+    "invalid_view": "that view is not available for this device.",
+    "locked_dashboard": "the dashboard is locked; point at the dashboard region with "
+    "Switch_view(coord=[x, y], params=[dashboard]) to unlock it.",
+}
+
+OPERATIONAL_TEXT = "It seems that this component can be operated, but not in this way."
+NULL_TEXT = "Nothing happened."
+WAIT_NO_EFFECT_TEXT = "You waited, but nothing changed."
+UNLOCKED_TEXT = (
+    "The dashboard is now unlocked; the action was not carried out. "
+    "Switch to the dashboard view to operate it."
+)
+
+
+def invalid_text(detail: str) -> str:
+    return "System Notification: " + _INVALID_REASONS.get(detail, "invalid action.")
+
+
+def switched_text(view: str, unlocked_now: bool) -> str:
+    if unlocked_now:
+        return "The dashboard is unlocked; switched to the dashboard view."
+    return f"Switched to the {view} view."
+
+
+def transition_text(description: str, state_description: str) -> str:
+    first = description.strip().rstrip(".")
+    second = state_description.strip().rstrip(".")
+    if first and second:
+        return f"{first}. Now: {second}."
+    return (first or second or "The device changed state") + "."
+
+
+def text_for(kind: str, detail: str | None = None) -> str:
+    """Text of the kinds whose text does not depend on the device."""
+    if kind == FB_INVALID:
+        return invalid_text(detail or "")
+    if kind == FB_OPERATIONAL:
+        return OPERATIONAL_TEXT
+    if kind == FB_NULL:
+        return NULL_TEXT
+    if kind == FB_WAIT_NO_EFFECT:
+        return WAIT_NO_EFFECT_TEXT
+    if kind == FB_UNLOCKED:
+        return UNLOCKED_TEXT
+    raise ValueError(f"feedback kind {kind!r} needs context ({FB_SWITCHED}, {FB_TRANSITION})")

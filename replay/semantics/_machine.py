@@ -1,0 +1,403 @@
+"""Validate a state machine record and compile it into lookup tables for the simulator.
+
+Compilation happens once per device: bboxes are converted to the agent's 0..1000 scale and
+grouped per (state, view), immediate chains are resolved, error states marked. The
+simulator, planner and classifier only read these tables.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .._errors import Problem, SSMError
+from ._records import StateMachine
+from ._vocab import (
+    ATOMIC_ACTIONS,
+    AXONOMETRIC_VIEWS,
+    DASHBOARD,
+    IMMEDIATE,
+    ORTHOGRAPHIC_VIEWS,
+    PSEUDO_COMPONENTS,
+    STANDARD_VIEWS,
+    TIMED_WAIT,
+    VIEW_RANK,
+    normalize_param,
+)
+
+Rect = tuple[float, float, float, float, float]
+"""(x0, y0, x1, y1, area) on the agent's 0..1000 scale."""
+
+
+def rect_from_coordinate(coord: list[float]) -> Rect:
+    """`[x, y, w, h, W, H]` in pixels -> normalised rect (PROTOCOL §1.2)."""
+    x, y, w, h, width, height = coord
+    x0 = x * 1000.0 / width
+    y0 = y * 1000.0 / height
+    wn = w * 1000.0 / width
+    hn = h * 1000.0 / height
+    return (x0, y0, x0 + wn, y0 + hn, wn * hn)
+
+
+def rect_contains(rect: Rect, px: float, py: float) -> bool:
+    """Closed-interval containment, as PROTOCOL §1.2 defines it."""
+    return rect[0] <= px <= rect[2] and rect[1] <= py <= rect[3]
+
+
+def rect_distance(rect: Rect, px: float, py: float) -> float:
+    """Euclidean distance from a point to a rect (0 inside)."""
+    dx = max(rect[0] - px, 0.0, px - rect[2])
+    dy = max(rect[1] - py, 0.0, py - rect[3])
+    if dx == 0.0:
+        return dy
+    if dy == 0.0:
+        return dx
+    return (dx * dx + dy * dy) ** 0.5
+
+
+@dataclass(frozen=True, slots=True)
+class CompiledTransition:
+    """One transition with everything precomputed."""
+
+    component: str
+    index: int  # position in the component's list (tie-break "list order")
+    source: int
+    target: int
+    action: str | None  # lowercase atomic action; None for immediate/timed_wait
+    params: tuple[str, ...] | None  # None = matches any params
+    description: str
+    rects: dict[str, tuple[Rect, ...]]  # view -> rects
+    entered: tuple[int, ...]  # target, then the immediate chain after it
+    end: int  # the stable state after the chain
+    dangerous: bool  # the chain enters an error state
+
+    def params_match(self, params: tuple[str, ...]) -> bool:
+        """PROTOCOL §1.2: '*' in the transition matches anything; empty/missing matches any."""
+        required = self.params
+        if not required:
+            return True
+        if len(required) != len(params):
+            return False
+        for want, got in zip(required, params, strict=True):
+            if want != "*" and want != got:
+                return False
+        return True
+
+
+@dataclass(slots=True)
+class Machine:
+    """A compiled SSM: immutable after construction."""
+
+    device_id: str
+    category: str
+    name: str
+    source: str
+    states: tuple[str, ...]
+    state_index: dict[str, int]
+    descriptions: tuple[str, ...]
+    initial: int
+    error_states: frozenset[int]
+    views: tuple[str, ...]
+    immediate_chain: tuple[tuple[int, ...], ...]  # per state: states entered after it
+    chain_end: tuple[int, ...]  # per state: stable state after its immediate chain
+    transitions: tuple[CompiledTransition, ...]
+    by_state: tuple[tuple[CompiledTransition, ...], ...]  # agent transitions per state
+    wait: tuple[CompiledTransition | None, ...]  # timed_wait transition per state
+    by_state_view: dict[tuple[int, str], tuple[tuple[CompiledTransition, tuple[Rect, ...]], ...]]
+    component_rects: dict[str, tuple[tuple[str, Rect], ...]]  # view -> (component, rect)
+    state_component_rects: dict[tuple[int, str], dict[str, tuple[Rect, ...]]]
+    dashboard_regions: dict[str, tuple[Rect, ...]]
+    images: dict[str, tuple[str, int, int]]
+    ssm: StateMachine = field(repr=False)
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def has_dashboard(self) -> bool:
+        return bool(self.dashboard_regions)
+
+    def state_id(self, name: str) -> int:
+        return self.state_index[name]
+
+    def interactable(self, view: str) -> bool:
+        return view in ORTHOGRAPHIC_VIEWS or view == DASHBOARD
+
+    def in_dashboard_region(self, view: str, px: float, py: float) -> bool:
+        return any(rect_contains(r, px, py) for r in self.dashboard_regions.get(view, ()))
+
+    def components(self) -> tuple[str, ...]:
+        """Real components of the device, sorted by name."""
+        names = {t.component for t in self.transitions if t.action is not None}
+        return tuple(sorted(names))
+
+
+def _is_error_state(name: str, state) -> bool:
+    return name == "Error" or bool(state.is_error)
+
+
+def validate_machine(
+    ssm: StateMachine, path: str, *, require_geometry: bool = True
+) -> list[Problem]:
+    """Every problem of PROTOCOL §1.2 (and a few more), each naming file, state and component.
+
+    `require_geometry=False` validates a category template (UCSM): no bboxes needed.
+    Returns problems of severity "error" and "warning"; errors make the SSM unusable.
+    """
+    problems: list[Problem] = []
+
+    def err(where: str, message: str, severity: str = "error") -> None:
+        problems.append(Problem(path, where, message, severity))
+
+    states = ssm.states
+    if not states:
+        err("states", "the machine has no states")
+        return problems
+    if ssm.initial_state not in states:
+        err("initial_state", f"unknown initial_state {ssm.initial_state!r}")
+
+    views = list(ssm.views) if ssm.views is not None else list(STANDARD_VIEWS)
+    for v in views:
+        if v.lower() not in STANDARD_VIEWS and v.lower() != DASHBOARD:
+            err("views", f"unknown view {v!r} in views")
+    offered = {v.lower() for v in views}
+    regions = ssm.dashboard.regions if ssm.dashboard is not None else []
+    if regions:
+        offered.add(DASHBOARD)
+    for i, region in enumerate(regions):
+        where = f"dashboard.regions[{i}]"
+        view = region.view.lower()
+        if view not in ORTHOGRAPHIC_VIEWS:
+            err(
+                where, f"dashboard region on {region.view!r}: regions must be on orthographic views"
+            )
+        elif view not in offered:
+            err(where, f"dashboard region on view {region.view!r} that the device does not offer")
+        _check_coordinate(region.coordinate, where, err)
+
+    for sname, state in states.items():
+        for comp, transitions in state.on.items():
+            where_c = f"state {sname!r}, component {comp!r}"
+            if not transitions:
+                err(where_c, "empty transition list", "warning")
+            if comp in PSEUDO_COMPONENTS and len(transitions) > 1:
+                err(where_c, f"more than one {comp} transition; only the first is taken", "warning")
+            seen_triggers: dict[tuple, int] = {}
+            for k, tr in enumerate(transitions):
+                where = f"state {sname!r}, component {comp!r}, transition {k}"
+                if tr.next_state not in states:
+                    err(where, f"dangling next_state {tr.next_state!r}")
+                if comp in PSEUDO_COMPONENTS:
+                    if tr.bbox:
+                        err(where, f"{comp} transitions have no bbox; it is ignored", "warning")
+                    continue
+                action = tr.atomic_action.lower() if tr.atomic_action else None
+                if action is None:
+                    if require_geometry:
+                        err(where, "missing atomic_action")
+                elif action not in ATOMIC_ACTIONS:
+                    err(where, f"unknown atomic action {tr.atomic_action!r}")
+                if require_geometry and not tr.bbox:
+                    err(where, "no bbox: the component cannot be clicked in any view", "warning")
+                for b, box in enumerate(tr.bbox):
+                    where_b = f"{where}, bbox {b}"
+                    view = box.view.lower()
+                    if view not in offered:
+                        err(where_b, f"bbox on unknown view {box.view!r}")
+                    _check_coordinate(box.coordinate, where_b, err)
+                if action is not None:
+                    trigger = (action, tuple(normalize_param(p) for p in (tr.parameter or ())))
+                    if trigger in seen_triggers:
+                        err(
+                            where,
+                            f"same action and params as transition {seen_triggers[trigger]}; "
+                            "only the first can ever fire",
+                            "warning",
+                        )
+                    else:
+                        seen_triggers[trigger] = k
+
+    # Cycles made only of immediate transitions (the simulator would never stop).
+    order = {name: i for i, name in enumerate(states)}
+    for start in states:
+        seen = [start]
+        current = start
+        while True:
+            imm = states[current].on.get(IMMEDIATE) if current in states else None
+            if not imm:
+                break
+            nxt = imm[0].next_state
+            if nxt not in states:
+                break
+            if nxt in seen:
+                members = seen[seen.index(nxt) :]
+                # Report each cycle once, from its first member in file order.
+                if nxt == start and start == min(members, key=order.__getitem__):
+                    cycle = " -> ".join(members + [nxt])
+                    err(
+                        f"state {start!r}, component 'immediate'",
+                        f"cycle of immediate transitions: {cycle}",
+                    )
+                break
+            seen.append(nxt)
+            current = nxt
+    return problems
+
+
+def _check_coordinate(coord: list[float], where: str, err) -> None:
+    if len(coord) != 6:
+        err(where, f"coordinate must be [x, y, w, h, W, H], got {len(coord)} numbers")
+        return
+    x, y, w, h, width, height = (f"{v:g}" for v in coord)
+    if coord[4] <= 0 or coord[5] <= 0:
+        err(where, f"image size W x H must be positive, got {width} x {height}")
+        return
+    if coord[2] <= 0 or coord[3] <= 0:
+        err(where, f"bbox with non-positive size w={w}, h={h}")
+    if (
+        coord[0] < 0
+        or coord[1] < 0
+        or coord[0] + coord[2] > coord[4]
+        or coord[1] + coord[3] > coord[5]
+    ):
+        err(where, f"bbox [{x}, {y}, {w}, {h}] outside its {width} x {height} image")
+
+
+def compile_machine(
+    ssm: StateMachine, *, device_id: str | None = None, source: str = "<memory>"
+) -> Machine:
+    """Validate and compile; raises `SSMError` listing every error (warnings are kept)."""
+    problems = validate_machine(ssm, source)
+    errors = [p for p in problems if p.severity == "error"]
+    if errors:
+        raise SSMError(errors)
+
+    names = tuple(ssm.states)
+    index = {n: i for i, n in enumerate(names)}
+    n = len(names)
+    error_states = frozenset(i for i, nm in enumerate(names) if _is_error_state(nm, ssm.states[nm]))
+
+    immediate_next: list[int | None] = [None] * n
+    for i, nm in enumerate(names):
+        imm = ssm.states[nm].on.get(IMMEDIATE)
+        if imm:
+            immediate_next[i] = index[imm[0].next_state]
+    chains: list[tuple[int, ...]] = []
+    ends: list[int] = []
+    for i in range(n):
+        chain: list[int] = []
+        cur = i
+        while immediate_next[cur] is not None:
+            cur = immediate_next[cur]  # type: ignore[assignment]
+            chain.append(cur)
+        chains.append(tuple(chain))
+        ends.append(cur)
+
+    views = list(ssm.views) if ssm.views is not None else list(STANDARD_VIEWS)
+    view_list = [v.lower() for v in views]
+    regions: dict[str, list[Rect]] = {}
+    if ssm.dashboard is not None:
+        for region in ssm.dashboard.regions:
+            regions.setdefault(region.view.lower(), []).append(
+                rect_from_coordinate(region.coordinate)
+            )
+    if regions and DASHBOARD not in view_list:
+        view_list.append(DASHBOARD)
+    view_list.sort(key=lambda v: VIEW_RANK.get(v, len(VIEW_RANK)))
+
+    transitions: list[CompiledTransition] = []
+    by_state: list[list[CompiledTransition]] = [[] for _ in range(n)]
+    wait: list[CompiledTransition | None] = [None] * n
+    for i, nm in enumerate(names):
+        for comp, trs in ssm.states[nm].on.items():
+            if comp == IMMEDIATE:
+                continue
+            for k, tr in enumerate(trs):
+                dst = index[tr.next_state]
+                entered = (dst,) + chains[dst]
+                rects: dict[str, list[Rect]] = {}
+                if comp != TIMED_WAIT:
+                    for box in tr.bbox:
+                        rects.setdefault(box.view.lower(), []).append(
+                            rect_from_coordinate(box.coordinate)
+                        )
+                ct = CompiledTransition(
+                    component=comp,
+                    index=k,
+                    source=i,
+                    target=dst,
+                    action=None if comp == TIMED_WAIT else (tr.atomic_action or "").lower() or None,
+                    params=(
+                        tuple(normalize_param(p) for p in tr.parameter) if tr.parameter else None
+                    ),
+                    description=tr.transition_description,
+                    rects={v: tuple(r) for v, r in rects.items()},
+                    entered=entered,
+                    end=ends[dst],
+                    dangerous=any(s in error_states for s in entered),
+                )
+                transitions.append(ct)
+                if comp == TIMED_WAIT:
+                    if wait[i] is None:
+                        wait[i] = ct
+                else:
+                    by_state[i].append(ct)
+
+    by_state_view: dict[tuple[int, str], list] = {}
+    state_component_rects: dict[tuple[int, str], dict[str, list[Rect]]] = {}
+    component_rects: dict[str, dict[tuple[str, Rect], None]] = {}
+    for ct in transitions:
+        if ct.action is None:
+            continue
+        for view, rects in ct.rects.items():
+            by_state_view.setdefault((ct.source, view), []).append((ct, rects))
+            per_comp = state_component_rects.setdefault((ct.source, view), {})
+            bucket = per_comp.setdefault(ct.component, [])
+            for r in rects:
+                if r not in bucket:
+                    bucket.append(r)
+                component_rects.setdefault(view, {})[(ct.component, r)] = None
+
+    images = {}
+    if ssm.images:
+        for view, ref in ssm.images.items():
+            images[view.lower()] = (ref.path, ref.width, ref.height)
+
+    return Machine(
+        device_id=device_id or ssm.device_id or ssm.name,
+        category=ssm.category or ssm.name,
+        name=ssm.name,
+        source=source,
+        states=names,
+        state_index=index,
+        descriptions=tuple(ssm.states[nm].description for nm in names),
+        initial=index[ssm.initial_state],
+        error_states=error_states,
+        views=tuple(view_list),
+        immediate_chain=tuple(chains),
+        chain_end=tuple(ends),
+        transitions=tuple(transitions),
+        by_state=tuple(tuple(x) for x in by_state),
+        wait=tuple(wait),
+        by_state_view={k: tuple(v) for k, v in by_state_view.items()},
+        component_rects={
+            v: tuple(sorted(d, key=lambda cr: (cr[0], cr[1]))) for v, d in component_rects.items()
+        },
+        state_component_rects={
+            k: {c: tuple(rs) for c, rs in sorted(d.items())}
+            for k, d in state_component_rects.items()
+        },
+        dashboard_regions={v: tuple(r) for v, r in regions.items()},
+        images=images,
+        ssm=ssm,
+    )
+
+
+__all__ = [
+    "AXONOMETRIC_VIEWS",
+    "CompiledTransition",
+    "Machine",
+    "Rect",
+    "compile_machine",
+    "rect_contains",
+    "rect_distance",
+    "rect_from_coordinate",
+    "validate_machine",
+]

@@ -1,0 +1,369 @@
+"""Planning (PROTOCOL §4): distances, target components, the static joint plan and C_opt.
+
+An optimal plan minimises (transitions, view switches) lexicographically. Because the state
+after completing goal i is fixed (the immediate chain of g_i), its transition count is the
+sum of per-goal distances, and only *tight* transitions (those lowering the distance) can
+appear in it. Over that DAG we minimise switches jointly across goals by memoised
+recursion on (goal index, state, view, dashboard unlocked). Switches are folded into the
+interaction that needs them, so they land as late as possible. docs/SEMANTICS.md lists the
+tie-breaks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .._errors import TaskError
+from ._machine import CompiledTransition, Machine, Rect, rect_contains
+from ._parse import Action
+from ._vocab import DASHBOARD, ORTHOGRAPHIC_VIEWS, SWITCH_VIEW, TIMED_WAIT, VIEW_ORDER, VIEW_RANK
+
+INF = 1 << 30
+
+
+# ----------------------------------------------------------------------------- distances
+
+
+def distances(machine: Machine, goal: int) -> tuple[int, ...]:
+    """`dist(s, goal)` for every state (PROTOCOL §4); INF when unreachable. Cached per machine.
+
+    Immediate edges cost 0: a state with an immediate chain has the distance of the chain's
+    end, or 0 when the chain passes through the goal. `dist(goal, goal) = 0`.
+    """
+    key = ("dist", goal)
+    cached = machine._cache.get(key)
+    if cached is not None:
+        return cached
+    n = len(machine.states)
+    dist = [INF] * n
+    dist[goal] = 0
+    reverse: dict[int, list[int]] = {}
+    layer: list[int] = []
+    for s in range(n):
+        if machine.immediate_chain[s]:
+            continue  # the agent never stands in a transient state
+        for tr in _agent_transitions(machine, s):
+            if goal in tr.entered:
+                if dist[s] > 1:
+                    dist[s] = 1
+                    layer.append(s)
+            else:
+                reverse.setdefault(tr.end, []).append(s)
+    frontier = layer
+    while frontier:
+        nxt: list[int] = []
+        for s in frontier:
+            d = dist[s] + 1
+            for p in reverse.get(s, ()):
+                if dist[p] == INF:
+                    dist[p] = d
+                    nxt.append(p)
+        frontier = nxt
+    for s in range(n):
+        chain = machine.immediate_chain[s]
+        if chain and s != goal:
+            dist[s] = 0 if goal in chain else dist[machine.chain_end[s]]
+    result = tuple(dist)
+    machine._cache[key] = result
+    return result
+
+
+def _agent_transitions(machine: Machine, s: int) -> tuple[CompiledTransition, ...]:
+    wait = machine.wait[s]
+    return machine.by_state[s] + ((wait,) if wait is not None else ())
+
+
+def progressing(machine: Machine, s: int, goal: int) -> tuple[CompiledTransition, ...]:
+    """Transitions from `s` that complete `goal` or lower its distance (timed_wait included)."""
+    key = ("prog", goal, s)
+    cached = machine._cache.get(key)
+    if cached is not None:
+        return cached
+    dist = distances(machine, goal)
+    ds = dist[s]
+    out = tuple(
+        tr for tr in _agent_transitions(machine, s) if goal in tr.entered or dist[tr.end] < ds
+    )
+    machine._cache[key] = out
+    return out
+
+
+def target_components(machine: Machine, s: int, goal: int) -> frozenset[str]:
+    """PROTOCOL §4: real components with a transition from `s` that lowers `dist(., goal)`."""
+    key = ("targets", goal, s)
+    cached = machine._cache.get(key)
+    if cached is None:
+        cached = frozenset(
+            tr.component for tr in progressing(machine, s, goal) if tr.action is not None
+        )
+        machine._cache[key] = cached
+    return cached
+
+
+def target_rects(machine: Machine, s: int, goal: int, view: str) -> tuple[tuple[str, Rect], ...]:
+    """(component, rect) of the target components of `s` that have a bbox in `view`."""
+    key = ("trects", goal, s, view)
+    cached = machine._cache.get(key)
+    if cached is None:
+        targets = target_components(machine, s, goal)
+        per_comp = machine.state_component_rects.get((s, view), {})
+        cached = tuple((c, r) for c, rects in per_comp.items() if c in targets for r in rects)
+        machine._cache[key] = cached
+    return cached
+
+
+# ------------------------------------------------------------------------------ planning
+
+
+@dataclass(frozen=True, slots=True)
+class PlannedStep:
+    """One agent response of the optimal plan."""
+
+    goal_index: int  # segment the step belongs to
+    action: Action
+    transition: CompiledTransition | None  # None for a Switch_view
+
+
+@dataclass(frozen=True, slots=True)
+class Plan:
+    """The static optimal plan of an episode (PROTOCOL §4)."""
+
+    c_opt: tuple[int, ...]  # per goal: transitions + switches of its segment
+    transitions: tuple[int, ...]  # per goal
+    switches: tuple[int, ...]  # per goal
+    steps: tuple[PlannedStep, ...]
+    states: tuple[int, ...]  # optimal path: reset states, then every state entered
+
+    @property
+    def length(self) -> int:
+        return sum(self.c_opt)
+
+
+class _Option:
+    """One way to take a tight transition from (view, unlocked): switches first, then act."""
+
+    __slots__ = ("tr", "switches", "view", "unlocked", "pre")
+
+    def __init__(self, tr, switches, view, unlocked, pre):
+        self.tr = tr
+        self.switches = switches
+        self.view = view
+        self.unlocked = unlocked
+        self.pre = pre  # tuple of (view, via_region_view or None) switches to emit
+
+
+def _region_views(machine: Machine) -> tuple[str, ...]:
+    return tuple(v for v in VIEW_ORDER if v in machine.dashboard_regions)
+
+
+def _options(machine: Machine, tr: CompiledTransition, view: str, unlocked: bool) -> list[_Option]:
+    if tr.action is None:  # timed_wait needs no view
+        return [_Option(tr, 0, view, unlocked, ())]
+    opts: list[_Option] = []
+    for w in tr.rects:
+        if w not in ORTHOGRAPHIC_VIEWS and w != DASHBOARD:
+            continue
+        if w == view:
+            opts.append(_Option(tr, 0, w, unlocked, ()))
+        elif w != DASHBOARD:
+            opts.append(_Option(tr, 1, w, unlocked, ((w, None),)))
+        elif unlocked:
+            opts.append(_Option(tr, 1, w, True, ((DASHBOARD, None),)))
+        elif view in machine.dashboard_regions:
+            opts.append(_Option(tr, 1, w, True, ((DASHBOARD, view),)))
+        else:
+            regions = _region_views(machine)
+            if regions:
+                r = regions[0]
+                opts.append(_Option(tr, 2, w, True, ((r, None), (DASHBOARD, r))))
+    return opts
+
+
+def _advance(goals: tuple[int, ...], i: int, tr: CompiledTransition) -> int:
+    """Goal index after `tr` is taken while goal `i` is current (one goal per entered state)."""
+    j = i
+    for s in tr.entered:
+        if j < len(goals) and s == goals[j]:
+            j += 1
+    return j
+
+
+class _Solver:
+    """Memoised minimum-switch values J(i, s, view, unlocked) over tight transitions."""
+
+    def __init__(self, machine: Machine, goals: tuple[int, ...]) -> None:
+        self.m = machine
+        self.goals = goals
+        self.memo: dict[tuple, int] = {}
+
+    def value(self, i: int, s: int, view: str, unlocked: bool) -> int:
+        goals = self.goals
+        if i >= len(goals):
+            return 0
+        key = (i, s, view, unlocked)
+        memo = self.memo
+        got = memo.get(key)
+        if got is not None:
+            return got
+        best = INF
+        if s == goals[i]:  # goals complete when entered (docs/SEMANTICS.md)
+            memo[key] = best
+            return best
+        for tr in progressing(self.m, s, goals[i]):
+            j = _advance(goals, i, tr)
+            for opt in _options(self.m, tr, view, unlocked):
+                if opt.switches >= best:
+                    continue
+                rest = self.value(j, tr.end, opt.view, opt.unlocked)
+                total = opt.switches + rest
+                if total < best:
+                    best = total
+        memo[key] = best
+        return best
+
+    def choose(self, i: int, s: int, view: str, unlocked: bool) -> tuple[_Option, int]:
+        """The optimal option at a node, by the SEMANTICS tie-breaks."""
+        target = self.value(i, s, view, unlocked)
+        best: tuple | None = None
+        chosen: tuple[_Option, int] | None = None
+        for tr in progressing(self.m, s, self.goals[i]):
+            j = _advance(self.goals, i, tr)
+            for opt in _options(self.m, tr, view, unlocked):
+                if opt.switches + self.value(j, tr.end, opt.view, opt.unlocked) != target:
+                    continue
+                rank = -1 if tr.action is None else VIEW_RANK.get(opt.view, len(VIEW_RANK))
+                key = (tr.dangerous, opt.switches, rank, tr.component, tr.index)
+                if best is None or key < best:
+                    best, chosen = key, (opt, j)
+        assert chosen is not None
+        return chosen
+
+
+def _click_point(machine: Machine, tr: CompiledTransition, view: str) -> tuple[float, float]:
+    """A point that triggers `tr` in `view`: the centre of its smallest rect, or the first grid
+    point inside it that hits no smaller rival whose action and params also match."""
+    rects = sorted(tr.rects[view], key=lambda r: r[4])
+    rivals = [
+        (other, rs)
+        for other, rs in machine.by_state_view.get((tr.source, view), ())
+        if other is not tr and other.action == tr.action
+    ]
+    params = _concrete_params(tr)
+
+    def wins(px: float, py: float) -> bool:
+        mine = min(r[4] for r in tr.rects[view] if rect_contains(r, px, py))
+        for other, rs in rivals:
+            if not other.params_match(params):
+                continue
+            areas = [r[4] for r in rs if rect_contains(r, px, py)]
+            if areas and (min(areas), other.component, other.index) < (
+                mine,
+                tr.component,
+                tr.index,
+            ):
+                return False
+        return True
+
+    for r in rects:
+        for fx in (0.5, 0.3, 0.7, 0.1, 0.9):
+            for fy in (0.5, 0.3, 0.7, 0.1, 0.9):
+                px = round(r[0] + (r[2] - r[0]) * fx)
+                py = round(r[1] + (r[3] - r[1]) * fy)
+                if rect_contains(r, px, py) and wins(px, py):
+                    return (float(px), float(py))
+    r = rects[0]
+    return ((r[0] + r[2]) / 2.0, (r[1] + r[3]) / 2.0)
+
+
+def _concrete_params(tr: CompiledTransition) -> tuple[str, ...]:
+    if not tr.params:
+        return ()
+    return tuple("0" if p == "*" else p for p in tr.params)
+
+
+def _region_point(machine: Machine, view: str) -> tuple[float, float]:
+    r = machine.dashboard_regions[view][0]
+    return (float(round((r[0] + r[2]) / 2.0)), float(round((r[1] + r[3]) / 2.0)))
+
+
+def plan_goals(
+    machine: Machine,
+    start: int,
+    view: str,
+    unlocked: bool,
+    goals: tuple[int, ...],
+    *,
+    where: str = "",
+) -> Plan:
+    """The optimal plan for `goals` from (start, view, unlocked); raises TaskError if none."""
+    _check_goals(machine, start, goals, where)
+    solver = _Solver(machine, goals) if len(goals) != 1 else _single_solver(machine, goals[0])
+    n = len(goals)
+    if solver.value(0, start, view, unlocked) >= INF:
+        raise TaskError(f"{where}the goals need a component that no interactable view shows")
+    c_trans = [0] * n
+    c_switch = [0] * n
+    steps: list[PlannedStep] = []
+    states: list[int] = []
+    i, s, v, u = 0, start, view, unlocked
+    while i < n:
+        opt, j = solver.choose(i, s, v, u)
+        tr = opt.tr
+        for target_view, via in opt.pre:
+            coord = _region_point(machine, via) if via is not None else None
+            steps.append(PlannedStep(i, Action(SWITCH_VIEW, coord, (target_view,)), None))
+            c_switch[i] += 1
+        if tr.action is None:
+            act = Action(TIMED_WAIT, None, ())
+        else:
+            act = Action(tr.action, _click_point(machine, tr, opt.view), _concrete_params(tr))
+        steps.append(PlannedStep(i, act, tr))
+        c_trans[i] += 1
+        states.extend(tr.entered)
+        i, s, v, u = j, tr.end, opt.view, opt.unlocked
+    c_opt = tuple(t + w for t, w in zip(c_trans, c_switch, strict=True))
+    return Plan(c_opt, tuple(c_trans), tuple(c_switch), tuple(steps), tuple(states))
+
+
+def _check_goals(machine: Machine, start: int, goals: tuple[int, ...], where: str) -> None:
+    """Static checks with a message naming the goal: reachability, and no goal equal to the
+    state in which it becomes current (which is fixed: the chain end of the previous goal)."""
+    s = start
+    i = 0
+    n = len(goals)
+    while i < n:
+        g = goals[i]
+        if s == g:
+            raise TaskError(
+                f"{where}goal {i + 1} {machine.states[g]!r} is the state in which it becomes "
+                "current; goals complete when entered"
+            )
+        if distances(machine, g)[s] >= INF:
+            raise TaskError(
+                f"{where}goal {i + 1} {machine.states[g]!r} is unreachable from {machine.states[s]!r}"
+            )
+        i += 1
+        for x in machine.immediate_chain[g]:
+            if i < n and x == goals[i]:
+                i += 1
+        s = machine.chain_end[g]
+
+
+def _single_solver(machine: Machine, goal: int) -> _Solver:
+    key = ("solver1", goal)
+    solver = machine._cache.get(key)
+    if solver is None:
+        solver = _Solver(machine, (goal,))
+        machine._cache[key] = solver
+    return solver
+
+
+def c_opt_dynamic(machine: Machine, state: int, view: str, unlocked: bool, goal: int) -> int | None:
+    """C_opt of `goal` alone from the actual situation (PROTOCOL §4, for PSR); None if unreachable."""
+    d = distances(machine, goal)[state]
+    if state == goal:
+        return 0
+    if d >= INF:
+        return None
+    w = _single_solver(machine, goal).value(0, state, view, unlocked)
+    return None if w >= INF else d + w

@@ -1,0 +1,181 @@
+"""Typed, versioned records for every input format (PROTOCOL §1).
+
+The JSON Schemas in `schemas/` are generated from these classes (`replay.write_schemas`),
+and a test fails when the committed files drift. Field descriptions live in `Meta` so
+they reach the schemas.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+import msgspec
+from msgspec import Meta, field
+
+SCHEMA_VERSION = 1
+"""Version of the input and output record formats; bump on any incompatible change."""
+
+Scalar = str | int | float
+
+
+def _doc(text: str) -> Meta:
+    return Meta(description=text)
+
+
+# ---------------------------------------------------------------------------- SSM / UCSM
+
+
+class BBox(msgspec.Struct, forbid_unknown_fields=False):
+    """Where a component can be clicked in one view."""
+
+    coordinate: Annotated[
+        list[float],
+        _doc("[x, y, w, h, W, H]: top-left corner, width and height in pixels of a W x H image"),
+    ]
+    view: Annotated[str, _doc("The view this box is drawn on (front, back, ..., dashboard)")]
+
+
+class Transition(msgspec.Struct):
+    """One edge of the state machine, triggered by a component (or immediate/timed_wait)."""
+
+    next_state: Annotated[str, _doc("State entered when the transition fires")]
+    transition_description: Annotated[str, _doc("What the user observes; shown as feedback")] = ""
+    bbox: Annotated[list[BBox], _doc("Boxes of the component, one per view it is visible in")] = []
+    atomic_action: Annotated[
+        str | None, _doc("press, rotate, push, pull or grasp (case-insensitive)")
+    ] = None
+    parameter: Annotated[
+        list[Scalar] | None,
+        _doc("Required params; '*' matches any value; empty/missing matches any"),
+    ] = None
+
+
+class StateDef(msgspec.Struct):
+    """A state: its description and its transitions, keyed by component name."""
+
+    description: Annotated[str, _doc("Natural-language description of the device status")] = ""
+    on: Annotated[
+        dict[str, list[Transition]],
+        _doc("component -> transitions; 'immediate' and 'timed_wait' are not components"),
+    ] = {}
+    is_error: Annotated[bool, _doc("Marks an error state (like a state named 'Error')")] = False
+
+
+class ImageRef(msgspec.Struct):
+    """A rendered view image of the device."""
+
+    path: Annotated[str, _doc("Path relative to the benchmark directory")]
+    width: Annotated[int, _doc("Image width in pixels")]
+    height: Annotated[int, _doc("Image height in pixels")]
+
+
+class DashboardRegion(msgspec.Struct):
+    """A region of an orthographic view whose zoomed-in view is the dashboard."""
+
+    view: Annotated[str, _doc("Orthographic view holding the region")]
+    coordinate: Annotated[list[float], _doc("[x, y, w, h, W, H] as for bboxes")]
+
+
+class Dashboard(msgspec.Struct):
+    """The dashboard extension: where the (initially locked) dashboard can be unlocked."""
+
+    regions: Annotated[list[DashboardRegion], _doc("Dashboard regions")] = []
+
+
+class StateMachine(msgspec.Struct):
+    """A Specific State Machine (SSM) or, without bboxes, a category template (UCSM).
+
+    The paper's format, accepted verbatim; the keys after `states` are optional extensions.
+    Unknown keys (the paper's listing has `path`) are ignored.
+    """
+
+    name: Annotated[str, _doc("Category name, e.g. ElectricKettle")]
+    initial_state: Annotated[str, _doc("State the device starts in")]
+    states: Annotated[dict[str, StateDef], _doc("State name -> definition")]
+    device_id: Annotated[str | None, _doc("Device identifier (default: file stem)")] = None
+    category: Annotated[str | None, _doc("Category (default: name)")] = None
+    views: Annotated[
+        list[str] | None, _doc("Views the device offers (default: the eight standard views)")
+    ] = None
+    images: Annotated[dict[str, ImageRef] | None, _doc("view -> rendered image")] = None
+    dashboard: Annotated[Dashboard | None, _doc("Dashboard regions, for large devices")] = None
+    schema_version: Annotated[int, _doc("Record format version")] = SCHEMA_VERSION
+
+
+# --------------------------------------------------------------------------------- tasks
+
+
+class Task(msgspec.Struct):
+    """One episode definition (a line of `tasks.jsonl`)."""
+
+    episode_id: Annotated[str, _doc("Unique episode identifier")]
+    device_id: Annotated[str, _doc("Device whose SSM the episode runs on")]
+    goals: Annotated[list[str], _doc("Ordered goal states; goal i completes when it is entered")]
+    instructions: Annotated[list[str], _doc("Instruction shown while goal i is current")] = []
+    initial_view: Annotated[str, _doc("View the agent starts in")] = "front"
+    initial_state: Annotated[str | None, _doc("Overrides the SSM's initial state")] = None
+    lam: Annotated[float | None, _doc("Budget redundancy factor lambda for this task")] = field(
+        default=None, name="lambda"
+    )
+    c_opt: Annotated[
+        list[int] | None, _doc("Optional stated C_opt per goal; checked against the planner")
+    ] = None
+    schema_version: Annotated[int, _doc("Record format version")] = SCHEMA_VERSION
+
+
+# ------------------------------------------------------------------------------ run logs
+
+
+class RunHeader(msgspec.Struct):
+    """`RUN/run.json`: who produced a run and how."""
+
+    run_id: Annotated[str, _doc("Unique run identifier (also the partition key)")]
+    model: Annotated[str, _doc("Model (or participant group) name")]
+    agent_kind: Annotated[Literal["vlm", "human", "scripted"], _doc("vlm, human or scripted")]
+    lam: Annotated[float | None, _doc("lambda the run was executed with")] = field(
+        default=None, name="lambda"
+    )
+    meta: Annotated[dict[str, Any], _doc("Free-form run facets (history length, ...)")] = {}
+    schema_version: Annotated[int, _doc("Record format version")] = SCHEMA_VERSION
+
+
+class ActionRecord(msgspec.Struct):
+    """An already-structured action, as human logs have."""
+
+    type: Annotated[str, _doc("Press, Rotate, Push, Pull, Grasp, Switch_view or Timed_wait")]
+    coord: Annotated[list[float] | None, _doc("[x, y] on the 0..1000 scale, or null")] = None
+    params: Annotated[list[Scalar], _doc("Action parameters")] = []
+
+
+class LogStep(msgspec.Struct):
+    """One logged agent response: raw text `output` or a structured `action`."""
+
+    output: Annotated[str | None, _doc("Raw model text (Thinking: ... Action: ...)")] = None
+    action: Annotated[ActionRecord | None, _doc("Structured action (instead of output)")] = None
+    view: Annotated[str | None, _doc("Recorded view after the step (compared, not trusted)")] = None
+    feedback: Annotated[
+        str | None, _doc("Recorded feedback kind or text (compared, not trusted)")
+    ] = None
+    state: Annotated[str | None, _doc("Recorded state after the step (compared, not trusted)")] = (
+        None
+    )
+    timestamp: Annotated[
+        float | str | None, _doc("Seconds since the epoch or ISO 8601 time of the step")
+    ] = None
+
+
+class EpisodeLog(msgspec.Struct):
+    """One line of `episodes.jsonl`."""
+
+    episode_id: Annotated[str, _doc("Episode this log plays (tasks.jsonl)")]
+    steps: Annotated[list[LogStep], _doc("Agent responses in order")] = []
+
+
+INPUT_RECORDS: dict[str, type] = {
+    "ssm": StateMachine,
+    "ucsm": StateMachine,
+    "task": Task,
+    "run": RunHeader,
+    "episode": EpisodeLog,
+}
+"""Input record types by schema name (`schemas/<name>.schema.json`)."""

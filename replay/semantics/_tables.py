@@ -1,0 +1,73 @@
+"""Rows -> Arrow tables, with the Arrow schema derived from the row classes (`_rows.py`).
+
+The row classes are the one declaration of the columns; this module only maps their
+annotations to Arrow types, so the Parquet schema can never drift from the records.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import msgspec
+import pyarrow as pa
+
+from ._records import SCHEMA_VERSION
+from ._rows import EpisodeRow, GoalRow, StepRow
+
+_SCALARS = {
+    msgspec.inspect.StrType: pa.string(),
+    msgspec.inspect.IntType: pa.int64(),
+    msgspec.inspect.FloatType: pa.float64(),
+    msgspec.inspect.BoolType: pa.bool_(),
+}
+
+
+def _arrow_type(info: msgspec.inspect.Type) -> tuple[pa.DataType, bool]:
+    """(arrow type, nullable) of a msgspec type."""
+    if isinstance(info, msgspec.inspect.Metadata):
+        return _arrow_type(info.type)
+    if isinstance(info, msgspec.inspect.UnionType):
+        members = [t for t in info.types if not isinstance(t, msgspec.inspect.NoneType)]
+        if len(members) != 1:
+            raise TypeError(f"unsupported union {info}")
+        return _arrow_type(members[0])[0], True
+    if isinstance(info, msgspec.inspect.ListType):
+        inner, _ = _arrow_type(info.item_type)
+        return pa.list_(inner), False
+    for kind, arrow in _SCALARS.items():
+        if isinstance(info, kind):
+            return arrow, False
+    raise TypeError(f"unsupported column type {info}")
+
+
+@cache
+def arrow_schema(row_type: type) -> pa.Schema:
+    """Arrow schema of a row class; column names are the encoded (PROTOCOL §7) names."""
+    info = msgspec.inspect.type_info(row_type)
+    fields = []
+    for f in info.fields:
+        arrow, nullable = _arrow_type(f.type)
+        fields.append(pa.field(f.encode_name, arrow, nullable=nullable))
+    return pa.schema(fields, metadata={b"vge_schema_version": str(SCHEMA_VERSION).encode()})
+
+
+def rows_to_table(rows: list, row_type: type) -> pa.Table:
+    """Build an Arrow table from rows of one class: structs, or tuples in field order (the
+    replay loop's fast path). An empty list gives a table with 0 rows and the full schema."""
+    schema = arrow_schema(row_type)
+    if rows:
+        if not isinstance(rows[0], tuple):
+            rows = [msgspec.structs.astuple(r) for r in rows]
+        columns = list(zip(*rows, strict=True))
+        if len(columns) != len(schema):
+            raise ValueError(
+                f"{row_type.__name__} rows have {len(columns)} values, schema has {len(schema)}"
+            )
+    else:
+        columns = [() for _ in schema]
+    arrays = [pa.array(col, type=field.type) for col, field in zip(columns, schema, strict=True)]
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+TABLE_ROWS: dict[str, type] = {"steps": StepRow, "episodes": EpisodeRow, "goals": GoalRow}
+"""Output table name -> row class."""

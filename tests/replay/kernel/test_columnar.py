@@ -1,0 +1,435 @@
+"""The columnar engine (`replay.kernel._columnar`) gives exactly the scalar engine's tables.
+
+`replay_episode` is the reference. Compared table against table (`pa.Table.equals`): the
+bundled sample, every hand-worked case, hypothesis-generated logs (well-formed and broken
+texts, structured actions, switches and dashboard unlocks, waits, out-of-range points,
+recorded values that match or not, timestamps, logs longer than the budget, small
+lambdas) on the hand-worked SSMs and a few sample SSMs; the batch parser against
+`parse_log_step` on arbitrary texts; and the runner's files with either engine.
+"""
+
+from __future__ import annotations
+
+import gzip
+import hashlib
+import json
+from functools import cache
+from pathlib import Path
+
+import msgspec
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import replay
+from replay.io._load import episode_decoder
+from replay.kernel._columnar import EpisodeInput, replay_columnar
+from replay.kernel._columnar_parse import parse_steps
+from replay.kernel._columnar_tables import ColumnarCache
+from replay.semantics._episode import parse_log_step, setup_episode
+from replay.semantics._rows import EpisodeRow, GoalRow, StepRow
+from replay.semantics._tables import rows_to_table
+from replay.semantics._vocab import FEEDBACK_KINDS, STANDARD_VIEWS
+
+ROOT = Path(__file__).resolve().parents[3]
+DATA = ROOT / "tests" / "data"
+CASES = DATA / "hand_worked"
+LOGS = ROOT / "logs"
+
+
+# ------------------------------------------------------------------------------ helpers
+
+
+def first_difference(got: pa.Table, want: pa.Table) -> str:
+    """Where two tables differ: the first column and row, for the failure message."""
+    if got.schema != want.schema:
+        return f"schemas differ:\n{got.schema}\nvs\n{want.schema}"
+    if got.num_rows != want.num_rows:
+        return f"{got.num_rows} rows, expected {want.num_rows}"
+    for name in want.column_names:
+        a, b = got[name], want[name]
+        if a.equals(b):
+            continue
+        for i, (x, y) in enumerate(zip(a.to_pylist(), b.to_pylist(), strict=True)):
+            if x != y or type(x) is not type(y) or repr(x) != repr(y):
+                return f"column {name!r}, row {i}: columnar {x!r}, scalar {y!r}"
+        return f"column {name!r}: same values, different nulls or chunks"
+    return "tables differ"
+
+
+def assert_same(got: pa.Table, want: pa.Table, what: str) -> None:
+    assert got.equals(want), f"{what}: {first_difference(got, want)}"
+
+
+def scalar_tables(episodes: list[EpisodeInput], head=("run", "model", "vlm")):
+    results = [
+        replay.replay_episode(
+            e.machine,
+            e.task,
+            e.log,
+            lam=e.lam,
+            run_id=head[0],
+            model=head[1],
+            agent_kind=head[2],
+            setup=e.setup,
+        )
+        for e in episodes
+    ]
+    return (
+        rows_to_table([t for r in results for t in r.step_tuples], StepRow),
+        rows_to_table([r.episode for r in results], EpisodeRow),
+        rows_to_table([g for r in results for g in r.goals], GoalRow),
+        [len(r.step_tuples) for r in results],
+        [len(r.goals) for r in results],
+    )
+
+
+def check_batch(episodes: list[EpisodeInput], cache_: ColumnarCache | None = None) -> None:
+    """The columnar tables of a batch equal the scalar ones, row counts included."""
+    steps, eps, goals, step_counts, goal_counts = scalar_tables(episodes)
+    got = replay_columnar(
+        cache_ or ColumnarCache(), episodes, run_id="run", model="model", agent_kind="vlm"
+    )
+    assert_same(got.steps, steps, "steps")
+    assert_same(got.episodes, eps, "episodes")
+    assert_same(got.goals, goals, "goals")
+    assert got.step_counts == step_counts and got.goal_counts == goal_counts
+
+
+@cache
+def machine_of(path: Path, device_id: str) -> replay.Machine:
+    return replay.compile_machine(replay.load_ssm(path), device_id=device_id)
+
+
+def episode(machine, task, steps: list[dict], lam: float) -> EpisodeInput:
+    log = msgspec.convert({"episode_id": task.episode_id, "steps": steps}, replay.EpisodeLog)
+    return EpisodeInput(machine, task, setup_episode(machine, task), log, lam)
+
+
+# ------------------------------------------------------------------ fixed inputs
+
+
+def _case_docs() -> list[dict]:
+    docs = []
+    for path in sorted(CASES.glob("*.json")):
+        doc = json.loads(path.read_text())
+        if isinstance(doc, dict) and "expected" in doc:
+            docs.append(doc)
+    return docs
+
+
+def _ssm_file(name: str) -> Path:
+    return CASES / name if (CASES / name).exists() else DATA / name
+
+
+@pytest.mark.parametrize("doc", _case_docs(), ids=lambda d: d["task"]["episode_id"])
+def test_hand_worked_cases(doc: dict) -> None:
+    machine = machine_of(_ssm_file(doc["ssm"]), doc["device_id"])
+    task = msgspec.convert(doc["task"], replay.Task)
+    check_batch([episode(machine, task, doc["episode"]["steps"], float(doc["lambda"]))])
+
+
+def test_hand_worked_cases_in_one_batch() -> None:
+    """All cases at once, each twice (memoised results are reused across episodes), and
+    each once more with an empty log."""
+    batch = []
+    for doc in _case_docs() * 2:
+        machine = machine_of(_ssm_file(doc["ssm"]), doc["device_id"])
+        task = msgspec.convert(doc["task"], replay.Task)
+        batch.append(episode(machine, task, doc["episode"]["steps"], float(doc["lambda"])))
+        batch.append(episode(machine, task, [], float(doc["lambda"])))
+    check_batch(batch)
+
+
+def test_empty_batch() -> None:
+    check_batch([])
+
+
+def _sample_batches(size: int):
+    bench = replay.Benchmark.open(LOGS / "bench")
+    for run in sorted((LOGS / "runs").iterdir()):
+        header = replay.read_run_header(run)
+        path = replay.episodes_file(run)
+        data = path.read_bytes()
+        lines = (gzip.decompress(data) if path.suffix == ".gz" else data).splitlines()
+        batch: list[EpisodeInput] = []
+        for line in lines:
+            if not line.strip():
+                continue
+            log = episode_decoder.decode(line)
+            task = bench.tasks[log.episode_id].task
+            machine = bench.machine(task.device_id)
+            lam = task.lam if task.lam is not None else header.lam
+            batch.append(EpisodeInput(machine, task, setup_episode(machine, task), log, lam or 5))
+            if len(batch) == size:
+                yield run.name, batch
+                batch = []
+        if batch:
+            yield run.name, batch
+
+
+def test_bundled_sample() -> None:
+    """Every run of `logs/`, in batches of 200 episodes, one cache for all (as a worker)."""
+    shared = ColumnarCache()
+    for run, batch in _sample_batches(200):
+        try:
+            check_batch(batch, shared)
+        except AssertionError as exc:
+            raise AssertionError(f"run {run}: {exc}") from None
+
+
+# ------------------------------------------------------------------ generated logs
+
+_SAMPLE_DEVICES = ("AirFryer_000", "CoffeeMachine_000", "CarKey_000")
+
+
+@cache
+def _machines() -> list[tuple[replay.Machine, list[replay.Task]]]:
+    """Machines with tasks that set up: the hand-worked SSMs, a few sample SSMs (one of
+    them with a dashboard)."""
+    out: dict[str, tuple[replay.Machine, list[replay.Task]]] = {}
+    for doc in _case_docs():
+        machine = machine_of(_ssm_file(doc["ssm"]), doc["device_id"])
+        out.setdefault(doc["device_id"], (machine, []))[1].append(
+            msgspec.convert(doc["task"], replay.Task)
+        )
+    bench = replay.Benchmark.open(LOGS / "bench")
+    devices = list(_SAMPLE_DEVICES)
+    devices += [d for d in sorted(bench.ssm_paths) if bench.machine(d).has_dashboard][:1]
+    for device in devices:
+        tasks = [e.task for e in bench.tasks.values() if e.task.device_id == device][:4]
+        out[device] = (bench.machine(device), tasks)
+    return list(out.values())
+
+
+def _points(machine: replay.Machine) -> list[tuple[float, float]]:
+    """Points that matter: centres, corners and just-outside of every rect and region."""
+    points = []
+    rects = [r for pairs in machine.component_rects.values() for _, r in pairs]
+    rects += [r for regions in machine.dashboard_regions.values() for r in regions]
+    for x0, y0, x1, y1, _ in rects:
+        points += [((x0 + x1) / 2, (y0 + y1) / 2), (x0, y0), (x1, y1), (x1 + 0.5, y0)]
+    return points or [(500.0, 500.0)]
+
+
+def _number(v: float) -> str:
+    return str(int(v)) if v == int(v) else f"{v:.2f}"
+
+
+@st.composite
+def _step(draw, machine: replay.Machine) -> dict:
+    views = list(machine.views) + ["dashboard", "Top", "sideways"]
+    params_pool = sorted(
+        {p for t in machine.transitions for p in (t.params or ())} | {"0", "1", "*", "x y"}
+    )
+    kind = draw(st.sampled_from(["Press", "Rotate", "Push", "Pull", "Grasp", "Switch_view",
+                                 "Timed_wait", "press", "Tap"]))  # fmt: skip
+    point = draw(
+        st.sampled_from(_points(machine))
+        | st.tuples(st.integers(-50, 1050), st.integers(-50, 1050)).map(
+            lambda p: (float(p[0]), float(p[1]))
+        )
+        | st.none()
+    )
+    if kind == "Switch_view":
+        params = [draw(st.sampled_from(views))]
+    else:
+        params = draw(st.lists(st.sampled_from(params_pool), max_size=2))
+    step: dict = {}
+    shape = draw(st.sampled_from(["text", "text", "text", "structured", "odd", "empty"]))
+    if shape == "structured":
+        step["action"] = {
+            "type": kind,
+            "coord": None if point is None else list(point),
+            "params": params,
+        }
+    elif shape == "text" or shape == "odd":
+        args = []
+        if point is not None:
+            args.append(f"coord=[{_number(point[0])}, {_number(point[1])}]")
+        if params or kind != "Timed_wait":
+            quote = draw(st.sampled_from(["", "'", '"']))
+            args.append("params=[" + ", ".join(quote + p + quote for p in params) + "]")
+        call = f"{kind}({', '.join(args)})"
+        thinking = draw(
+            st.sampled_from(["I press it.", "Température 200 °C.", "  spaced\u00a0", "", "x\x1c"])
+        )
+        label = draw(st.sampled_from(["\nAction: ", "\n**Action:** ", "\nAction:", " Action: "]))
+        if shape == "odd":
+            call = draw(
+                st.sampled_from(
+                    [
+                        call.replace(", ", " "),  # malformed
+                        call + "\nAction: Timed_wait()",  # multiple actions
+                        "`" + call + "`.",
+                        call.replace("(", " ("),
+                        "",
+                    ]
+                )
+            )
+        step["output"] = f"Thinking: {thinking}{label}{call}"
+    if draw(st.booleans()):
+        step["feedback"] = draw(st.sampled_from([*FEEDBACK_KINDS, "Nothing happened.", "odd"]))
+    if draw(st.booleans()):
+        step["state"] = draw(st.sampled_from([*machine.states, "Nowhere"]))
+    if draw(st.booleans()):
+        step["view"] = draw(st.sampled_from([*STANDARD_VIEWS, "FRONT", "dashboard"]))
+    if draw(st.booleans()):
+        step["timestamp"] = draw(
+            st.sampled_from([1_700_000_000.5, 1_700_000_001, "2026-01-02T03:04:05Z", "soon"])
+        )
+    return step
+
+
+@st.composite
+def _episodes(draw) -> list[EpisodeInput]:
+    """1-4 episodes on random machines; steps biased towards what the plan would do, so
+    goals complete and budgets run out (logs longer than the budget are truncated)."""
+    out = []
+    for _ in range(draw(st.integers(1, 4))):
+        machine, tasks = draw(st.sampled_from(_machines()))
+        task = draw(st.sampled_from(tasks))
+        setup = setup_episode(machine, task)
+        steps = []
+        for planned in setup.plan.steps:
+            if draw(st.integers(0, 3)) == 0:  # detours
+                steps += draw(st.lists(_step(machine), max_size=3))
+            a = planned.action
+            coord = None if a.coord is None else list(a.coord)
+            steps.append({"action": {"type": a.type, "coord": coord, "params": list(a.params)}})
+        steps += draw(st.lists(_step(machine), max_size=12))
+        lam = draw(st.sampled_from([0.3, 0.7, 1.0, 1.5, 2.5, 5.0]))
+        out.append(episode(machine, task, steps, lam))
+    return out
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_episodes())
+def test_generated_logs(episodes: list[EpisodeInput]) -> None:
+    check_batch(episodes)
+
+
+# ------------------------------------------------------------------ the batch parser
+
+_FRAGMENTS = st.sampled_from(
+    [
+        "Thinking:", "thinking: ", "Action:", "ACTION:", "action", "\nAction: ",
+        "\n**Action:** ", "\n> Action:", "**", "`", "```", "\n", " ", "\t", "\u00a0", "\x1c",
+        "İ", "ı", "°C", "Press(coord=[1, 2], params=[0])", "Switch_view(params=[top])",
+        "Timed_wait()", "Tap(coord=[3, 4])", "Rotate(coord=[5.5, -6], params=['1', \"2\"])",
+        "Push(coord=[7 8])", "Pull(params=[a b])", "Grasp(coord=[1, 2], params=[0]).",
+        "Press(coord=[1, 2], params=[0,])", "PRESS( coord = [ 9 , 9 ] )", "Transaction:",
+        "_Tap(coord=[1, 2])", "Tap()", "Foo(params=[a])", "Tap(coord=[1, 2], params=['x'])",
+        "press_it(coord=[1, 2], params=[0])", "Timed_wait(params=[])", "Press(params=[1 2])",
+    ]
+)  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.lists(_FRAGMENTS | st.text(max_size=3), max_size=12).map("".join), max_size=8))
+def test_batch_parser_matches_parse_log_step(texts: list[str]) -> None:
+    steps = [replay.LogStep(output="Thinking: " + t if i % 2 else t) for i, t in enumerate(texts)]
+    cache_ = ColumnarCache()
+    parsed = parse_steps(steps, cache_.actions)
+    raw, thinking = parsed.action_raw.to_pylist(), parsed.thinking.to_pylist()
+    for i, s in enumerate(steps):
+        want = parse_log_step(s)
+        action = want.action
+        assert cache_.actions.of_parsed(want) == parsed.aid[i], s.output
+        coord = (float(parsed.x[i]), float(parsed.y[i])) if parsed.has_coord[i] else None
+        assert coord == (action.coord if action is not None else None), s.output
+        assert raw[i] == want.action_text, s.output
+        assert thinking[i] == (want.thinking or None), s.output
+
+
+# ------------------------------------------------------------------ the runner's files
+
+
+def _digests(out: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(out)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(out.rglob("*"))
+        if p.is_file() and p.suffix in (".parquet", ".json", ".jsonl")
+    }
+
+
+def test_runner_files_identical_with_either_engine(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Small Parquet pages, so that pages split inside row groups: the files still do not
+    depend on the engine nor on the batch size (rows reach the writer in 64-line chunks)."""
+    real = pq.ParquetWriter
+
+    def small_pages(*args, **kwargs):
+        return real(*args, data_page_size=4096, **kwargs)
+
+    monkeypatch.setattr("replay.io._writer.pq.ParquetWriter", small_pages)
+    runs = sorted(str(p) for p in (LOGS / "runs").iterdir())[:3]
+    outs = {}
+    for engine, batch in (("scalar", 64), ("columnar", 512), ("columnar", 7)):
+        monkeypatch.setattr("replay.io._batch.COLUMNAR", engine == "columnar")
+        monkeypatch.setattr("replay.io._runner.BATCH_LINES", batch)
+        out = tmp_path / f"{engine}-{batch}"
+        replay.replay_runs(runs, LOGS / "bench", out, progress=False)
+        outs[(engine, batch)] = _digests(out)
+    first, *rest = outs.values()
+    assert all(d == first for d in rest)
+    assert sum(name.endswith(".parquet") for name in first) == 3 * 3 + 1
+
+
+# ------------------------------------------------------------------ the scalar fallback
+
+
+def _wide_machine(n_components: int) -> replay.Machine:
+    """One state per component pair, each component a 10x10 button on the front view:
+    more components than the columnar masks hold when n_components > 62."""
+    from ..machines import box, machine, tr
+
+    on = {
+        f"c{i:02d}": [
+            tr(
+                "B" if i % 2 == 0 else "A",
+                boxes=[box("front", 10 * (i % 90), 10 * (i // 90), 9, 9)],
+            )
+        ]
+        for i in range(n_components)
+    }
+    return machine({"A": on, "B": on}, "A")
+
+
+def test_episodes_the_columnar_path_leaves_to_the_scalar_one() -> None:
+    """Episodes on a machine too wide for the int masks and with an inexact budget
+    (lambda 1e17) are replayed by `replay_episode`, merged in place among the others."""
+    wide = _wide_machine(70)
+    wide_task = replay.Task(episode_id="wide", device_id="dev", goals=["B"])
+    doc = _case_docs()[0]
+    kettle = machine_of(_ssm_file(doc["ssm"]), doc["device_id"])
+    task = msgspec.convert(doc["task"], replay.Task)
+    press = [{"output": "Thinking: a.\nAction: Press(coord=[4, 4], params=[0])"}] * 3
+    batch = [
+        episode(kettle, task, doc["episode"]["steps"], 5.0),
+        episode(wide, wide_task, press, 5.0),
+        episode(kettle, task, doc["episode"]["steps"], 1e17),
+        episode(kettle, task, doc["episode"]["steps"], 0.5),
+    ]
+    check_batch(batch)
+    got = replay_columnar(ColumnarCache(), batch, run_id="run", model="model", agent_kind="vlm")
+    assert got.scalar_episodes == 2
+
+
+def test_non_finite_coordinates_are_malformed_in_both_engines() -> None:
+    """`1e999` (or hundreds of digits) is no coordinate: a parse failure (`malformed`) in the
+    scalar parser; the columnar engine hands such episodes to the scalar path, so both agree."""
+    doc = _case_docs()[0]
+    kettle = machine_of(_ssm_file(doc["ssm"]), doc["device_id"])
+    task = msgspec.convert(doc["task"], replay.Task)
+    steps = [
+        {"output": "Thinking: far.\nAction: Press(coord=[1e999, 5], params=[0])"},
+        {"output": "Thinking: far.\nAction: Press(coord=[" + "9" * 400 + ", 5], params=[0])"},
+    ]
+    batch = [episode(kettle, task, steps, 5.0)]
+    check_batch(batch)
+    table = scalar_tables(batch)[0]
+    assert table.column("parse_detail").to_pylist() == ["malformed", "malformed"]
