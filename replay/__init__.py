@@ -30,6 +30,7 @@ from .io._mcap import BenchImages, ImageSource, write_episode_mcap
 from .io._quarantine import QUARANTINE_KINDS, QuarantineRecord
 from .io._runner import replay_runs
 from .io._schemas import schema_documents, write_schemas
+from .io._task import safe_file_name
 from .semantics._classify import Classification, Classifier
 from .semantics._episode import (
     EpisodeResult,
@@ -175,6 +176,7 @@ __all__ = [
     "replay_runs",
     "reset",
     "rows_to_table",
+    "safe_file_name",
     "schema_documents",
     "setup_episode",
     "step",
