@@ -48,7 +48,7 @@ from .semantics._machine import (
     rect_distance,
     validate_machine,
 )
-from .semantics._parse import PARSE_DETAILS, Action, ParsedAction, action_from_record, parse_action
+from .semantics._parse import Action, ParsedAction, action_from_record, parse_action
 from .semantics._plan import (
     Plan,
     PlannedStep,
@@ -85,6 +85,7 @@ from .semantics._vocab import (
     ERROR_TYPES,
     FEEDBACK_KINDS,
     ORTHOGRAPHIC_VIEWS,
+    PARSE_DETAILS,
     STANDARD_VIEWS,
     SWITCH_CLASSES,
     TERMINATIONS,
