@@ -48,7 +48,20 @@ from ..semantics._vocab import (
     normalize_param,
 )
 
-from ._text cimport FastParse, parse_ascii, PARSE_FALLBACK, PARSE_OK, PARSE_NO_ACTION, PARSE_MULTIPLE
+from ._text cimport (
+    PARSE_FALLBACK,
+    PARSE_MALFORMED,
+    PARSE_MULTIPLE,
+    PARSE_NO_ACTION,
+    PARSE_OK,
+    PARSE_UNKNOWN,
+    FastParse,
+    parse_utf8,
+)
+
+
+cdef extern from "Python.h":
+    bint PyUnicode_IS_ASCII(object text)
 
 # ------------------------------------------------------------------------------ codes
 
@@ -86,6 +99,7 @@ DETAILS = ERROR_DETAILS
 """Every detail code (parse failures, invalid actions, wrong_action, no_effect)."""
 DETAIL_CODE = {d: i for i, d in enumerate(DETAILS)}
 cdef int D_WRONG_ACTION = DETAIL_CODE["wrong_action"]
+cdef int D_UNKNOWN = DETAIL_CODE["unknown_action"]
 cdef int D_NO_EFFECT = DETAIL_CODE["no_effect"]
 cdef int D_OUT_OF_RANGE = DETAIL_CODE["out_of_range"]
 cdef int D_MALFORMED = DETAIL_CODE["malformed"]
@@ -95,6 +109,8 @@ cdef int D_AXONOMETRIC = DETAIL_CODE["axonometric_view"]
 cdef int D_MISSING_COORD = DETAIL_CODE["missing_coord"]
 cdef int D_INVALID_VIEW = DETAIL_CODE["invalid_view"]
 cdef int D_LOCKED = DETAIL_CODE["locked_dashboard"]
+cdef int[6] _STATUS_DETAIL
+_STATUS_DETAIL[:] = [-1, -1, D_NO_ACTION, D_MULTIPLE, D_UNKNOWN, D_MALFORMED]
 
 cdef unsigned int INTERACTABLE = 0
 for _v in ORTHOGRAPHIC_VIEWS + (DASHBOARD,):
@@ -944,9 +960,9 @@ cdef class Episode:
         output = log_step.output
         self._params = ()
         fp.status = PARSE_FALLBACK
-        if output is not None and (<str>output).isascii():
+        if output is not None:
             s = PyUnicode_AsUTF8AndSize(output, &size)
-            parse_ascii(s, size, &fp)
+            parse_utf8(s, size, PyUnicode_IS_ASCII(output), &fp)
         if fp.status != PARSE_FALLBACK:
             out.output.push_bytes(s, size)
             if fp.thinking.end > fp.thinking.start:
@@ -958,12 +974,11 @@ cdef class Episode:
             pa.ok = fp.status == PARSE_OK
             if fp.status == PARSE_NO_ACTION:
                 out.action_raw.push_bytes(s, 0)
-                pa.detail = D_NO_ACTION
             else:
                 out.action_raw.push_bytes(
                     s + fp.action_text.start, fp.action_text.end - fp.action_text.start
                 )
-                pa.detail = -1 if pa.ok else D_MULTIPLE
+            pa.detail = -1 if pa.ok else _STATUS_DETAIL[fp.status]
             if pa.ok:
                 pa.kind = fp.kind
                 pa.has_coord = fp.has_coord
@@ -973,7 +988,7 @@ cdef class Episode:
                     cache = self.param_cache
                     items = []
                     for i in range(fp.n_params):
-                        word = s[fp.params[i].start:fp.params[i].end].decode("ascii")
+                        word = s[fp.params[i].start:fp.params[i].end].decode("utf-8")
                         norm = cache.get(word)
                         if norm is None:
                             norm = normalize_param(word)

@@ -1,4 +1,4 @@
-# The compiled parser of the common response shapes (see _text.pyx).
+# The compiled action grammar (see _text.pyx).
 
 cdef enum:
     MAX_PARAMS = 8
@@ -8,6 +8,8 @@ cdef enum:
     PARSE_OK = 1         # a well-formed call in the canonical shape
     PARSE_NO_ACTION = 2
     PARSE_MULTIPLE = 3
+    PARSE_UNKNOWN = 4    # unknown_action
+    PARSE_MALFORMED = 5
 
 cdef struct Span:
     Py_ssize_t start
@@ -20,8 +22,8 @@ cdef struct FastParse:
     double x
     double y
     Span thinking        # stripped Thinking text
-    Span action_text     # the call (PARSE_OK) or the stripped first entry (PARSE_MULTIPLE)
+    Span action_text     # the reference's action_text
     int n_params
     Span params[MAX_PARAMS]  # each item's word, quotes removed (normalised by the caller)
 
-cdef int parse_ascii(const char* s, Py_ssize_t n, FastParse* out) except -1
+cdef int parse_utf8(const char* s, Py_ssize_t n, bint ascii, FastParse* out) except -1

@@ -1,17 +1,20 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False
-"""The action grammar's common shapes, compiled (PROTOCOL §2).
+"""The action grammar, compiled (PROTOCOL §2).
 
-`parse_ascii` reads an ASCII response and either decides it exactly as the reference parser
-(`replay.semantics._parse.parse_action`) would, or answers PARSE_FALLBACK and leaves it to
-the reference. It decides: no `Action:` label, several labels, and one label followed by a
-call in the canonical shape (the reference's `_FAST` pattern, a known action name, plain or
-quoted params). It follows the reference's regular expressions choice by choice (greedy
-first, alternatives in order) and gives up wherever they would backtrack, so what it
-accepts is what they accept; `tests/replay/kernel` checks it against the reference on
-generated texts.
+`parse_utf8` reads a response (its UTF-8 bytes) and either decides it exactly as the
+reference parser (`replay.semantics._parse.parse_action`) would, or answers PARSE_FALLBACK
+and leaves it to the reference. It follows the reference step by step: the labels, the
+Thinking text, the canonical call (the reference's `_FAST` pattern, choice by choice:
+greedy first, alternatives in order, giving up wherever that pattern would backtrack), then
+the full grammar (`_parse_entry_full` and its helpers). Text outside ASCII is read byte by
+byte, which agrees with Python's rules except for Unicode whitespace and the four letters
+that case-insensitive matching equates with ASCII ones (İ ı ſ K): a response holding one of
+those, or a quoted coordinate outside ASCII, is left to the reference. `tests/replay/kernel`
+checks the two parsers against each other on generated texts.
 """
 
 from cpython.conversion cimport PyOS_string_to_double
+from cpython.unicode cimport Py_UNICODE_ISALNUM, Py_UNICODE_ISSPACE
 from libc.math cimport isfinite
 
 # Python's str.isspace() and re's \s, restricted to ASCII.
@@ -88,6 +91,57 @@ cdef inline Span _strip(const char* s, Py_ssize_t start, Py_ssize_t end) noexcep
     return span
 
 
+cdef Py_UCS4 _decode_at(const char* s, Py_ssize_t n, Py_ssize_t p, Py_ssize_t* length) noexcept:
+    """The code point of the UTF-8 sequence at p (valid UTF-8: it comes from a str)."""
+    cdef unsigned char c = <unsigned char>s[p]
+    cdef unsigned int cp
+    cdef Py_ssize_t k, count
+    if c < 0x80:
+        length[0] = 1
+        return c
+    if c >= 0xF0:
+        cp = c & 0x07
+        count = 3
+    elif c >= 0xE0:
+        cp = c & 0x0F
+        count = 2
+    else:
+        cp = c & 0x1F
+        count = 1
+    for k in range(1, count + 1):
+        cp = (cp << 6) | ((<unsigned char>s[p + k]) & 0x3F)
+    length[0] = count + 1
+    return <Py_UCS4>cp
+
+
+cdef bint _word_before(const char* s, Py_ssize_t pos) noexcept:
+    """Is the character before `pos` a word character (`isalnum()` or `_`, re's `\\w`)?"""
+    cdef unsigned char c = <unsigned char>s[pos - 1]
+    cdef Py_ssize_t start = pos - 1, length
+    if c < 0x80:
+        return _alpha(c) or _digit(c) or c == 95
+    while start > 0 and (<unsigned char>s[start] & 0xC0) == 0x80:
+        start -= 1
+    return Py_UNICODE_ISALNUM(_decode_at(s, pos, start, &length))
+
+
+cdef bint _byte_safe(const char* s, Py_ssize_t n) noexcept:
+    """Whether reading the text byte by byte follows Python's rules: no Unicode whitespace
+    outside ASCII, and none of the letters İ ı ſ K that case-insensitive matching equates
+    with ASCII letters (nor İ, whose lowercase is two characters)."""
+    cdef Py_ssize_t p = 0, length
+    cdef Py_UCS4 cp
+    while p < n:
+        if <unsigned char>s[p] < 0x80:
+            p += 1
+            continue
+        cp = _decode_at(s, n, p, &length)
+        if Py_UNICODE_ISSPACE(cp) or cp == 0x130 or cp == 0x131 or cp == 0x17F or cp == 0x212A:
+            return False
+        p += length
+    return True
+
+
 cdef int _labels(const char* s, Py_ssize_t n, Span* first, Span* second) noexcept:
     """The reference's `_find_labels`: line-start `Action:` labels if any, else labels
     anywhere (not inside a word). Returns how many (the first two are stored)."""
@@ -119,7 +173,7 @@ cdef int _labels(const char* s, Py_ssize_t n, Span* first, Span* second) noexcep
                     line1.start = sol
                     line1.end = j + 1
                 n_line += 1
-            elif pos == 0 or not (_alpha(s[pos - 1]) or _digit(s[pos - 1]) or s[pos - 1] == 95):
+            elif pos == 0 or not _word_before(s, pos):
                 if n_any == 0:
                     any0.start = pos
                     any0.end = j + 1
@@ -368,10 +422,283 @@ cdef int _call(const char* s, Py_ssize_t n, Py_ssize_t e, FastParse* out) except
     return 1
 
 
-cdef int parse_ascii(const char* s, Py_ssize_t n, FastParse* out) except -1:
-    """Decide an ASCII response like the reference parser, or answer PARSE_FALLBACK."""
+# ------------------------------------------------------------------ the full grammar
+
+
+cdef inline bint _lead_char(char c) noexcept:  # [\s*_]
+    return _space(c) or c == 42 or c == 95
+
+
+cdef Py_ssize_t _matching_paren(const char* s, Py_ssize_t n, Py_ssize_t open_at) noexcept:
+    """The reference's `_matching_paren`: the ")" closing the "(" at `open_at`, or -1."""
+    cdef int depth = 0
+    cdef char quote = 0, ch
+    cdef Py_ssize_t i
+    for i in range(open_at, n):
+        ch = s[i]
+        if quote:
+            if ch == quote:
+                quote = 0
+            continue
+        if ch == 39 or ch == 34:
+            quote = ch
+        elif ch == 40:
+            depth += 1
+        elif ch == 41:
+            depth -= 1
+            if depth == 0:
+                return i
+    return -1
+
+
+cdef bint _known_call_in(const char* s, Py_ssize_t a, Py_ssize_t b) noexcept:
+    """The reference's `_KNOWN_CALL.search` on s[a:b]: a known action name at a word start
+    (case-insensitive), directly followed by "("."""
+    cdef Py_ssize_t i
+    cdef int k
+    for i in range(a, b):
+        if i > a and _word_before(s, i):
+            continue
+        for k in range(7):
+            if (i + _NAME_LEN[k] < b and s[i + _NAME_LEN[k]] == 40
+                    and _at_nocase(s, b, i, _NAMES[k], _NAME_LEN[k])):
+                return True
+    return False
+
+
+cdef enum:
+    ARGS_OK = 0
+    ARGS_MALFORMED = 1
+    ARGS_UNSURE = 2   # the reference decides (a quoted number outside ASCII, many params)
+
+
+cdef int _item(const char* s, Py_ssize_t n, Py_ssize_t* p, Span* item) noexcept:
+    """The reference's `_parse_item`: a quoted text (quotes removed) or a plain word."""
+    cdef Py_ssize_t q = _skip_space(s, n, p[0]), e
+    cdef char ch
+    if q >= n:
+        return ARGS_MALFORMED
+    ch = s[q]
+    if ch == 39 or ch == 34:
+        e = q + 1
+        while e < n and s[e] != ch:
+            e += 1
+        if e >= n:
+            return ARGS_MALFORMED
+        item.start = q + 1
+        item.end = e
+        p[0] = e + 1
+        return ARGS_OK
+    e = q
+    while e < n and _word(s[e]):
+        e += 1
+    if e == q:
+        return ARGS_MALFORMED
+    item.start = q
+    item.end = e
+    p[0] = e
+    return ARGS_OK
+
+
+cdef int _list(const char* s, Py_ssize_t n, Py_ssize_t* p, Span* items, int* count, int cap) noexcept:
+    """The reference's `_parse_list`: "[...]" or "(...)" of items, a trailing comma allowed."""
+    cdef char closing = 93 if s[p[0]] == 91 else 41
+    cdef Py_ssize_t q = _skip_space(s, n, p[0] + 1)
+    cdef int status
+    count[0] = 0
+    if q < n and s[q] == closing:
+        p[0] = q + 1
+        return ARGS_OK
+    while True:
+        if count[0] >= cap:
+            return ARGS_UNSURE
+        status = _item(s, n, &q, &items[count[0]])
+        if status != ARGS_OK:
+            return status
+        count[0] += 1
+        q = _skip_space(s, n, q)
+        if q >= n:
+            return ARGS_MALFORMED
+        if s[q] == closing:
+            p[0] = q + 1
+            return ARGS_OK
+        if s[q] != 44:
+            return ARGS_MALFORMED
+        q = _skip_space(s, n, q + 1)
+        if q < n and s[q] == closing:
+            p[0] = q + 1
+            return ARGS_OK
+
+
+cdef int _coordinate(const char* s, Span item, double* value) except -1:
+    """The reference's `_to_coord` for one item: stripped, a number (`_NUMBER`), finite."""
+    cdef Span t = _strip(s, item.start, item.end)
+    cdef Py_ssize_t q = t.start, digits = 0
+    cdef char* end
+    for q in range(t.start, t.end):
+        if <unsigned char>s[q] >= 0x80:
+            return ARGS_UNSURE  # a digit of another script may be a number there
+    q = t.start
+    if q < t.end and (s[q] == 43 or s[q] == 45):
+        q += 1
+    while q < t.end and _digit(s[q]):
+        q += 1
+        digits += 1
+    if q < t.end and s[q] == 46:
+        q += 1
+        while q < t.end and _digit(s[q]):
+            q += 1
+            digits += 1
+    if digits == 0:
+        return ARGS_MALFORMED
+    if q < t.end and (s[q] == 101 or s[q] == 69):
+        q += 1
+        if q < t.end and (s[q] == 43 or s[q] == 45):
+            q += 1
+        if q >= t.end or not _digit(s[q]):
+            return ARGS_MALFORMED
+        while q < t.end and _digit(s[q]):
+            q += 1
+    if q != t.end:
+        return ARGS_MALFORMED
+    value[0] = PyOS_string_to_double(s + t.start, &end, NULL)
+    if end != s + t.end:
+        return ARGS_UNSURE
+    return ARGS_OK if isfinite(value[0]) else ARGS_MALFORMED
+
+
+cdef inline bint _key_is(const char* s, Span key, const char* lit, Py_ssize_t k) noexcept:
+    return key.end - key.start == k and _at_nocase(s, key.end, key.start, lit, k)
+
+
+cdef int _args(const char* s, Py_ssize_t a, Py_ssize_t b, FastParse* out) except -1:
+    """The reference's `_parse_args` on s[a:b]: `key=value` pairs, coord and params once each."""
+    cdef Py_ssize_t p = _skip_space(s, b, a)
+    cdef Span key
+    cdef Span items[MAX_PARAMS]
+    cdef int count, status, slot
+    cdef bint seen_coord = False, seen_params = False
+    out.has_coord = False
+    out.n_params = 0
+    while p < b:
+        key.start = p
+        while p < b and (_alpha(s[p]) or s[p] == 95):
+            p += 1
+        key.end = p
+        if key.end == key.start:
+            return ARGS_MALFORMED
+        p = _skip_space(s, b, p)
+        if p >= b or s[p] != 61:
+            return ARGS_MALFORMED
+        p = _skip_space(s, b, p + 1)
+        if (_key_is(s, key, b"coord", 5) or _key_is(s, key, b"coords", 6)
+                or _key_is(s, key, b"coordinate", 10) or _key_is(s, key, b"coordinates", 11)):
+            slot = 0
+            if seen_coord:
+                return ARGS_MALFORMED
+            seen_coord = True
+        elif (_key_is(s, key, b"params", 6) or _key_is(s, key, b"param", 5)
+                or _key_is(s, key, b"parameters", 10) or _key_is(s, key, b"parameter", 9)):
+            slot = 1
+            if seen_params:
+                return ARGS_MALFORMED
+            seen_params = True
+        else:
+            return ARGS_MALFORMED
+        if p < b and (s[p] == 91 or s[p] == 40):
+            status = _list(s, b, &p, items, &count, MAX_PARAMS)
+        elif slot == 1:
+            status = _item(s, b, &p, &items[0])
+            count = 1
+        else:
+            return ARGS_MALFORMED
+        if status != ARGS_OK:
+            return status
+        if slot == 0:
+            if count != 2:
+                return ARGS_MALFORMED
+            status = _coordinate(s, items[0], &out.x)
+            if status == ARGS_OK:
+                status = _coordinate(s, items[1], &out.y)
+            if status != ARGS_OK:
+                return status
+            out.has_coord = True
+        else:
+            for k in range(count):
+                out.params[k] = items[k]
+            out.n_params = count
+        p = _skip_space(s, b, p)
+        if p < b:
+            if s[p] != 44:
+                return ARGS_MALFORMED
+            p = _skip_space(s, b, p + 1)
+    return ARGS_OK
+
+
+cdef int _full(const char* s, Py_ssize_t n, Py_ssize_t e, FastParse* out) except -1:
+    """The reference's `_parse_entry_full` on s[e:]: sets out.status (PARSE_FALLBACK when
+    unsure) and out.action_text."""
+    cdef Py_ssize_t p = e, q, name_end, open_at, close
+    cdef int kind, status
+    cdef Span name
+    # _LEAD: [\s*_]* then a fence line or a fence, then [\s*_`]*
+    while p < n and _lead_char(s[p]):
+        p += 1
+    if _at(s, n, p, b"```", 3):
+        q = p + 3
+        while q < n and _lang(s[q]):
+            q += 1
+        q = _skip_blank(s, n, q)
+        p = q + 1 if q < n and s[q] == 10 else p + 3
+    while p < n and (_lead_char(s[p]) or s[p] == 96):
+        p += 1
+    out.action_text = _strip(s, e, n)  # "shown"
+    # _NAME: [A-Za-z_][A-Za-z0-9_]* \s* (
+    if p >= n or not (_alpha(s[p]) or s[p] == 95):
+        out.status = PARSE_MALFORMED
+        return 0
+    name_end = p + 1
+    while name_end < n and (_alpha(s[name_end]) or _digit(s[name_end]) or s[name_end] == 95):
+        name_end += 1
+    open_at = _skip_space(s, n, name_end)
+    if open_at >= n or s[open_at] != 40:
+        out.status = PARSE_MALFORMED
+        return 0
+    name.start = p
+    name.end = name_end
+    kind = _kind(s, name)
+    close = _matching_paren(s, n, open_at)
+    if close < 0:
+        out.status = PARSE_MALFORMED if kind >= 0 else PARSE_UNKNOWN
+        return 0
+    if _known_call_in(s, close + 1, n):
+        out.status = PARSE_MULTIPLE
+        return 0
+    out.action_text.start = p
+    out.action_text.end = close + 1
+    if kind < 0:
+        out.status = PARSE_UNKNOWN
+        return 0
+    status = _args(s, open_at + 1, close, out)
+    if status == ARGS_UNSURE:
+        out.status = PARSE_FALLBACK
+    elif status == ARGS_MALFORMED:
+        out.status = PARSE_MALFORMED
+    else:
+        out.status = PARSE_OK
+        out.kind = kind
+    return 0
+
+
+cdef int parse_utf8(const char* s, Py_ssize_t n, bint ascii, FastParse* out) except -1:
+    """Decide a response (its UTF-8 bytes) like the reference parser, or answer
+    PARSE_FALLBACK; `ascii` says the text is known to be ASCII."""
     cdef Span first, second
-    cdef int count = _labels(s, n, &first, &second)
+    cdef int count
+    if not ascii and not _byte_safe(s, n):
+        out.status = PARSE_FALLBACK
+        return 0
+    count = _labels(s, n, &first, &second)
     if count == 0:
         out.status = PARSE_NO_ACTION
         out.thinking = _thinking(s, n)
@@ -381,30 +708,30 @@ cdef int parse_ascii(const char* s, Py_ssize_t n, FastParse* out) except -1:
         out.status = PARSE_MULTIPLE
         out.action_text = _strip(s, first.end, second.start)
         return 0
-    out.status = PARSE_OK if _call(s, n, first.end, out) else PARSE_FALLBACK
+    if _call(s, n, first.end, out):
+        out.status = PARSE_OK
+    else:
+        _full(s, n, first.end, out)
     return 0
 
 
 def parse_fields(str text):
-    """What `parse_ascii` decides for `text`, as Python values (for tests): None when it
+    """What `parse_utf8` decides for `text`, as Python values (for tests): None when it
     leaves the text to the reference parser, else (status, kind, coord, params, action_text,
-    thinking) with params as raw words (not normalised)."""
+    thinking) with params as raw items (not normalised)."""
     cdef FastParse out
-    cdef bytes data
-    cdef const char* s
-    if not text.isascii():
-        return None
-    data = text.encode("ascii")
-    s = data
-    parse_ascii(s, len(data), &out)
+    cdef bytes data = text.encode("utf-8", "surrogatepass")
+    cdef const char* s = data
+    parse_utf8(s, len(data), text.isascii(), &out)
     if out.status == PARSE_FALLBACK:
         return None
     thinking = data[out.thinking.start:out.thinking.end].decode()
     if out.status == PARSE_NO_ACTION:
         return ("no_action", None, None, (), "", thinking)
     action_text = data[out.action_text.start:out.action_text.end].decode()
-    if out.status == PARSE_MULTIPLE:
-        return ("multiple_actions", None, None, (), action_text, thinking)
+    if out.status != PARSE_OK:
+        detail = {PARSE_MULTIPLE: "multiple_actions", PARSE_UNKNOWN: "unknown_action"}
+        return (detail.get(out.status, "malformed"), None, None, (), action_text, thinking)
     params = tuple(data[out.params[i].start:out.params[i].end].decode() for i in range(out.n_params))
     coord = (out.x, out.y) if out.has_coord else None
     return ("ok", out.kind, coord, params, action_text, thinking)

@@ -320,6 +320,10 @@ _FRAGMENTS = st.sampled_from(
         "Press(coord=[1, 2], params=[0,])", "PRESS( coord = [ 9 , 9 ] )", "Transaction:",
         "_Tap(coord=[1, 2])", "Tap()", "Foo(params=[a])", "Tap(coord=[1, 2], params=['x'])",
         "press_it(coord=[1, 2], params=[0])", "Timed_wait(params=[])", "Press(params=[1 2])",
+        # pieces of the full grammar and text outside ASCII
+        "coord=", "coords = ", "params=", "param=", "(", ")", "[", "]", ",", "'", '"', "=",
+        "1e5", ".5", "-0", "7.", "Press", "press(", "rotate (", "Click(", "é", "’", "\u2003",
+        "ſ", "\u212a", "٣", "`Rotate(coord=(1, 2), params=['a b', \"c\"])`", "\n```json\n",
     ]
 )  # fmt: skip
 
