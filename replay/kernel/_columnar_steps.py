@@ -160,7 +160,7 @@ def _divergence(
     state_after: pa.Array,
     view_after: pa.Array,
 ) -> tuple[pa.Array, np.ndarray, pa.Array, np.ndarray]:
-    """SEMANTICS 'Divergence' on scored steps: (diverged, field counts, field names,
+    """Divergence (PROTOCOL §7.2) on scored steps: (diverged, field counts, field names,
     diverged steps per episode)."""
 
     def differs(recorded: pa.Array, mine: pa.Array) -> np.ndarray:
