@@ -30,6 +30,7 @@ from .io._mcap import BenchImages, ImageSource, write_episode_mcap
 from .io._quarantine import QUARANTINE_KINDS, QuarantineRecord
 from .io._runner import replay_runs
 from .io._schemas import schema_documents, write_schemas
+from .io._task import safe_file_name
 from .semantics._classify import Classification, Classifier
 from .semantics._episode import (
     EpisodeResult,
@@ -47,7 +48,7 @@ from .semantics._machine import (
     rect_distance,
     validate_machine,
 )
-from .semantics._parse import PARSE_DETAILS, Action, ParsedAction, action_from_record, parse_action
+from .semantics._parse import Action, ParsedAction, action_from_record, parse_action
 from .semantics._plan import (
     Plan,
     PlannedStep,
@@ -84,6 +85,7 @@ from .semantics._vocab import (
     ERROR_TYPES,
     FEEDBACK_KINDS,
     ORTHOGRAPHIC_VIEWS,
+    PARSE_DETAILS,
     STANDARD_VIEWS,
     SWITCH_CLASSES,
     TERMINATIONS,
@@ -175,6 +177,7 @@ __all__ = [
     "replay_runs",
     "reset",
     "rows_to_table",
+    "safe_file_name",
     "schema_documents",
     "setup_episode",
     "step",

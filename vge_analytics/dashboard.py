@@ -421,7 +421,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     `vge replay --mcap` would write)."""
     # The replay's file naming (not public): should it change, the file is not found and the
     # episode is made on demand below, byte-identical, so only the speed depends on it.
-    from replay.io._batch import safe_file_name
+    from replay import safe_file_name
 
     path = Path(out) / "mcap" / run_id / f"{safe_file_name(episode_id)}.mcap"
     if path.is_file():

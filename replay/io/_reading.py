@@ -1,26 +1,14 @@
-"""Reading the runs: run directories and headers, and an episodes file in batches of lines,
-replayed in order in-process or by worker processes (at most `ahead` batches in flight)."""
+"""Reading the runs: run directories and headers, and an episodes file in batches of lines."""
 
 from __future__ import annotations
 
 import os
-from collections import deque
 from collections.abc import Iterator, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
-from .._errors import ConfigError, InputError, WorkerError
+from .._errors import ConfigError, InputError
 from ..semantics._records import RunHeader
-from ._batch import (
-    BatchFailure,
-    BatchResult,
-    RunContext,
-    WorkerState,
-    guarded_batch,
-    run_batch,
-)
 from ._load import episodes_file, iter_lines, read_run_header
 
 
@@ -93,34 +81,3 @@ class LineReader:
                 batch = []
         if batch:
             yield batch
-
-
-def ordered_results(
-    batches: Iterator[list[tuple[int, bytes]]],
-    ctx: RunContext,
-    pools: list[ProcessPoolExecutor],
-    local: WorkerState,
-    ahead: int,
-) -> Iterator[BatchResult | BatchFailure]:
-    """Results in batch order, with at most `ahead` batches in flight; batch k goes to
-    `pools[k % len(pools)]` (in-process with `local` when there are no pools)."""
-    if not pools:
-        for batch in batches:
-            yield guarded_batch(local, ctx, batch)
-        return
-    pending: deque[Future[BatchResult | BatchFailure]] = deque()
-    try:
-        for k, batch in enumerate(batches):
-            pending.append(pools[k % len(pools)].submit(run_batch, ctx, batch))
-            if len(pending) >= ahead:
-                yield pending.popleft().result()
-        while pending:
-            yield pending.popleft().result()
-    except BrokenProcessPool:
-        raise WorkerError(
-            f"{ctx.file}: a replay worker process died (killed or out of memory; a script "
-            "calling replay_runs with workers > 1 needs an `if __name__ == '__main__':` guard)"
-        ) from None
-    finally:
-        for future in pending:
-            future.cancel()

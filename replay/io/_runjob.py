@@ -1,27 +1,20 @@
-"""One run replayed into a staging directory (`OUT/.replay/staging/<run_id>/`), then swapped
-into OUT: batch results are accounted for (duplicates decided here, where every line of the run
-is seen in order), quarantined records written, rows written in batch order, counts tallied."""
+"""One run, as the main process sees it: batch reports taken in line order (duplicates
+decided here, where every line of the run is seen in order), quarantine records written,
+counts added up; then the staged parts are swapped into OUT (`OUT/.replay/staging/<run_id>/`
+-> `OUT/<table>/run_id=<run_id>/`)."""
 
 from __future__ import annotations
 
 import os
 import shutil
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO
-
-import pyarrow as pa
-import pyarrow.compute as pc
 
 from .._errors import InputError
 from .._version import ENGINE_VERSION
 from ..semantics._tables import TABLE_ROWS, arrow_schema
-from ._batch import (
-    BatchFailure,
-    BatchResult,
-    RunContext,
-    safe_file_name,
-)
+from ._files import remove_dir, swap_in, write_part
 from ._load import Benchmark
 from ._manifest import (
     Divergence,
@@ -34,89 +27,21 @@ from ._manifest import (
 )
 from ._mcap import ImageSource
 from ._quarantine import QuarantineRecord, encode_record
-from ._reading import LineReader, RunInput
-from ._writer import PartWriter, remove_dir, swap_in
+from ._reading import RunInput
+from ._task import (
+    SKIPPED,
+    BatchCounts,
+    BatchFailure,
+    BatchReport,
+    BatchTask,
+    RunContext,
+    part_name,
+    safe_file_name,
+)
 
-CHUNK_LINES = 64
-"""Rows reach the Parquet writer in Arrow chunks of this many episode lines: a column's page
-layout depends on chunk boundaries, so cutting them by lines (counted from the start of the
-file) keeps the files independent of the batch size and the number of workers."""
 STATE_DIR = ".replay"
 """Private state under OUT: per-run quarantine records, the lock, staging and trash."""
 DIVERGENCE_FIELDS = ("feedback", "state", "view")
-
-
-@dataclass
-class Tally:
-    """Counts of one run, from the batch outcomes and the (kept) rows."""
-
-    lines_read: int = 0
-    replayed: int = 0
-    steps: int = 0
-    truncated: int = 0
-    diverged: int = 0
-    compared: int = 0
-    episodes_diverged: int = 0
-    goals: int = 0
-    mcap_files: int = 0
-    by_field: dict[str, int] = field(default_factory=lambda: dict.fromkeys(DIVERGENCE_FIELDS, 0))
-    by_kind: dict[str, int] = field(default_factory=dict)
-
-    def add_tables(self, steps: pa.Table, episodes: pa.Table, goals: pa.Table) -> None:
-        self.steps += steps.num_rows
-        self.goals += goals.num_rows
-        if steps.num_rows:
-            self.truncated += pc.sum(steps["truncated"]).as_py() or 0
-            diverged = steps["diverged"]
-            self.compared += len(diverged) - diverged.null_count
-            self.diverged += pc.sum(diverged).as_py() or 0
-            flat = pc.list_flatten(steps["diverged_fields"])
-            if len(flat):
-                for item in pc.value_counts(flat).to_pylist():
-                    name = item["values"]
-                    self.by_field[name] = self.by_field.get(name, 0) + item["counts"]
-        if episodes.num_rows:
-            self.episodes_diverged += pc.sum(pc.greater(episodes["diverged_steps"], 0)).as_py() or 0
-
-
-class ChunkWriter:
-    """Hands a table's rows to its PartWriter in chunks of CHUNK_LINES episode lines (one
-    Arrow chunk each, whatever the batches the rows came in)."""
-
-    def __init__(self, writer: PartWriter) -> None:
-        self.writer = writer
-        self.open: int | None = None  # the chunk being gathered
-        self.pieces: list[pa.Table] = []
-
-    def add(self, table: pa.Table, rows: list[tuple[int, int]]) -> None:
-        """`table` holds, in order, `n` rows of chunk `c` for each (c, n) of `rows`."""
-        at = 0
-        for chunk, n in rows:
-            if chunk != self.open:
-                self._flush()
-                self.open = chunk
-            if n:
-                self.pieces.append(table.slice(at, n))
-                at += n
-
-    def flush_complete(self, first_open: int | None) -> None:
-        """Write the gathered chunk if it is before chunk `first_open` (None: in any case)."""
-        if self.open is not None and (first_open is None or self.open < first_open):
-            self._flush()
-
-    def _flush(self) -> None:
-        if self.pieces:
-            table = self.pieces[0] if len(self.pieces) == 1 else pa.concat_tables(self.pieces)
-            self.writer.write(table.combine_chunks())
-        self.pieces = []
-        self.open = None
-
-
-def keep_mask(n: int, drops: list[tuple[int, int]]) -> pa.Array:
-    keep = [True] * n
-    for start, count in drops:
-        keep[start : start + count] = [False] * count
-    return pa.array(keep, pa.bool_())
 
 
 class RunJob:
@@ -126,23 +51,26 @@ class RunJob:
         self,
         run: RunInput,
         bench: Benchmark,
+        bench_given: str,
         out: Path,
         options: RunOptions,
         image_source: ImageSource | None,
         library: str,
+        row_group_rows: int,
     ) -> None:
         self.run = run
         self.bench = bench
+        self.bench_given = bench_given
         self.out = out
         self.options = options
         self.state_dir = out / STATE_DIR
         self.staging = self.state_dir / "staging" / run.header.run_id
         if self.staging.exists():
             shutil.rmtree(self.staging)
-        self.staging.mkdir(parents=True)
-        self.mcap_dir = self.staging / "mcap" if options.mcap else None
-        if self.mcap_dir is not None:
-            self.mcap_dir.mkdir()
+        for name in TABLE_ROWS:
+            (self.staging / name).mkdir(parents=True)
+        if options.mcap:
+            (self.staging / "mcap").mkdir()
         h = run.header
         self.ctx = RunContext(
             run_id=h.run_id,
@@ -151,24 +79,27 @@ class RunJob:
             run_lambda=h.lam,
             option_lambda=options.lam,
             file=str(run.episodes),
-            mcap_dir=None if self.mcap_dir is None else str(self.mcap_dir),
+            staging=str(self.staging),
+            row_group_rows=row_group_rows,
+            mcap=options.mcap,
             mcap_episodes=(
                 None if options.mcap_episodes is None else frozenset(options.mcap_episodes)
             ),
             image_source=image_source,
             library=library,
         )
-        self.writers = {
-            name: PartWriter(self.staging / name, arrow_schema(row_type))
-            for name, row_type in TABLE_ROWS.items()
-        }
-        self.chunks = {name: ChunkWriter(w) for name, w in self.writers.items()}
+        self.parts: dict[str, list[str]] = {name: [] for name in TABLE_ROWS}
         self.seen: dict[str, int] = {}
-        self.items = 0  # episode lines taken so far (blank lines are not items)
         self.devices: dict[str, None] = {}
-        self.tally = Tally()
+        self.lines_read = 0
+        self.replayed = 0
+        self.counts = BatchCounts()
+        self.by_kind: dict[str, int] = {}
         self._quarantine_path = self.staging / "quarantine.jsonl"
         self._quarantine: BinaryIO = open(self._quarantine_path, "wb")  # noqa: SIM115
+
+    def task(self, index: int, lines: list[tuple[int, bytes]]) -> BatchTask:
+        return BatchTask(self.ctx, self.bench_given, index, tuple(lines))
 
     def quarantine(self, line: int, episode_id: str | None, kind: str, reason: str) -> None:
         record = QuarantineRecord(
@@ -180,111 +111,113 @@ class RunJob:
             reason=reason,
         )
         self._quarantine.write(encode_record(record))
-        self.tally.by_kind[kind] = self.tally.by_kind.get(kind, 0) + 1
+        self.by_kind[kind] = self.by_kind.get(kind, 0) + 1
 
-    def take(self, result: BatchResult | BatchFailure) -> int:
-        """Account for one batch result and write its rows; returns the lines it held."""
+    def take(
+        self,
+        task: BatchTask,
+        result: BatchReport | BatchFailure,
+        redo: Callable[[BatchTask], BatchReport | BatchFailure],
+    ) -> int:
+        """Account for one batch, in line order; returns the lines it held.
+
+        A line repeating an episode id seen earlier in the run is a duplicate. The worker
+        cannot know that (it sees one batch), so a batch holding a replayed duplicate is
+        replayed again (`redo`, rare) with those lines skipped, which rewrites its parts."""
+        result = self._checked(result)
+        seen = dict(self.seen)
+        duplicates: dict[int, int] = {}  # line -> the line that first had its id
+        for o in result.outcomes:
+            if o.decoded and o.episode_id is not None:
+                first = seen.get(o.episode_id)
+                if first is None:
+                    seen[o.episode_id] = o.line
+                else:
+                    duplicates[o.line] = first
+        first_try = result
+        if any(o.kind is None and o.line in duplicates for o in result.outcomes):
+            result = self._checked(redo(task.skipping(frozenset(duplicates))))
+        mcap_of = {o.line: o.mcap_tmp for o in first_try.outcomes}
+        by_line = {o.line: o for o in first_try.outcomes}
+        for o in result.outcomes:
+            self.lines_read += 1
+            if o.kind == SKIPPED:
+                o = by_line[o.line]  # what the first try knew of it (the id, the decoding)
+            if o.line in duplicates:
+                self.quarantine(
+                    o.line,
+                    o.episode_id,
+                    "duplicate_episode",
+                    f"episode {o.episode_id!r} already appeared on line {duplicates[o.line]}; "
+                    "only the first occurrence is replayed",
+                )
+                if mcap_of.get(o.line) is not None:
+                    (self.staging / "mcap" / mcap_of[o.line]).unlink(missing_ok=True)
+                continue
+            if o.decoded and o.episode_id is not None:
+                entry = self.bench.tasks.get(o.episode_id)
+                if entry is not None:
+                    self.devices.setdefault(entry.task.device_id)
+            if o.kind is None:
+                self.replayed += 1
+                if o.mcap_tmp is not None:
+                    self.counts.mcap_files += 1
+                    os.replace(
+                        self.staging / "mcap" / o.mcap_tmp,
+                        self.staging / "mcap" / f"{safe_file_name(o.episode_id or '')}.mcap",
+                    )
+            else:
+                self.quarantine(o.line, o.episode_id, o.kind, o.reason or "")
+        self.seen = seen
+        self.counts.add(result.counts)
+        for name, rows in result.parts.items():
+            if rows:
+                self.parts[name].append(part_name(task.index))
+        return len(result.outcomes)
+
+    def _checked(self, result: BatchReport | BatchFailure) -> BatchReport:
         if isinstance(result, BatchFailure):
             raise InputError(self.ctx.file, result.message, result.line) from RuntimeError(
                 result.details
             )
-        tally = self.tally
-        drops: list[tuple[int, int]] = []
-        step_drops: list[tuple[int, int]] = []
-        goal_drops: list[tuple[int, int]] = []
-        episode_pos = step_pos = goal_pos = 0
-        chunks: dict[int, list[int]] = {}  # chunk -> [steps, episodes, goals] rows kept
-        for j, o in enumerate(result.outcomes):
-            tally.lines_read += 1
-            rows = chunks.setdefault((self.items + j) // CHUNK_LINES, [0, 0, 0])
-            kind, reason = o.kind, o.reason
-            if o.decoded and o.episode_id is not None:
-                first = self.seen.get(o.episode_id)
-                if first is not None:
-                    kind = "duplicate_episode"
-                    reason = (
-                        f"episode {o.episode_id!r} already appeared on line {first}; "
-                        "only the first occurrence is replayed"
-                    )
-                else:
-                    self.seen[o.episode_id] = o.line
-                    entry = self.bench.tasks.get(o.episode_id)
-                    if entry is not None:
-                        self.devices.setdefault(entry.task.device_id)
-            if o.kind is None:  # replayed by the worker
-                if kind is None:
-                    tally.replayed += 1
-                    rows[0] += o.n_steps
-                    rows[1] += 1
-                    rows[2] += o.n_goals
-                    if o.mcap_tmp is not None:
-                        self._publish_mcap(o.mcap_tmp, o.episode_id)
-                else:  # a duplicate: drop its rows
-                    drops.append((episode_pos, 1))
-                    step_drops.append((step_pos, o.n_steps))
-                    goal_drops.append((goal_pos, o.n_goals))
-                    if o.mcap_tmp is not None and self.mcap_dir is not None:
-                        (self.mcap_dir / o.mcap_tmp).unlink(missing_ok=True)
-                episode_pos += 1
-                step_pos += o.n_steps
-                goal_pos += o.n_goals
-            if kind is not None:
-                self.quarantine(o.line, o.episode_id, kind, reason or "")
-        steps, episodes, goals = result.steps, result.episodes, result.goals
-        if drops:
-            steps = steps.filter(keep_mask(steps.num_rows, step_drops))
-            episodes = episodes.filter(keep_mask(episodes.num_rows, drops))
-            goals = goals.filter(keep_mask(goals.num_rows, goal_drops))
-        tally.add_tables(steps, episodes, goals)
-        self.items += len(result.outcomes)
-        for k, (name, table) in enumerate(
-            (("steps", steps), ("episodes", episodes), ("goals", goals))
-        ):
-            self.chunks[name].add(table, [(c, rows[k]) for c, rows in chunks.items()])
-            self.chunks[name].flush_complete(self.items // CHUNK_LINES)
-        return len(result.outcomes)
+        return result
 
-    def _publish_mcap(self, tmp_name: str, episode_id: str | None) -> None:
-        assert self.mcap_dir is not None and episode_id is not None
-        os.replace(self.mcap_dir / tmp_name, self.mcap_dir / f"{safe_file_name(episode_id)}.mcap")
-        self.tally.mcap_files += 1
-
-    def finish_reading(self, reader: LineReader) -> None:
-        if reader.error is not None:
-            self.tally.lines_read += 1
+    def finish_reading(self, last_line: int, error: InputError | None) -> None:
+        """A read error ends the file: one `truncated_file` record at the first lost line."""
+        if error is not None:
+            self.lines_read += 1
             self.quarantine(
-                reader.last_line + 1,
+                last_line + 1,
                 None,
                 "truncated_file",
-                f"the file cannot be read from line {reader.last_line + 1} on: "
-                f"{reader.error.message}",
+                f"the file cannot be read from line {last_line + 1} on: {error.message}",
             )
 
     def abort(self) -> None:
-        for writer in self.writers.values():
-            writer.abort()
         self._quarantine.close()
         shutil.rmtree(self.staging, ignore_errors=True)
 
     def commit(self, inputs: RunInputs) -> RunEntry:
         """Close the staged files and swap the run's partitions into OUT."""
-        for chunks in self.chunks.values():
-            chunks.flush_complete(None)
-        files = {name: w.close() for name, w in self.writers.items()}
         self._quarantine.close()
         run_id = self.ctx.run_id
+        for name, row_type in TABLE_ROWS.items():
+            if not self.parts[name]:  # every run has at least one (empty) part per table
+                table = arrow_schema(row_type).empty_table()
+                write_part(table, self.staging / name / part_name(0), self.ctx.row_group_rows)
+                self.parts[name].append(part_name(0))
         trash = self.state_dir / "trash"
         for name in TABLE_ROWS:
             swap_in(self.staging / name, self.out / name / f"run_id={run_id}", trash)
-        if self.mcap_dir is not None:
-            swap_in(self.mcap_dir, self.out / "mcap" / run_id, trash)
+        if self.options.mcap:
+            swap_in(self.staging / "mcap", self.out / "mcap" / run_id, trash)
         else:
             remove_dir(self.out / "mcap" / run_id, trash)
         qdir = self.state_dir / "quarantine"
         qdir.mkdir(parents=True, exist_ok=True)
         os.replace(self._quarantine_path, qdir / f"{run_id}.jsonl")
         shutil.rmtree(self.staging, ignore_errors=True)
-        t = self.tally
+        c = self.counts
         h = self.run.header
         return RunEntry(
             run_id=run_id,
@@ -293,26 +226,27 @@ class RunJob:
             options=self.options,
             run=RunInfo(model=h.model, agent_kind=h.agent_kind, lam=h.lam, meta=h.meta),
             counts=RunCounts(
-                lines_read=t.lines_read,
-                replayed=t.replayed,
-                quarantined=sum(t.by_kind.values()),
-                steps=t.steps,
-                truncated_steps=t.truncated,
-                diverged_steps=t.diverged,
-                goals=t.goals,
-                mcap_files=t.mcap_files,
+                lines_read=self.lines_read,
+                replayed=self.replayed,
+                quarantined=sum(self.by_kind.values()),
+                steps=c.steps,
+                truncated_steps=c.truncated,
+                diverged_steps=c.diverged,
+                goals=c.goals,
+                mcap_files=c.mcap_files,
             ),
-            quarantine=dict(sorted(t.by_kind.items())),
+            quarantine=dict(sorted(self.by_kind.items())),
             divergence=Divergence(
-                steps_compared=t.compared,
-                steps_diverged=t.diverged,
-                episodes_diverged=t.episodes_diverged,
-                by_field=dict(sorted(t.by_field.items())),
+                steps_compared=c.compared,
+                steps_diverged=c.diverged,
+                episodes_diverged=c.episodes_diverged,
+                by_field={f: c.by_field.get(f, 0) for f in DIVERGENCE_FIELDS},
             ),
             outputs=RunOutputs(
-                steps=[f"steps/run_id={run_id}/{f}" for f in files["steps"]],
-                episodes=[f"episodes/run_id={run_id}/{f}" for f in files["episodes"]],
-                goals=[f"goals/run_id={run_id}/{f}" for f in files["goals"]],
-                mcap=None if self.mcap_dir is None else f"mcap/{run_id}",
+                steps=[f"steps/run_id={run_id}/{f}" for f in sorted(self.parts["steps"])],
+                episodes=[f"episodes/run_id={run_id}/{f}" for f in sorted(self.parts["episodes"])],
+                goals=[f"goals/run_id={run_id}/{f}" for f in sorted(self.parts["goals"])],
+                mcap=f"mcap/{run_id}" if self.options.mcap else None,
             ),
         )
+

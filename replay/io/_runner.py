@@ -1,25 +1,20 @@
 """`replay_runs`: run logs -> Parquet tables, quarantine, manifest, MCAP (PROTOCOL §7).
 
-The main process reads each episodes file line by line and cuts it into batches of
-`BATCH_LINES` lines; batches are replayed in order (in-process, or by worker processes,
-at most `AHEAD_PER_WORKER` per worker in flight) and their rows are written in batch order.
-So memory does not grow with the log size and the output does not depend on the number of
-workers.
-
-Modules: `_reading` (run directories, lines in batches, ordered results), `_batch` (the
-worker side), `_runjob` (one run: duplicates, quarantine, staging, swap-in), `_writer`
-(atomic files, Parquet parts), `_outdir` (up-to-date check, files rebuilt from the manifest,
-lock), `_manifest` (the manifest records, hashing, the runs table), `_mcap` (MCAP files).
+The main process reads each episodes file and cuts it into batches of `BATCH_LINES` lines.
+A batch is replayed and written as one Parquet part per table by `_worker.replay_batch`,
+here or in worker processes (`_executor`), at most `AHEAD_PER_WORKER` batches per worker in
+flight, the next run's batches following the current one's without a pause. The main
+process takes the reports in line order (duplicates, quarantine, counts: `_runjob`) and
+commits each run when its last batch is in. Memory does not grow with the log size and
+the files do not depend on the number of workers.
 """
 
 from __future__ import annotations
 
 import math
-import multiprocessing
 import os
 import shutil
-from collections.abc import Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -27,28 +22,23 @@ import msgspec
 
 from .._errors import ConfigError, InputError
 from .._version import ENGINE_VERSION
-from ._batch import (
-    WorkerState,
-    init_worker,
-)
+from . import _files
+from ._executor import Executor, InProcess, WorkerProcesses, in_order
 from ._load import Benchmark
-from ._manifest import (
-    Hasher,
-    Manifest,
-    RunEntry,
-    RunOptions,
-    read_manifest,
-)
+from ._manifest import Hasher, Manifest, RunEntry, RunOptions, read_manifest
 from ._mcap import ImageSource
 from ._outdir import OutputLock, publish, run_inputs, up_to_date
-from ._reading import LineReader, RunInput, ordered_results, read_runs
+from ._reading import LineReader, RunInput, read_runs
 from ._runjob import STATE_DIR, RunJob
+from ._task import BatchTask
+from ._worker import WorkerState, adopt, replay_batch
 
 if TYPE_CHECKING:
     from rich.progress import Progress, TaskID
 
-BATCH_LINES = 1024
-"""Episode lines per batch (the unit of work of a worker; fixed, whatever the workers)."""
+BATCH_LINES = 4096
+"""Episode lines per batch: the unit of work of a worker and of a Parquet part (fixed,
+whatever the workers)."""
 AHEAD_PER_WORKER = 2
 """Batches in flight per worker process."""
 
@@ -105,18 +95,6 @@ def _rate(progress: Progress, task: TaskID) -> str:
     return "-" if not elapsed or not t.completed else f"{t.completed / elapsed:,.0f}"
 
 
-def _start_workers(workers: int, bench_dir: str) -> list[ProcessPoolExecutor]:
-    """One single-process pool per worker: batch k of every run goes to worker k mod N, so
-    runs that list the same episodes in the same order find each task's plan cached."""
-    context = multiprocessing.get_context("spawn")
-    return [
-        ProcessPoolExecutor(
-            max_workers=1, mp_context=context, initializer=init_worker, initargs=(bench_dir,)
-        )
-        for _ in range(workers)
-    ]
-
-
 def replay_runs(
     run_dirs: Sequence[str | os.PathLike[str]],
     bench_dir: str | os.PathLike[str],
@@ -151,7 +129,6 @@ def replay_runs(
         raise InputError(str(out), "output path exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     state_dir = out / STATE_DIR
-    library = f"vge-analytics replay {ENGINE_VERSION}"
     replayed: list[str] = []
     skipped: list[str] = []
 
@@ -161,47 +138,35 @@ def replay_runs(
         previous = read_manifest(out)
         entries = {e.run_id: e for e in previous.runs} if previous else {}
         hasher = Hasher()
-        local = WorkerState(bench)
-        pools: list[ProcessPoolExecutor] = []
+        todo: list[RunInput] = []
+        for run in runs:
+            prev = entries.get(run.header.run_id)
+            if prev is not None and not force:
+                current = up_to_date(prev, run, bench_given, options, hasher, out)
+                if current is not None:
+                    entries[run.header.run_id] = msgspec.structs.replace(prev, inputs=current)
+                    skipped.append(run.header.run_id)
+                    continue
+            todo.append(run)
+        adopt(WorkerState(bench), bench_given)  # the main process replays with this one
+        executor: Executor = InProcess() if workers == 1 or not todo else WorkerProcesses(workers)
         bar = _make_progress(progress)
         try:
             if bar is not None:
                 bar.start()
-            for run in runs:
-                run_id = run.header.run_id
-                prev = entries.get(run_id)
-                if prev is not None and not force:
-                    current = up_to_date(prev, run, bench_given, options, hasher, out)
-                    if current is not None:
-                        entries[run_id] = msgspec.structs.replace(prev, inputs=current)
-                        skipped.append(run_id)
-                        if bar is not None:
-                            bar.console.print(f"{run_id}: up to date, skipped (use --force)")
-                        continue
-                if workers > 1 and not pools:
-                    pools = _start_workers(workers, bench_given)
-                entries[run_id] = _replay_one(
-                    run,
-                    bench,
-                    bench_given,
-                    out,
-                    options,
-                    image_source,
-                    library,
-                    hasher,
-                    pools,
-                    local,
-                    workers,
-                    bar,
-                )
-                replayed.append(run_id)
+                for run_id in skipped:
+                    bar.console.print(f"{run_id}: up to date, skipped (use --force)")
+            for job in _replay_all(
+                todo, bench, bench_given, out, options, image_source, hasher, executor, bar
+            ):
+                entries[job.ctx.run_id] = job.entry
+                replayed.append(job.ctx.run_id)
                 publish(out, entries)
             content = publish(out, entries)
         finally:
             if bar is not None:
                 bar.stop()
-            for pool in pools:
-                pool.shutdown(wait=True, cancel_futures=True)
+            executor.close()
             shutil.rmtree(state_dir / "staging", ignore_errors=True)
     return Manifest(
         path=out / "manifest.json",
@@ -212,44 +177,60 @@ def replay_runs(
     )
 
 
-def _replay_one(
-    run: RunInput,
+class _Job(RunJob):
+    """A run job with its reader and, once committed, its manifest entry."""
+
+    reader: LineReader
+    entry: RunEntry
+
+
+def _replay_all(
+    runs: list[RunInput],
     bench: Benchmark,
     bench_given: str,
     out: Path,
     options: RunOptions,
     image_source: ImageSource | None,
-    library: str,
     hasher: Hasher,
-    pools: list[ProcessPoolExecutor],
-    local: WorkerState,
-    workers: int,
+    executor: Executor,
     bar: Progress | None,
-) -> RunEntry:
-    hasher(run.episodes)  # hash what is about to be read
-    job = RunJob(run, bench, out, options, image_source, library)
-    reader = LineReader(run.episodes, BATCH_LINES)
-    task = None
-    if bar is not None:
-        task = bar.add_task(run.header.run_id, total=None, rate="-")
+) -> Iterator[_Job]:
+    """Replay the runs, yielding each run's job once it is committed (in order)."""
+    library = f"vge-analytics replay {ENGINE_VERSION}"
+    open_jobs: list[_Job] = []
+    bars: dict[str, TaskID] = {}
+
+    def items() -> Iterator[tuple[_Job, BatchTask | None]]:
+        for run in runs:
+            hasher(run.episodes)  # hash what is about to be read
+            job = _Job(
+                run, bench, bench_given, out, options, image_source, library,
+                _files.ROW_GROUP_ROWS,
+            )  # fmt: skip
+            job.reader = LineReader(run.episodes, BATCH_LINES)
+            open_jobs.append(job)
+            if bar is not None:
+                bars[job.ctx.run_id] = bar.add_task(job.ctx.run_id, total=None, rate="-")
+            for index, lines in enumerate(job.reader.batches()):
+                yield job, job.task(index, lines)
+            yield job, None  # the end of the run, in order after its batches
+
     try:
-        results = ordered_results(
-            reader.batches(), job.ctx, pools, local, AHEAD_PER_WORKER * workers
-        )
-        for batch_result in results:
-            n = job.take(batch_result)
-            if bar is not None and task is not None:
-                bar.advance(task, n)
-                bar.update(task, rate=_rate(bar, task))
-        job.finish_reading(reader)
-        inputs = run_inputs(run, bench_given, hasher, job.devices)
-        entry = job.commit(inputs)
-        if bar is not None and task is not None:
-            bar.update(task, total=bar.tasks[task].completed)
-        return entry
+        for job, task, result in in_order(executor, items(), AHEAD_PER_WORKER * executor.slots):
+            if task is not None and result is not None:
+                n = job.take(task, result, redo=replay_batch)
+                if bar is not None:
+                    bar.advance(bars[job.ctx.run_id], n)
+                    bar.update(bars[job.ctx.run_id], rate=_rate(bar, bars[job.ctx.run_id]))
+                continue
+            job.finish_reading(job.reader.last_line, job.reader.error)
+            job.entry = job.commit(run_inputs(job.run, bench_given, hasher, job.devices))
+            open_jobs.remove(job)
+            if bar is not None:
+                task_id = bars[job.ctx.run_id]
+                bar.update(task_id, total=bar.tasks[task_id].completed)
+            yield job
     except BaseException:
-        job.abort()
+        for job in open_jobs:
+            job.abort()
         raise
-
-
-__all__ = ["BATCH_LINES", "replay_runs"]

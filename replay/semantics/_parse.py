@@ -25,8 +25,6 @@ import msgspec
 
 from ._vocab import ACTION_NAMES, DISPLAY_NAMES, normalize_param
 
-PARSE_DETAILS = ("no_action", "multiple_actions", "unknown_action", "malformed")
-
 _LABEL_LINE = re.compile(r"^[ \t>*_#`\-]*action[ \t*_`]*:", re.IGNORECASE | re.MULTILINE)
 _LABEL_ANY = re.compile(r"\baction[ \t*_`]*:", re.IGNORECASE)
 _THINKING = re.compile(r"^[ \t>*_#`\-]*thinking[ \t*_`]*:", re.IGNORECASE | re.MULTILINE)
@@ -168,7 +166,7 @@ def _parse_entry(entry: str, thinking: str) -> ParsedAction:
 def fast_params(raw: str | None) -> tuple[str, ...] | None:
     """The params of a fast-path match (the text inside `params=[...]`, or None when absent),
     normalised; None when an item is not a plain word or a quoted one (the full grammar
-    decides then). Shared with the columnar parser (`_columnar_parse.py`)."""
+    decides then)."""
     if not raw or raw.isspace():
         return ()
     items = [p.strip() for p in raw.split(",")]

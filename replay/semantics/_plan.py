@@ -156,7 +156,20 @@ def _region_views(machine: Machine) -> tuple[str, ...]:
     return tuple(v for v in VIEW_ORDER if v in machine.dashboard_regions)
 
 
-def _options(machine: Machine, tr: CompiledTransition, view: str, unlocked: bool) -> list[_Option]:
+def _options(
+    machine: Machine, tr: CompiledTransition, view: str, unlocked: bool
+) -> tuple[_Option, ...]:
+    """The ways to take `tr` from (view, unlocked), memoised per machine."""
+    key = ("options", tr.source, tr.component, tr.index, view, unlocked)
+    got = machine._cache.get(key)
+    if got is None:
+        got = machine._cache[key] = tuple(_find_options(machine, tr, view, unlocked))
+    return got
+
+
+def _find_options(
+    machine: Machine, tr: CompiledTransition, view: str, unlocked: bool
+) -> list[_Option]:
     if tr.action is None:  # timed_wait needs no view
         return [_Option(tr, 0, view, unlocked, ())]
     opts: list[_Option] = []
@@ -240,8 +253,18 @@ class _Solver:
 
 
 def _click_point(machine: Machine, tr: CompiledTransition, view: str) -> tuple[float, float]:
-    """A point that triggers `tr` in `view`: the centre of its smallest rect, or the first grid
-    point inside it that hits no smaller rival whose action and params also match."""
+    """A point that triggers `tr` in `view` (memoised per machine: it does not depend on the
+    task)."""
+    key = ("click", tr.source, tr.component, tr.index, view)
+    got = machine._cache.get(key)
+    if got is None:
+        got = machine._cache[key] = _find_click_point(machine, tr, view)
+    return got
+
+
+def _find_click_point(machine: Machine, tr: CompiledTransition, view: str) -> tuple[float, float]:
+    """The centre of the smallest rect of `tr` in `view`, or the first grid point inside it
+    that hits no smaller rival whose action and params also match."""
     rects = sorted(tr.rects[view], key=lambda r: r[4])
     rivals = [
         (other, rs)
@@ -297,7 +320,7 @@ def plan_goals(
 ) -> Plan:
     """The optimal plan for `goals` from (start, view, unlocked); raises TaskError if none."""
     _check_goals(machine, start, goals, where)
-    solver = _Solver(machine, goals) if len(goals) != 1 else _single_solver(machine, goals[0])
+    solver = _solver(machine, goals)
     n = len(goals)
     if solver.value(0, start, view, unlocked) >= INF:
         raise TaskError(f"{where}the goals need a component that no interactable view shows")
@@ -349,11 +372,12 @@ def _check_goals(machine: Machine, start: int, goals: tuple[int, ...], where: st
         s = machine.chain_end[g]
 
 
-def _single_solver(machine: Machine, goal: int) -> _Solver:
-    key = ("solver1", goal)
+def _solver(machine: Machine, goals: tuple[int, ...]) -> _Solver:
+    """The solver of a goal sequence, memoised per machine (tasks of a device share them)."""
+    key = ("solver", goals)
     solver = machine._cache.get(key)
     if solver is None:
-        solver = _Solver(machine, (goal,))
+        solver = _Solver(machine, goals)
         machine._cache[key] = solver
     return solver
 
@@ -365,5 +389,5 @@ def c_opt_dynamic(machine: Machine, state: int, view: str, unlocked: bool, goal:
         return 0
     if d >= INF:
         return None
-    w = _single_solver(machine, goal).value(0, state, view, unlocked)
+    w = _solver(machine, (goal,)).value(0, state, view, unlocked)
     return None if w >= INF else d + w

@@ -22,6 +22,7 @@ from ._vocab import (
     FB_TRANSITION,
     FB_UNLOCKED,
     FB_WAIT_NO_EFFECT,
+    INVALID_DETAILS,
     ORTHOGRAPHIC_VIEWS,
     SWITCH_VIEW,
     TIMED_WAIT,
@@ -62,20 +63,7 @@ def _invalid(detail: str) -> Outcome:
     return Outcome(FB_INVALID, fb.invalid_text(detail), detail)
 
 
-_INVALID = {
-    d: _invalid(d)
-    for d in (
-        "no_action",
-        "multiple_actions",
-        "unknown_action",
-        "malformed",
-        "axonometric_view",
-        "missing_coord",
-        "out_of_range",
-        "invalid_view",
-        "locked_dashboard",
-    )
-}
+_INVALID = {d: _invalid(d) for d in INVALID_DETAILS}
 _OPERATIONAL = Outcome(FB_OPERATIONAL, fb.OPERATIONAL_TEXT)
 _NULL = Outcome(FB_NULL, fb.NULL_TEXT)
 _WAIT_NO_EFFECT = Outcome(FB_WAIT_NO_EFFECT, fb.WAIT_NO_EFFECT_TEXT)

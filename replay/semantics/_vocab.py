@@ -66,6 +66,19 @@ SWITCH_CLASSES = ("NP", "PN", "NN", "PP")
 
 TERMINATIONS = ("success", "budget_global", "budget_local", "log_ended")
 
+PARSE_DETAILS = ("no_action", "multiple_actions", "unknown_action", "malformed")
+"""Why a response did not parse (PROTOCOL §2)."""
+INVALID_DETAILS = PARSE_DETAILS + (
+    "axonometric_view",
+    "missing_coord",
+    "out_of_range",
+    "invalid_view",
+    "locked_dashboard",
+)
+"""Why a step got `invalid_action` feedback (PROTOCOL §3)."""
+ERROR_DETAILS = INVALID_DETAILS + ("wrong_action", "no_effect")
+"""Every `error_detail` value (PROTOCOL §5)."""
+
 DEFAULT_LAMBDA = 5.0
 
 

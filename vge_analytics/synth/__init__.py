@@ -14,7 +14,13 @@ from ._catalog import (
     load_catalog,
     load_ucsm,
 )
-from ._instantiate import SyntheticDevice, dump_ssm, instantiate_device, scene_of
+from ._instantiate import (
+    SyntheticDevice,
+    device_logic,
+    dump_ssm,
+    instantiate_device,
+    scene_of,
+)
 from ._measure import RunMeasures, measure_output, measure_run
 from ._profiles import PROFILES, Profile
 from ._render import png_bytes, render_view
@@ -38,6 +44,7 @@ __all__ = [
     "SyntheticDevice",
     "TaskRecord",
     "available_categories",
+    "device_logic",
     "dump_ssm",
     "generate",
     "instantiate_device",

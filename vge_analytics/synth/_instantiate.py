@@ -55,11 +55,18 @@ def dashboard_probability(categories: tuple[str, ...] | None = None) -> float:
     return 1.0 if eligible <= 0 else min(1.0, PAPER_DASHBOARDS / eligible)
 
 
-def instantiate_device(
+def device_logic(
     category: str, device_id: str, seed: int, *, dashboard_p: float | None = None
-) -> SyntheticDevice:
-    """Generate one device of `category`; deterministic in (category, device_id, seed)."""
-    rng = rng_for(seed, "device", device_id)
+) -> DeviceLogic:
+    """The logical half of `instantiate_device` alone (the SSM without geometry): the same
+    states and transitions, without the cost of a layout."""
+    return _logic_half(category, device_id, rng_for(seed, "device", device_id), dashboard_p)[0]
+
+
+def _logic_half(
+    category: str, device_id: str, rng: random.Random, dashboard_p: float | None
+) -> tuple[DeviceLogic, bool]:
+    """(the device's logic, whether it wants a dashboard), drawn from `rng`."""
     catalog = load_catalog(category)
     p = dashboard_probability() if dashboard_p is None else dashboard_p
     wants_dashboard = catalog.dashboard and rng.random() < p
@@ -68,7 +75,16 @@ def instantiate_device(
         # A device with a dashboard has a control panel: at least two of its controls.
         on_panel = sorted(c for c, spec in catalog.components.items() if spec.on_dashboard)
         force = frozenset(rng.sample(on_panel, min(2, len(on_panel))))
-    logic = instantiate_logic(category, device_id, rng, force=force)
+    return instantiate_logic(category, device_id, rng, force=force), wants_dashboard
+
+
+def instantiate_device(
+    category: str, device_id: str, seed: int, *, dashboard_p: float | None = None
+) -> SyntheticDevice:
+    """Generate one device of `category`; deterministic in (category, device_id, seed)."""
+    rng = rng_for(seed, "device", device_id)
+    catalog = load_catalog(category)
+    logic, wants_dashboard = _logic_half(category, device_id, rng, dashboard_p)
     panel_parts = [c for c in logic.components if catalog.components[c].on_dashboard]
     has_dashboard = wants_dashboard and len(panel_parts) >= 1
     views: dict[str, tuple[str, ...]] = {}

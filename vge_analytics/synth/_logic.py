@@ -25,11 +25,11 @@ CATEGORY_PRUNING: dict[str, tuple[float, float]] = {
     "AirFryer": (0.0, 0.0),
     "AirPurifier": (0.2, 0.15),
     "CarKey": (0.3, 0.9),
-    "CoffeeMachine": (0.0, 0.15),
+    "CoffeeMachine": (0.0, 0.3),
     "DigitalAlarmClock": (0.0, 0.9),
     "DigitalCamera": (0.1, 0.45),
     "ElectricFan": (0.4, 0.0),
-    "ElectricKettle": (0.85, 0.75),
+    "ElectricKettle": (0.85, 0.9),
     "ElectricToothbrush": (0.3, 0.3),
     "FilmCamera": (0.0, 0.0),
     "Flashlight": (0.3, 0.75),
@@ -179,7 +179,8 @@ def _drop_functions(
 ) -> dict[str, dict]:
     """Remove some functions (states) this device lacks, e.g. a microwave without a medium
     power level, as long as the machine stays usable: every state can return to the initial
-    one, every component keeps a use, and at least two goal states remain."""
+    one, every component keeps a use, and at least two goal states remain. A settling state
+    that passes the device on to another state is never dropped on its own (`_passes_on`)."""
 
     def used(st: dict[str, dict]) -> set[str]:
         return {c for d in st.values() for c in d["on"] if c not in NON_COMPONENTS}
@@ -187,6 +188,8 @@ def _drop_functions(
     for sname in list(states):
         draw = rng.random()
         if sname not in states or sname == initial or _is_error(sname, states[sname]):
+            continue
+        if _passes_on(states, sname):
             continue
         if draw >= drop_p:
             continue
@@ -202,6 +205,24 @@ def _drop_functions(
             continue
         states = candidate
     return states
+
+
+def _passes_on(states: dict[str, dict], name: str) -> bool:
+    """True for a settling state that passes the device on to another state (the drum
+    filling before a wash, a finished brew before the machine is ready again): it is part
+    of the transitions that enter it, not a function of its own. A settling state that
+    returns the device to where it came from (a setting nudged, a confirmation chirp) is an
+    optional function like any other."""
+    imm = states[name]["on"].get("immediate")
+    if not imm:
+        return False
+    rest = imm[0]["next_state"]
+    return any(
+        t["next_state"] == name and sname != rest
+        for sname, sdef in states.items()
+        for trans in sdef["on"].values()
+        for t in trans
+    )
 
 
 def _reachable(states: dict[str, dict], start: str) -> set[str]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
@@ -25,8 +26,7 @@ def _digests(out: Path) -> dict[str, str]:
 @pytest.fixture
 def small_boundaries(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr("replay.io._runner.BATCH_LINES", 5)
-    monkeypatch.setattr("replay.io._writer.ROW_GROUP_ROWS", 40)
-    monkeypatch.setattr("replay.io._writer.PART_ROWS", 100)
+    monkeypatch.setattr("replay.io._files.ROW_GROUP_ROWS", 40)
 
 
 def test_identical_across_repeats_and_workers(
@@ -50,18 +50,39 @@ def test_identical_across_repeats_and_workers(
     names = list(outs[0])
     assert sum(n.endswith(".mcap") for n in names) == 52
     parts = [n for n in names if n.startswith("steps/run_id=vlm-a/")]
-    assert len(parts) == 3  # 240 rows in parts of 100
-    meta = pq.ParquetFile(tmp_path / "a" / parts[0]).metadata
-    assert meta.num_rows == 100 and meta.num_row_groups == 3  # 40 + 40 + 20
+    assert len(parts) == 8  # 13 cases x 3 copies = 39 lines, one part per 5 lines
+    rows = 0
+    for part in parts:
+        meta = pq.ParquetFile(tmp_path / "a" / part).metadata
+        groups = [meta.row_group(i).num_rows for i in range(meta.num_row_groups)]
+        assert groups == [40] * (meta.num_rows // 40) + ([meta.num_rows % 40] if meta.num_rows % 40 else [])
+        rows += meta.num_rows
+    assert rows == 240
 
 
-def test_batch_size_does_not_change_output(
+def _rows(out: Path, table: str) -> pa.Table:
+    """A table's rows, part after part (the replay's row order)."""
+    parts = sorted((out / table).glob("run_id=*/*.parquet"))
+    return pa.concat_tables(pq.read_table(p) for p in parts)
+
+
+def test_batch_size_changes_only_the_part_layout(
     sample: Sample, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """A part holds one batch of lines, so the batch size cuts the files differently; the
+    rows, their order, the quarantine and the counts stay the same."""
     outs = []
     for size in (1, 7, 1000):
         monkeypatch.setattr("replay.io._runner.BATCH_LINES", size)
         out = tmp_path / str(size)
         replay.replay_runs(sample.runs, sample.bench, out, progress=False)
-        outs.append(_digests(out))
-    assert outs[0] == outs[1] == outs[2]
+        outs.append(out)
+    for out in outs[1:]:
+        for table in ("steps", "episodes", "goals"):
+            assert _rows(out, table).equals(_rows(outs[0], table))
+        assert (out / "quarantine.jsonl").read_bytes() == (outs[0] / "quarantine.jsonl").read_bytes()
+        assert (out / "runs" / "runs.parquet").read_bytes() == (
+            outs[0] / "runs" / "runs.parquet"
+        ).read_bytes()
+        counts = [[r.counts for r in replay.read_manifest(o).runs] for o in (out, outs[0])]
+        assert counts[0] == counts[1]

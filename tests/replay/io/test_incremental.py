@@ -10,7 +10,7 @@ import duckdb
 import pytest
 
 import replay
-from replay.io import _batch, _writer
+from replay.io import _worker
 
 from ..conftest import Sample
 
@@ -110,9 +110,9 @@ def _fail_after(monkeypatch: pytest.MonkeyPatch, target: object, name: str, n: i
 @pytest.mark.parametrize(
     ("target", "name", "n"),
     [
-        (_batch, "replay_columnar", 2),  # mid-run, in the (columnar) replay
-        (_batch, "replay_episode", 20),  # mid-run, in the scalar replay loop
-        (_writer.PartWriter, "_write_group", 2),  # mid-part, while writing Parquet
+        (_worker, "replay_kernel", 2),  # mid-run, in the compiled replay
+        (_worker, "replay_episode", 20),  # mid-run, in the reference replay loop
+        (_worker, "write_part", 2),  # mid-run, while writing a Parquet part
     ],
 )
 def test_interrupted_replay_leaves_previous_output_intact(
@@ -125,10 +125,9 @@ def test_interrupted_replay_leaves_previous_output_intact(
 ) -> None:
     s, out = copy_sample, tmp_path / "out"
     if name == "replay_episode":
-        monkeypatch.setattr("replay.io._batch.COLUMNAR", False)  # the scalar engine
+        monkeypatch.setattr("replay.io._worker.KERNEL", False)  # the reference engine
     monkeypatch.setattr("replay.io._runner.BATCH_LINES", 4)
-    monkeypatch.setattr("replay.io._writer.ROW_GROUP_ROWS", 16)
-    monkeypatch.setattr("replay.io._writer.PART_ROWS", 64)
+    monkeypatch.setattr("replay.io._files.ROW_GROUP_ROWS", 16)
     replay.replay_runs([s.vlm], s.bench, out, progress=False)
     before = _state(out)
     rows = _visible_rows(out)

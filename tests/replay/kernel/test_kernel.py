@@ -1,11 +1,11 @@
-"""The columnar engine (`replay.kernel._columnar`) gives exactly the scalar engine's tables.
+"""The compiled kernel (`replay.kernel`) gives exactly the reference engine's tables.
 
 `replay_episode` is the reference. Compared table against table (`pa.Table.equals`): the
 bundled sample, every hand-worked case, hypothesis-generated logs (well-formed and broken
 texts, structured actions, switches and dashboard unlocks, waits, out-of-range points,
 recorded values that match or not, timestamps, logs longer than the budget, small
-lambdas) on the hand-worked SSMs and a few sample SSMs; the batch parser against
-`parse_log_step` on arbitrary texts; and the runner's files with either engine.
+lambdas) on the hand-worked SSMs and a few sample SSMs; the compiled parser against
+`parse_action` on arbitrary texts; and the runner's files with either engine.
 """
 
 from __future__ import annotations
@@ -22,16 +22,16 @@ import pyarrow.parquet as pq
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from replay.kernel._text import parse_fields
 
 import replay
 from replay.io._load import episode_decoder
-from replay.kernel._columnar import EpisodeInput, replay_columnar
-from replay.kernel._columnar_parse import parse_steps
-from replay.kernel._columnar_tables import ColumnarCache
-from replay.semantics._episode import parse_log_step, setup_episode
+from replay.kernel._batch import EpisodeInput, replay_kernel
+from replay.semantics._episode import setup_episode
+from replay.semantics._parse import parse_action
 from replay.semantics._rows import EpisodeRow, GoalRow, StepRow
 from replay.semantics._tables import rows_to_table
-from replay.semantics._vocab import FEEDBACK_KINDS, STANDARD_VIEWS
+from replay.semantics._vocab import ACTION_NAMES, FEEDBACK_KINDS, STANDARD_VIEWS, normalize_param
 
 ROOT = Path(__file__).resolve().parents[3]
 DATA = ROOT / "tests" / "data"
@@ -54,7 +54,7 @@ def first_difference(got: pa.Table, want: pa.Table) -> str:
             continue
         for i, (x, y) in enumerate(zip(a.to_pylist(), b.to_pylist(), strict=True)):
             if x != y or type(x) is not type(y) or repr(x) != repr(y):
-                return f"column {name!r}, row {i}: columnar {x!r}, scalar {y!r}"
+                return f"column {name!r}, row {i}: kernel {x!r}, reference {y!r}"
         return f"column {name!r}: same values, different nulls or chunks"
     return "tables differ"
 
@@ -86,16 +86,14 @@ def scalar_tables(episodes: list[EpisodeInput], head=("run", "model", "vlm")):
     )
 
 
-def check_batch(episodes: list[EpisodeInput], cache_: ColumnarCache | None = None) -> None:
-    """The columnar tables of a batch equal the scalar ones, row counts included."""
+def check_batch(episodes: list[EpisodeInput]) -> None:
+    """The kernel's tables of a batch equal the reference ones, row counts included."""
     steps, eps, goals, step_counts, goal_counts = scalar_tables(episodes)
-    got = replay_columnar(
-        cache_ or ColumnarCache(), episodes, run_id="run", model="model", agent_kind="vlm"
-    )
+    got = replay_kernel(episodes, run_id="run", model="model", agent_kind="vlm")
     assert_same(got.steps, steps, "steps")
     assert_same(got.episodes, eps, "episodes")
     assert_same(got.goals, goals, "goals")
-    assert got.step_counts == step_counts and got.goal_counts == goal_counts
+    assert list(got.step_counts) == step_counts and list(got.goal_counts) == goal_counts
 
 
 @cache
@@ -132,7 +130,7 @@ def test_hand_worked_cases(doc: dict) -> None:
 
 
 def test_hand_worked_cases_in_one_batch() -> None:
-    """All cases at once, each twice (memoised results are reused across episodes), and
+    """All cases at once, each twice (per-machine tables are reused across episodes), and
     each once more with an empty log."""
     batch = []
     for doc in _case_docs() * 2:
@@ -171,11 +169,10 @@ def _sample_batches(size: int):
 
 
 def test_bundled_sample() -> None:
-    """Every run of `logs/`, in batches of 200 episodes, one cache for all (as a worker)."""
-    shared = ColumnarCache()
+    """Every run of `logs/`, in batches of 200 episodes (machine tables kept, as a worker)."""
     for run, batch in _sample_batches(200):
         try:
-            check_batch(batch, shared)
+            check_batch(batch)
         except AssertionError as exc:
             raise AssertionError(f"run {run}: {exc}") from None
 
@@ -327,21 +324,35 @@ _FRAGMENTS = st.sampled_from(
 )  # fmt: skip
 
 
-@settings(max_examples=300, deadline=None)
-@given(st.lists(st.lists(_FRAGMENTS | st.text(max_size=3), max_size=12).map("".join), max_size=8))
-def test_batch_parser_matches_parse_log_step(texts: list[str]) -> None:
-    steps = [replay.LogStep(output="Thinking: " + t if i % 2 else t) for i, t in enumerate(texts)]
-    cache_ = ColumnarCache()
-    parsed = parse_steps(steps, cache_.actions)
-    raw, thinking = parsed.action_raw.to_pylist(), parsed.thinking.to_pylist()
-    for i, s in enumerate(steps):
-        want = parse_log_step(s)
-        action = want.action
-        assert cache_.actions.of_parsed(want) == parsed.aid[i], s.output
-        coord = (float(parsed.x[i]), float(parsed.y[i])) if parsed.has_coord[i] else None
-        assert coord == (action.coord if action is not None else None), s.output
-        assert raw[i] == want.action_text, s.output
-        assert thinking[i] == (want.thinking or None), s.output
+@settings(max_examples=1000, deadline=None)
+@given(st.lists(_FRAGMENTS | st.text(max_size=3), max_size=12).map("".join))
+def test_compiled_parser_matches_the_reference(text: str) -> None:
+    """Whatever the compiled parser decides, the reference parser decides the same."""
+    for candidate in (text, "Thinking: " + text):
+        got = parse_fields(candidate)
+        if got is None:  # left to the reference
+            continue
+        want = parse_action(candidate)
+        status, kind, coord, params, action_text, thinking = got
+        if status == "ok":
+            assert want.ok and want.action.type == ACTION_NAMES[kind], candidate
+            assert want.action.coord == coord, candidate
+            assert tuple(normalize_param(p) for p in params) == want.action.params, candidate
+        else:
+            assert not want.ok and want.detail == status, candidate
+        assert (action_text, thinking) == (want.action_text, want.thinking), candidate
+
+
+def test_compiled_parser_decides_the_common_shapes() -> None:
+    """The shapes of nearly every response are decided without the reference parser."""
+    assert parse_fields("Thinking: ok.\nAction: Press(coord=[1, 2], params=[0])") == (
+        "ok", 0, (1.0, 2.0), ("0",), "Press(coord=[1, 2], params=[0])", "ok."
+    )
+    assert parse_fields("Thinking: no.\nAction: `Switch_view(params=['top'])`.") == (
+        "ok", 5, None, ("top",), "Switch_view(params=['top'])", "no."
+    )
+    assert parse_fields("I will wait.") == ("no_action", None, None, (), "", "I will wait.")
+    assert parse_fields("Action: Timed_wait()\nAction: Press()")[0] == "multiple_actions"
 
 
 # ------------------------------------------------------------------ the runner's files
@@ -358,33 +369,43 @@ def _digests(out: Path) -> dict[str, str]:
 def test_runner_files_identical_with_either_engine(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Small Parquet pages, so that pages split inside row groups: the files still do not
-    depend on the engine nor on the batch size (rows reach the writer in 64-line chunks)."""
-    real = pq.ParquetWriter
+    """Small Parquet pages, so that pages split inside row groups: the files do not depend
+    on the engine."""
+    real = pq.write_table
 
     def small_pages(*args, **kwargs):
         return real(*args, data_page_size=4096, **kwargs)
 
-    monkeypatch.setattr("replay.io._writer.pq.ParquetWriter", small_pages)
+    monkeypatch.setattr("replay.io._files.pq.write_table", small_pages)
+    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 64)
     runs = sorted(str(p) for p in (LOGS / "runs").iterdir())[:3]
     outs = {}
-    for engine, batch in (("scalar", 64), ("columnar", 512), ("columnar", 7)):
-        monkeypatch.setattr("replay.io._batch.COLUMNAR", engine == "columnar")
-        monkeypatch.setattr("replay.io._runner.BATCH_LINES", batch)
-        out = tmp_path / f"{engine}-{batch}"
-        replay.replay_runs(runs, LOGS / "bench", out, progress=False)
-        outs[(engine, batch)] = _digests(out)
-    first, *rest = outs.values()
-    assert all(d == first for d in rest)
-    assert sum(name.endswith(".parquet") for name in first) == 3 * 3 + 1
+    for engine in ("reference", "kernel"):
+        monkeypatch.setattr("replay.io._worker.KERNEL", engine == "kernel")
+        replay.replay_runs(runs, LOGS / "bench", tmp_path / engine, progress=False)
+        outs[engine] = _digests(tmp_path / engine)
+    assert outs["reference"] == outs["kernel"]
+    assert sum(name.endswith(".parquet") for name in outs["kernel"]) > 3 * 3
 
 
-# ------------------------------------------------------------------ the scalar fallback
+def test_runner_files_identical_with_any_number_of_workers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 64)
+    runs = sorted(str(p) for p in (LOGS / "runs").iterdir())[:3]
+    outs = []
+    for workers in (1, 2):
+        out = tmp_path / str(workers)
+        replay.replay_runs(runs, LOGS / "bench", out, workers=workers, progress=False)
+        outs.append(_digests(out))
+    assert outs[0] == outs[1]
+
+
+# ------------------------------------------------------------------ edge cases
 
 
 def _wide_machine(n_components: int) -> replay.Machine:
-    """One state per component pair, each component a 10x10 button on the front view:
-    more components than the columnar masks hold when n_components > 62."""
+    """Two states, each with `n_components` 10x10 buttons on the front view."""
     from ..machines import box, machine, tr
 
     on = {
@@ -399,9 +420,8 @@ def _wide_machine(n_components: int) -> replay.Machine:
     return machine({"A": on, "B": on}, "A")
 
 
-def test_episodes_the_columnar_path_leaves_to_the_scalar_one() -> None:
-    """Episodes on a machine too wide for the int masks and with an inexact budget
-    (lambda 1e17) are replayed by `replay_episode`, merged in place among the others."""
+def test_wide_machines_and_extreme_budgets() -> None:
+    """A machine with 70 components, and budgets with lambda 1e17 and 0.5, among others."""
     wide = _wide_machine(70)
     wide_task = replay.Task(episode_id="wide", device_id="dev", goals=["B"])
     doc = _case_docs()[0]
@@ -415,21 +435,19 @@ def test_episodes_the_columnar_path_leaves_to_the_scalar_one() -> None:
         episode(kettle, task, doc["episode"]["steps"], 0.5),
     ]
     check_batch(batch)
-    got = replay_columnar(ColumnarCache(), batch, run_id="run", model="model", agent_kind="vlm")
-    assert got.scalar_episodes == 2
 
 
 def test_non_finite_coordinates_are_malformed_in_both_engines() -> None:
-    """`1e999` (or hundreds of digits) is no coordinate: a parse failure (`malformed`) in the
-    scalar parser; the columnar engine hands such episodes to the scalar path, so both agree."""
+    """`1e999` (or hundreds of digits) is no coordinate: a parse failure (`malformed`)."""
     doc = _case_docs()[0]
     kettle = machine_of(_ssm_file(doc["ssm"]), doc["device_id"])
     task = msgspec.convert(doc["task"], replay.Task)
     steps = [
         {"output": "Thinking: far.\nAction: Press(coord=[1e999, 5], params=[0])"},
         {"output": "Thinking: far.\nAction: Press(coord=[" + "9" * 400 + ", 5], params=[0])"},
+        {"output": "Thinking: far.\nAction: Press(coord=[1e300, -0], params=[0])"},
     ]
     batch = [episode(kettle, task, steps, 5.0)]
     check_batch(batch)
     table = scalar_tables(batch)[0]
-    assert table.column("parse_detail").to_pylist() == ["malformed", "malformed"]
+    assert table.column("parse_detail").to_pylist() == ["malformed", "malformed", None]

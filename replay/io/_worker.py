@@ -1,110 +1,56 @@
-"""The worker side of `replay_runs`: one batch of episode lines -> rows and outcomes.
+"""`replay_batch`: the one function that replays a batch of lines and writes its parts.
 
-A batch is a fixed number of consecutive lines of one episodes file. The same function runs
-in the main process (`workers=1`) and in worker processes, so the output cannot depend on
-the number of workers. Each worker opens the benchmark once (machines compile lazily) and
-caches the episode setup (planning) per task.
-
-Duplicates are not decided here: only the main process sees every line of a run in order.
+The runner calls it in this process (`workers=1`), in worker processes, or in Ray tasks:
+it reads only its task and a per-process cache (the benchmark opened once, episode setups
+and MCAP inputs, all bounded), and writes only files named by its task, so the output
+cannot depend on where or how often it ran.
 """
 
 from __future__ import annotations
 
 import gc
 import os
-import re
+import socket
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple
-from urllib.parse import quote
 
 import msgspec
-import pyarrow as pa
+import pyarrow.compute as pc
 
 from .._errors import TaskError, VGEError
-from ..kernel._columnar import ColumnarBatch, EpisodeInput, replay_columnar
-from ..kernel._columnar_tables import ColumnarCache
+from ..kernel._batch import BatchTables, EpisodeInput, replay_kernel
 from ..semantics._episode import EpisodeResult, EpisodeSetup, replay_episode, setup_episode
 from ..semantics._machine import Machine
 from ..semantics._records import Task
 from ..semantics._rows import EpisodeRow, GoalRow, StepRow
-from ..semantics._tables import rows_to_table
+from ..semantics._tables import TABLE_ROWS, rows_to_table
 from ..semantics._vocab import DEFAULT_LAMBDA
+from ._files import write_part
 from ._load import Benchmark, episode_decoder
 from ._mcap import ImageSource, ImageTuple, write_episode_mcap
 from ._quarantine import classify_decode_error, one_line
+from ._task import (
+    SKIPPED,
+    BatchCounts,
+    BatchFailure,
+    BatchReport,
+    BatchTask,
+    LineOutcome,
+    RunContext,
+    part_name,
+    safe_file_name,
+)
 
-_SAFE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9._+@-]{0,199}$")
-
-
-def safe_file_name(name: str) -> str:
-    """A file name for an id: unchanged when harmless, else percent-encoded."""
-    if _SAFE.match(name):
-        return name
-    encoded = quote(name, safe="")
-    return "%2E" + encoded[1:] if encoded.startswith(".") else encoded
-
-
-@dataclass(frozen=True)
-class RunContext:
-    """What a worker needs to know about the run a batch belongs to (picklable)."""
-
-    run_id: str
-    model: str
-    agent_kind: str
-    run_lambda: float | None
-    option_lambda: float | None
-    file: str
-    mcap_dir: str | None = None
-    mcap_episodes: frozenset[str] | None = None
-    image_source: ImageSource | None = None
-    library: str = ""
-
-    def wants_mcap(self, episode_id: str) -> bool:
-        return self.mcap_dir is not None and (
-            self.mcap_episodes is None or episode_id in self.mcap_episodes
-        )
-
-
-class LineOutcome(NamedTuple):
-    """What happened to one line: replayed (`kind` None) or quarantined."""
-
-    line: int
-    episode_id: str | None
-    decoded: bool  # the line is a well-formed episode record (takes part in duplicates)
-    kind: str | None
-    reason: str | None
-    n_steps: int = 0
-    n_goals: int = 0
-    mcap_tmp: str | None = None  # file name in the run's MCAP staging directory
-
-
-@dataclass
-class BatchResult:
-    outcomes: list[LineOutcome]
-    steps: pa.Table
-    episodes: pa.Table
-    goals: pa.Table
-
-
-@dataclass(frozen=True)
-class BatchFailure:
-    """An unexpected error inside a batch, carried back as plain data."""
-
-    line: int | None
-    message: str
-    details: str
-
-
-COLUMNAR = os.environ.get("VGE_REPLAY_ENGINE", "columnar") != "scalar"
-"""Replay batches with the columnar engine (default) or, with `VGE_REPLAY_ENGINE=scalar`,
-episode by episode with `replay_episode` (the reference; same tables, slower)."""
+KERNEL = os.environ.get("VGE_REPLAY_ENGINE", "kernel") != "reference"
+"""Replay with the compiled kernel (default) or, with `VGE_REPLAY_ENGINE=reference`,
+episode by episode with `replay_episode` (the readable reference; same files, slower)."""
 
 SETUP_CACHE_SIZE = 50_000
 """Episode setups (plans) kept per process; bounds memory whatever the number of tasks."""
 _IMAGE_CACHE_SIZE = 128
 _SSM_CACHE_SIZE = 256
+_BENCHES = 4
 
 
 def _remember(cache: dict, key: object, value: object, limit: int) -> None:
@@ -122,9 +68,6 @@ class WorkerState:
     setups: dict[str, EpisodeSetup | TaskError] = field(default_factory=dict)
     ssm_bytes: dict[str, bytes] = field(default_factory=dict)
     images: dict[tuple[str, str], ImageTuple | None] = field(default_factory=dict)
-    columnar: ColumnarCache | None = field(
-        default_factory=lambda: ColumnarCache() if COLUMNAR else None
-    )
 
     def setup(self, machine: Machine, task: Task) -> EpisodeSetup:
         got = self.setups.get(task.episode_id)
@@ -155,6 +98,23 @@ class WorkerState:
         return got
 
 
+_states: dict[str, WorkerState] = {}
+
+
+def worker_state(bench: str) -> WorkerState:
+    """This process's state for a benchmark directory (opened once)."""
+    got = _states.get(bench)
+    if got is None:
+        got = WorkerState(Benchmark.open(bench))
+        _remember(_states, bench, got, _BENCHES)
+    return got
+
+
+def adopt(state: WorkerState, bench: str) -> None:
+    """Use an already opened benchmark for `bench` in this process (the runner's own)."""
+    _remember(_states, bench, state, _BENCHES)
+
+
 def as_image_tuple(got: object) -> ImageTuple | None:
     """An image source's answer as `(bytes, format, width, height)`: a tuple, or an object
     with `data`, `format`, `width`, `height` attributes (like `vge_analytics._images.ViewImage`)."""
@@ -171,26 +131,35 @@ def episode_lambda(ctx: RunContext, task: Task) -> float:
     return DEFAULT_LAMBDA
 
 
-def process_batch(
-    state: WorkerState, ctx: RunContext, lines: list[tuple[int, bytes]]
-) -> BatchResult:
-    """Decode, check and replay each line of a batch, in order.
+def replay_batch(task: BatchTask) -> BatchReport | BatchFailure:
+    """Replay a batch and write its parts; every error comes back as data."""
+    try:
+        return _replay(worker_state(task.bench), task)
+    except Exception as exc:  # a bug or an I/O error: fatal, reported by the main process
+        return BatchFailure(
+            task.index,
+            getattr(exc, "vge_line", None),
+            one_line(f"replay failed: {type(exc).__name__}: {exc}"),
+            traceback.format_exc(),
+            socket.gethostname(),
+        )
 
-    The replayable episodes of the batch are replayed together by the columnar engine
-    (`_columnar.py`); `VGE_REPLAY_ENGINE=scalar` (or `WorkerState.columnar = None`) uses
-    `replay_episode` per episode instead: both give the same tables. MCAP files always
-    come from `replay_episode`.
 
-    The cyclic garbage collector is paused for the batch: the rows are acyclic (tuples,
-    lists, strings), reference counting frees them, and the collector's scans of the
-    growing batch otherwise cost a fifth of the replay time.
-    """
+def _replay(state: WorkerState, task: BatchTask) -> BatchReport:
+    """Decode and check each line, replay the replayable ones together, write the parts.
+
+    The cyclic garbage collector is paused for the batch: what it builds is acyclic, and
+    the collector's scans of the growing batch would cost a large share of the time."""
+    ctx = task.ctx
     outcomes: list[LineOutcome | None] = []
     todo: list[tuple[int, int, EpisodeInput]] = []  # (outcome index, line number, episode)
     was_enabled = gc.isenabled()
     gc.disable()
     try:
-        for number, raw in lines:
+        for number, raw in task.lines:
+            if number in task.skip:
+                outcomes.append(LineOutcome(number, None, False, SKIPPED, None))
+                continue
             try:
                 _prepare_line(state, ctx, number, raw, outcomes, todo)
             except Exception as exc:
@@ -198,28 +167,24 @@ def process_batch(
                 raise
         episodes = [e for _, _, e in todo]
         scalar: dict[int, EpisodeResult] = {}
-        if state.columnar is not None:
+        if KERNEL:
             try:
-                tables = replay_columnar(
-                    state.columnar,
-                    episodes,
-                    run_id=ctx.run_id,
-                    model=ctx.model,
-                    agent_kind=ctx.agent_kind,
+                tables = replay_kernel(
+                    episodes, run_id=ctx.run_id, model=ctx.model, agent_kind=ctx.agent_kind
                 )
             except Exception as exc:
-                state.columnar.reset()
                 for _, number, e in todo:  # an episode at fault raises, naming its line
-                    _replay_scalar(ctx, number, e)
-                exc.vge_line = lines[0][0] if lines else None  # type: ignore[attr-defined]
+                    _replay_reference(ctx, number, e)
+                exc.vge_line = task.lines[0][0] if task.lines else None  # type: ignore[attr-defined]
                 raise
         else:
-            scalar = {j: _replay_scalar(ctx, number, e) for j, (_, number, e) in enumerate(todo)}
-            tables = _scalar_tables([scalar[j] for j in range(len(todo))])
+            scalar = {j: _replay_reference(ctx, n, e) for j, (_, n, e) in enumerate(todo)}
+            tables = reference_tables([scalar[j] for j in range(len(todo))])
+        counts = _counts(tables)
         for j, (at, number, e) in enumerate(todo):
             mcap_tmp = None
             if ctx.wants_mcap(e.task.episode_id):
-                result = scalar.get(j) or _replay_scalar(ctx, number, e)
+                result = scalar.get(j) or _replay_reference(ctx, number, e)
                 mcap_tmp = _write_mcap(state, ctx, number, e.machine, result)
             outcomes[at] = LineOutcome(
                 number,
@@ -227,19 +192,55 @@ def process_batch(
                 True,
                 None,
                 None,
-                tables.step_counts[j],
-                tables.goal_counts[j],
+                int(tables.step_counts[j]),
+                int(tables.goal_counts[j]),
                 mcap_tmp,
             )
-        return BatchResult(
-            [o for o in outcomes if o is not None], tables.steps, tables.episodes, tables.goals
+        parts = {}
+        for name, table in zip(TABLE_ROWS, tables[:3], strict=True):
+            parts[name] = table.num_rows
+            path = Path(ctx.staging) / name / part_name(task.index)
+            if table.num_rows:
+                write_part(table, path, ctx.row_group_rows)
+            else:
+                path.unlink(missing_ok=True)  # a redone batch may have lost its last rows
+        return BatchReport(
+            task.index, [o for o in outcomes if o is not None], parts, counts, socket.gethostname()
         )
     finally:
         if was_enabled:
             gc.enable()
 
 
-def _replay_scalar(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeResult:
+def reference_tables(results: list[EpisodeResult]) -> BatchTables:
+    """The tables of reference replays, as the kernel returns them."""
+    return BatchTables(
+        rows_to_table([t for r in results for t in r.step_tuples], StepRow),
+        rows_to_table([r.episode for r in results], EpisodeRow),
+        rows_to_table([g for r in results for g in r.goals], GoalRow),
+        [len(r.step_tuples) for r in results],
+        [len(r.goals) for r in results],
+    )
+
+
+def _counts(tables: BatchTables) -> BatchCounts:
+    steps, episodes = tables.steps, tables.episodes
+    counts = BatchCounts(steps=steps.num_rows, goals=tables.goals.num_rows)
+    if steps.num_rows:
+        counts.truncated = pc.sum(steps["truncated"]).as_py() or 0
+        diverged = steps["diverged"]
+        counts.compared = len(diverged) - diverged.null_count
+        counts.diverged = pc.sum(diverged).as_py() or 0
+        flat = pc.list_flatten(steps["diverged_fields"])
+        if len(flat):
+            for item in pc.value_counts(flat).to_pylist():
+                counts.by_field[item["values"]] = item["counts"]
+    if episodes.num_rows:
+        counts.episodes_diverged = pc.sum(pc.greater(episodes["diverged_steps"], 0)).as_py() or 0
+    return counts
+
+
+def _replay_reference(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeResult:
     try:
         return replay_episode(
             e.machine,
@@ -256,16 +257,6 @@ def _replay_scalar(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeResu
         raise
 
 
-def _scalar_tables(results: list[EpisodeResult]) -> ColumnarBatch:
-    return ColumnarBatch(
-        rows_to_table([t for r in results for t in r.step_tuples], StepRow),
-        rows_to_table([r.episode for r in results], EpisodeRow),
-        rows_to_table([g for r in results for g in r.goals], GoalRow),
-        [len(r.step_tuples) for r in results],
-        [len(r.goals) for r in results],
-    )
-
-
 def _write_mcap(
     state: WorkerState, ctx: RunContext, number: int, machine: Machine, result: EpisodeResult
 ) -> str:
@@ -275,7 +266,7 @@ def _write_mcap(
     def image(view: str, m: Machine = machine) -> ImageTuple | None:
         return None if source is None else state.image(source, m, view)
 
-    with open(os.path.join(ctx.mcap_dir or "", mcap_tmp), "wb") as fh:
+    with open(Path(ctx.staging) / "mcap" / mcap_tmp, "wb") as fh:
         write_episode_mcap(
             fh, machine, result, ssm_bytes=state.ssm(machine), image=image, library=ctx.library
         )
@@ -331,31 +322,5 @@ def _prepare_line(
     outcomes.append(None)
 
 
-# ------------------------------------------------------------------ worker processes
+__all__ = ["WorkerState", "adopt", "as_image_tuple", "replay_batch", "worker_state"]
 
-_worker_state: WorkerState | None = None
-
-
-def init_worker(bench_dir: str) -> None:
-    """Pool initializer: open the benchmark once per worker process."""
-    global _worker_state
-    _worker_state = WorkerState(Benchmark.open(bench_dir))
-
-
-def run_batch(ctx: RunContext, lines: list[tuple[int, bytes]]) -> BatchResult | BatchFailure:
-    """Pool task: like `process_batch`, but every error comes back as data."""
-    assert _worker_state is not None, "init_worker was not called"
-    return guarded_batch(_worker_state, ctx, lines)
-
-
-def guarded_batch(
-    state: WorkerState, ctx: RunContext, lines: list[tuple[int, bytes]]
-) -> BatchResult | BatchFailure:
-    try:
-        return process_batch(state, ctx, lines)
-    except Exception as exc:  # a bug or an I/O error: fatal, reported by the main process
-        return BatchFailure(
-            getattr(exc, "vge_line", None),
-            one_line(f"replay failed: {type(exc).__name__}: {exc}"),
-            traceback.format_exc(),
-        )

@@ -1,0 +1,224 @@
+"""Arrow tables from the kernel's column buffers: one `take` per coded string column, numpy
+arrays with validity for the rest, text buffers wrapped as they are."""
+
+from __future__ import annotations
+
+import numpy as np
+import pyarrow as pa
+
+from ..semantics._plan import INF
+from ..semantics._rows import EpisodeRow, GoalRow, StepRow
+from ..semantics._tables import arrow_schema
+from ..semantics._vocab import (
+    ACTION_NAMES,
+    ERROR_DETAILS,
+    ERROR_GROUPS,
+    ERROR_TYPES,
+    FEEDBACK_KINDS,
+    SWITCH_CLASSES,
+    TERMINATIONS,
+    VIEW_ORDER,
+)
+
+STRING = pa.string()
+_VIEWS = pa.array(VIEW_ORDER, STRING)
+_ACTIONS = pa.array(ACTION_NAMES, STRING)
+_DETAILS = pa.array(ERROR_DETAILS, STRING)
+_KINDS = pa.array(FEEDBACK_KINDS, STRING)
+_ERROR_TYPES = pa.array(ERROR_TYPES, STRING)
+_ERROR_GROUPS = pa.array([ERROR_GROUPS[t] for t in ERROR_TYPES], STRING)
+_SWITCH_CLASSES = pa.array(SWITCH_CLASSES, STRING)
+_TERMINATIONS = pa.array(TERMINATIONS, STRING)
+_DIVERGENCE_FIELDS = pa.array(("feedback", "state", "view"), STRING)
+
+
+def _bitmap(valid: np.ndarray) -> tuple[pa.Buffer | None, int]:
+    nulls = int(len(valid) - np.count_nonzero(valid))
+    if not nulls:
+        return None, 0
+    return pa.py_buffer(np.packbits(valid.astype(np.bool_), bitorder="little")), nulls
+
+
+def numbers(values: np.ndarray, type_: pa.DataType, valid: np.ndarray | None = None) -> pa.Array:
+    """A numeric or boolean column; null where `valid` is false."""
+    if type_ == pa.bool_():
+        values = values.astype(np.bool_)
+    if valid is None or valid.all():
+        return pa.array(values, type=type_)
+    return pa.array(values, type=type_, mask=~valid.astype(np.bool_))
+
+
+def coded(dictionary: pa.Array, codes: np.ndarray, valid: np.ndarray | None = None) -> pa.Array:
+    """`dictionary[code]` per row; null where `valid` is false or the code is negative."""
+    ok = codes >= 0 if valid is None else (codes >= 0) & valid.astype(np.bool_)
+    if ok.all():
+        return dictionary.take(pa.array(codes, pa.int32()))
+    return dictionary.take(pa.array(np.where(ok, codes, 0), pa.int32(), mask=~ok))
+
+
+def text(buffers: tuple[bytes, np.ndarray, np.ndarray]) -> pa.Array:
+    """A string column from a TextVec's (data, offsets, validity)."""
+    data, offsets, valid = buffers
+    bitmap, nulls = _bitmap(valid)
+    return pa.StringArray.from_buffers(
+        len(valid), pa.py_buffer(offsets), pa.py_buffer(data), bitmap, nulls
+    )
+
+
+def listed(offsets: np.ndarray, values: pa.Array) -> pa.Array:
+    """A list column: element i holds values[offsets[i]:offsets[i + 1]]."""
+    return pa.ListArray.from_arrays(pa.array(offsets, pa.int32()), values)
+
+
+def tables(out, vocab, episodes: list, head: tuple[str, str, str]) -> tuple:
+    """(steps, episodes, goals) tables of a replayed batch, and rows per episode."""
+    s, e, g = out.steps, out.episodes, out.goals
+    n_eps = len(episodes)
+    states = pa.array(vocab.states, STRING)
+    comps = pa.array(vocab.comps, STRING)
+    texts = pa.array(vocab.texts, STRING)
+    per_episode = {
+        "episode_id": pa.array([ep.task.episode_id for ep in episodes], STRING),
+        "device_id": pa.array([ep.machine.device_id for ep in episodes], STRING),
+        "category": pa.array([ep.machine.category for ep in episodes], STRING),
+    }
+
+    def fixed(value: str, rows: int) -> pa.Array:
+        return pa.array([value], STRING).take(pa.array(np.zeros(rows, np.int32)))
+
+    def head_columns(episode_of: np.ndarray, rows: int) -> dict[str, pa.Array]:
+        index = pa.array(episode_of, pa.int32())
+        columns = {name: fixed(value, rows) for name, value in zip(
+            ("run_id", "model", "agent_kind"), head, strict=True
+        )}
+        columns.update({name: array.take(index) for name, array in per_episode.items()})
+        return columns
+
+    step_counts = np.array([len(ep.log.steps) for ep in episodes], np.int64)
+    goal_counts = np.array([len(ep.setup.goals) for ep in episodes], np.int64)
+    n = int(step_counts.sum())
+    n_goals = int(goal_counts.sum())
+    sv = {k: v[:n] for k, v in s.items()}
+    scored = sv["scored"].astype(np.bool_)
+    interaction = scored & sv["is_interaction"].astype(np.bool_)
+    error_type = sv["error_type"]
+    step_columns = {
+        **head_columns(sv["step_ep"], n),
+        "step": numbers(sv["step_k"], pa.int64()),
+        "goal_index": numbers(sv["goal_index"], pa.int64(), scored),
+        "goal_state": coded(states, sv["goal_state"], scored),
+        "view_before": coded(_VIEWS, sv["view_before"], scored),
+        "view_after": coded(_VIEWS, sv["view_after"], scored),
+        "dashboard_unlocked": numbers(sv["unlocked"], pa.bool_(), sv["unlocked_valid"]),
+        "action_type": coded(_ACTIONS, sv["action_type"]),
+        "action_raw": text(out.action_raw.buffers()),
+        "thinking": text(out.thinking.buffers()),
+        "output": text(out.output.buffers()),
+        "x": numbers(sv["x"], pa.float64(), sv["has_coord"]),
+        "y": numbers(sv["y"], pa.float64(), sv["has_coord"]),
+        "params": listed(out.params_off.array(), text(out.params.buffers())),
+        "parse_ok": numbers(sv["parse_ok"], pa.bool_()),
+        "parse_detail": coded(_DETAILS, sv["parse_detail"]),
+        "feedback_kind": coded(_KINDS, sv["kind"], scored),
+        "feedback_text": coded(texts, sv["text"], scored),
+        "state_before": coded(states, sv["state_before"], scored),
+        "state_after": coded(states, sv["state_after"], scored),
+        "states_entered": listed(out.entered_off.array(), coded(states, out.entered.array())),
+        "transition_component": coded(comps, sv["tr_comp"], scored),
+        "dangerous": numbers(sv["dangerous"], pa.bool_(), scored),
+        "is_switch": numbers(sv["is_switch"], pa.bool_(), scored),
+        "completed_goals": numbers(sv["completed"], pa.int64(), scored),
+        "is_interaction": numbers(sv["is_interaction"], pa.bool_(), scored),
+        "hit_component": numbers(sv["hit_component"], pa.bool_(), interaction),
+        "hit_target": numbers(sv["hit_target"], pa.bool_(), interaction),
+        "hit_components": listed(out.hits_off.array(), coded(comps, out.hits.array())),
+        "nearest_target": coded(comps, sv["nearest"], scored),
+        "progress": numbers(sv["progress"], pa.bool_(), scored),
+        "dist_before": numbers(sv["dist_before"], pa.int64(), scored & (sv["dist_before"] < INF)),
+        "dist_after": numbers(sv["dist_after"], pa.int64(), scored & (sv["dist_after"] < INF)),
+        "error_type": coded(_ERROR_TYPES, error_type, scored),
+        "error_detail": coded(_DETAILS, sv["error_detail"], scored),
+        "error_group": coded(_ERROR_GROUPS, error_type, scored),
+        "switch_class": coded(_SWITCH_CLASSES, sv["switch_class"], scored),
+        "repetitive": numbers(sv["repetitive"], pa.bool_(), scored),
+        "eer_valid": numbers(sv["eer_valid"], pa.bool_(), sv["eer_valid_valid"]),
+        "distance": numbers(sv["distance"], pa.float64(), sv["distance_valid"]),
+        "weight": numbers(sv["weight"], pa.int64(), sv["distance_valid"]),
+        "budget_global_left": numbers(sv["budget_global_left"], pa.float64(), scored),
+        "budget_local_left": numbers(sv["budget_local_left"], pa.float64(), scored),
+        "truncated": numbers(~scored, pa.bool_()),
+        "recorded_feedback": text(out.rec_feedback.buffers()),
+        "recorded_state": text(out.rec_state.buffers()),
+        "recorded_view": text(out.rec_view.buffers()),
+        "diverged": numbers(sv["diverged"], pa.bool_(), sv["diverged_valid"]),
+        "diverged_fields": listed(out.div_off.array(), coded(_DIVERGENCE_FIELDS, out.div.array())),
+        "timestamp": numbers(sv["timestamp"], pa.float64(), sv["timestamp_valid"]),
+    }
+
+    ev = {k: v[:n_eps] for k, v in e.items()}
+    c_opt_stated = [ep.task.c_opt for ep in episodes]
+    episode_columns = {
+        **head_columns(np.arange(n_eps, dtype=np.int32), n_eps),
+        "n_goals": numbers(ev["n_goals"], pa.int64()),
+        "goals_completed": numbers(ev["goals_completed"], pa.int64()),
+        "success": numbers(ev["success"], pa.bool_()),
+        "termination": coded(_TERMINATIONS, ev["termination"]),
+        "L_opt": numbers(ev["l_opt"], pa.int64()),
+        "L_act": numbers(ev["l_act"], pa.int64()),
+        "spl": numbers(ev["spl"], pa.float64()),
+        "state_f1": numbers(ev["state_f1"], pa.float64()),
+        "n_switches": numbers(ev["n_switches"], pa.int64()),
+        "vsps_switches": numbers(ev["vsps_switches"], pa.int64()),
+        "vsps": numbers(ev["vsps"], pa.float64(), ev["vsps_valid"]),
+        "n_steps": numbers(ev["n_steps"], pa.int64()),
+        "truncated_steps": numbers(ev["truncated"], pa.int64()),
+        "diverged_steps": numbers(ev["diverged"], pa.int64()),
+        "lambda": numbers(ev["lam"], pa.float64()),
+        "budget_global": numbers(ev["budget_global"], pa.float64()),
+        "initial_state": coded(states, ev["initial_state"]),
+        "initial_view": coded(_VIEWS, ev["initial_view"]),
+        "goals": listed(out.e_goals_off.array(), coded(states, out.e_goals.array())),
+        "c_opt": listed(
+            out.e_goals_off.array(), pa.array(out.e_c_opt.array().astype(np.int64), pa.int64())
+        ),
+        "c_opt_stated": pa.array(
+            [list(c) if c is not None else None for c in c_opt_stated], pa.list_(pa.int64())
+        ),
+        "visited_states": listed(out.e_visited_off.array(), coded(states, out.e_visited.array())),
+        "optimal_states": listed(out.e_optimal_off.array(), coded(states, out.e_optimal.array())),
+    }
+
+    gv = {k: v[:n_goals] for k, v in g.items()}
+    instructions = [
+        ep.task.instructions[i] if i < len(ep.task.instructions) else None
+        for ep in episodes
+        for i in range(len(ep.setup.goals))
+    ]
+    goal_columns = {
+        **head_columns(gv["episode"], n_goals),
+        "n_goals": numbers(ev["n_goals"][gv["episode"]], pa.int64()),
+        "goal_index": numbers(gv["index"], pa.int64()),
+        "goal_state": coded(states, gv["state"]),
+        "instruction": pa.array(instructions, STRING),
+        "c_opt": numbers(gv["c_opt"], pa.int64()),
+        "c_opt_dyn": numbers(gv["dyn"], pa.int64(), gv["dyn_valid"]),
+        "reached": numbers(gv["reached"], pa.bool_()),
+        "completed": numbers(gv["completed"], pa.bool_()),
+        "started_step": numbers(gv["started"], pa.int64(), gv["started"] >= 0),
+        "completed_step": numbers(gv["completed_step"], pa.int64(), gv["completed_step"] >= 0),
+        "steps_used": numbers(gv["steps_used"], pa.int64()),
+        "switches": numbers(gv["switches"], pa.int64()),
+        "perfect": numbers(gv["perfect"], pa.bool_()),
+    }
+    return (
+        _table(StepRow, step_columns),
+        _table(EpisodeRow, episode_columns),
+        _table(GoalRow, goal_columns),
+        step_counts,
+        goal_counts,
+    )
+
+
+def _table(row_type: type, columns: dict[str, pa.Array]) -> pa.Table:
+    schema = arrow_schema(row_type)
+    return pa.Table.from_arrays([columns[f.name] for f in schema], schema=schema)

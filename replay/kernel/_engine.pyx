@@ -1,0 +1,1387 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False, cdivision=True
+"""The compiled replay of a batch of episodes: parse, simulate, classify, into column buffers.
+
+Each rule here restates one of the reference engine (`replay.semantics`: `_step.step`,
+`_episode.replay_episode`, `_classify.Classifier`) over integer-coded machines
+(`KMachine`, `KGoal`); rare situations call the reference functions themselves (responses
+the compiled parser leaves open, structured actions, the error of a target hit without
+progress, C_opt_dyn). `tests/replay/kernel` proves the tables byte-identical to the
+reference's. Strings become codes into per-batch vocabularies (`Vocab`) or are copied into
+`TextVec` buffers; `_assemble.py` turns the buffers into Arrow tables.
+"""
+
+from cpython.unicode cimport PyUnicode_AsUTF8AndSize
+from libc.math cimport floor, pow
+from libc.stdlib cimport free, malloc, realloc
+from libc.string cimport memcpy, memset
+
+import math
+
+import numpy as np
+
+from ..semantics._episode import parse_log_step, timestamp_seconds
+from ..semantics._feedback import (
+    NULL_TEXT,
+    OPERATIONAL_TEXT,
+    UNLOCKED_TEXT,
+    WAIT_NO_EFFECT_TEXT,
+    invalid_text,
+    switched_text,
+)
+from ..semantics._parse import Action
+from ..semantics._plan import (
+    c_opt_dynamic,
+    distances,
+    target_components,
+    target_rects,
+)
+from ..semantics._classify import Classifier
+from ..semantics._step import SimState, _apply
+from ..semantics._vocab import (
+    ACTION_NAMES,
+    DASHBOARD,
+    ERROR_TYPES,
+    FEEDBACK_KINDS,
+    ORTHOGRAPHIC_VIEWS,
+    ERROR_DETAILS,
+    VIEW_ORDER,
+    normalize_param,
+)
+
+from ._text cimport FastParse, parse_ascii, PARSE_FALLBACK, PARSE_OK, PARSE_NO_ACTION, PARSE_MULTIPLE
+
+# ------------------------------------------------------------------------------ codes
+
+cdef enum:
+    NV = 9            # views, in VIEW_ORDER
+    V_DASHBOARD = 6
+    A_SWITCH = 5      # actions, in ACTION_NAMES
+    A_WAIT = 6
+    K_INVALID = 0     # feedback kinds, in FEEDBACK_KINDS
+    K_SWITCHED = 1
+    K_TRANSITION = 2
+    K_WAIT_NO_EFFECT = 3
+    K_UNLOCKED = 4
+    K_OPERATIONAL = 5
+    K_NULL = 6
+    E_INVALID_COORD = 0   # error types, in ERROR_TYPES
+    E_COMPONENT = 1
+    E_PARAMS = 2
+    E_ACTION = 3
+    E_WAITING = 4
+    E_SWITCH_NN = 5
+    E_SWITCH_PN = 6
+    SC_NP = 0         # switch classes, in SWITCH_CLASSES
+    SC_PN = 1
+    SC_NN = 2
+    SC_PP = 3
+
+assert VIEW_ORDER.index(DASHBOARD) == V_DASHBOARD and len(VIEW_ORDER) == NV
+assert ACTION_NAMES.index("switch_view") == A_SWITCH and ACTION_NAMES.index("timed_wait") == A_WAIT
+assert FEEDBACK_KINDS[K_NULL] == "null_effect" and ERROR_TYPES[E_SWITCH_PN] == "switch_view_pn"
+
+VIEW_CODE = {v: i for i, v in enumerate(VIEW_ORDER)}
+ACTION_CODE = {a: i for i, a in enumerate(ACTION_NAMES)}
+DETAILS = ERROR_DETAILS
+"""Every detail code (parse failures, invalid actions, wrong_action, no_effect)."""
+DETAIL_CODE = {d: i for i, d in enumerate(DETAILS)}
+cdef int D_WRONG_ACTION = DETAIL_CODE["wrong_action"]
+cdef int D_NO_EFFECT = DETAIL_CODE["no_effect"]
+cdef int D_OUT_OF_RANGE = DETAIL_CODE["out_of_range"]
+cdef int D_MALFORMED = DETAIL_CODE["malformed"]
+cdef int D_NO_ACTION = DETAIL_CODE["no_action"]
+cdef int D_MULTIPLE = DETAIL_CODE["multiple_actions"]
+cdef int D_AXONOMETRIC = DETAIL_CODE["axonometric_view"]
+cdef int D_MISSING_COORD = DETAIL_CODE["missing_coord"]
+cdef int D_INVALID_VIEW = DETAIL_CODE["invalid_view"]
+cdef int D_LOCKED = DETAIL_CODE["locked_dashboard"]
+
+cdef unsigned int INTERACTABLE = 0
+for _v in ORTHOGRAPHIC_VIEWS + (DASHBOARD,):
+    INTERACTABLE |= 1 << <int>VIEW_CODE[_v]
+
+# Feedback texts that do not depend on the device, first in every batch's text vocabulary:
+# the invalid-action texts by detail code, the switch texts by view, then four fixed ones.
+FIXED_TEXTS = (
+    [invalid_text(d) for d in DETAILS]
+    + [switched_text(v, False) for v in VIEW_ORDER]
+    + [switched_text(DASHBOARD, True), OPERATIONAL_TEXT, NULL_TEXT, WAIT_NO_EFFECT_TEXT, UNLOCKED_TEXT]
+)
+cdef int T_SWITCHED = len(DETAILS)
+cdef int T_UNLOCK_SWITCH = T_SWITCHED + NV
+cdef int T_OPERATIONAL = T_UNLOCK_SWITCH + 1
+cdef int T_NULL = T_UNLOCK_SWITCH + 2
+cdef int T_WAIT_NO_EFFECT = T_UNLOCK_SWITCH + 3
+cdef int T_UNLOCKED = T_UNLOCK_SWITCH + 4
+N_FIXED_TEXTS = len(FIXED_TEXTS)
+
+_FEEDBACK_KIND_SET = frozenset(FEEDBACK_KINDS)
+
+# ------------------------------------------------------------------------------ buffers
+
+
+cdef class IntVec:
+    """A growable int32 array."""
+
+    cdef int* data
+    cdef Py_ssize_t size, cap
+
+    def __cinit__(self, Py_ssize_t cap=64):
+        self.cap = cap if cap > 0 else 1
+        self.data = <int*>malloc(self.cap * sizeof(int))
+        self.size = 0
+        if self.data == NULL:
+            raise MemoryError()
+
+    def __dealloc__(self):
+        free(self.data)
+
+    cdef inline int push(self, int value) except -1:
+        if self.size == self.cap:
+            self._grow(self.size + 1)
+        self.data[self.size] = value
+        self.size += 1
+        return 0
+
+    cdef int _grow(self, Py_ssize_t need) except -1:
+        cdef Py_ssize_t cap = self.cap
+        while cap < need:
+            cap *= 2
+        cdef int* data = <int*>realloc(self.data, cap * sizeof(int))
+        if data == NULL:
+            raise MemoryError()
+        self.data = data
+        self.cap = cap
+        return 0
+
+    def array(self):
+        out = np.empty(self.size, np.int32)
+        cdef int[::1] view = out
+        if self.size:
+            memcpy(&view[0], self.data, self.size * sizeof(int))
+        return out
+
+
+cdef class TextVec:
+    """A growable column of strings (UTF-8 bytes, int32 offsets, validity)."""
+
+    cdef char* data
+    cdef Py_ssize_t nbytes, cap
+    cdef IntVec offsets
+    cdef IntVec valid
+
+    def __cinit__(self, Py_ssize_t cap=4096):
+        self.cap = cap if cap > 0 else 1
+        self.data = <char*>malloc(self.cap)
+        self.nbytes = 0
+        if self.data == NULL:
+            raise MemoryError()
+        self.offsets = IntVec(1024)
+        self.valid = IntVec(1024)
+        self.offsets.push(0)
+
+    def __dealloc__(self):
+        free(self.data)
+
+    cdef int push_bytes(self, const char* s, Py_ssize_t n) except -1:
+        cdef Py_ssize_t cap
+        cdef char* data
+        if self.nbytes + n > self.cap:
+            cap = self.cap
+            while cap < self.nbytes + n:
+                cap *= 2
+            data = <char*>realloc(self.data, cap)
+            if data == NULL:
+                raise MemoryError()
+            self.data = data
+            self.cap = cap
+        if n:
+            memcpy(self.data + self.nbytes, s, n)
+        self.nbytes += n
+        if self.nbytes > 0x7FFFFFFF:
+            raise OverflowError("more than 2 GiB of text in one batch")
+        self.offsets.push(<int>self.nbytes)
+        self.valid.push(1)
+        return 0
+
+    cdef int push_str(self, str text) except -1:
+        cdef Py_ssize_t n
+        cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)
+        return self.push_bytes(s, n)
+
+    cdef int push_opt(self, object text) except -1:
+        if text is None:
+            return self.push_null()
+        return self.push_str(text)
+
+    cdef int push_null(self) except -1:
+        self.offsets.push(<int>self.nbytes)
+        self.valid.push(0)
+        return 0
+
+    def buffers(self):
+        """(data bytes, int32 offsets, validity as uint8) of what was pushed."""
+        return (
+            bytes(self.data[:self.nbytes]) if self.nbytes else b"",
+            self.offsets.array(),
+            self.valid.array().astype(np.bool_),
+        )
+
+
+# ------------------------------------------------------------------------------ machines
+
+
+cdef inline int _ptr_check(object arr) except -1:
+    if arr.size == 0:
+        raise ValueError("empty table")
+    return 0
+
+
+cdef class KMachine:
+    """A compiled machine's tables as flat arrays (built once per machine and process)."""
+
+    cdef readonly object machine
+    cdef readonly tuple state_names
+    cdef readonly tuple comp_names
+    cdef readonly list texts          # feedback text per transition
+    cdef dict comp_id
+    cdef int n_states, n_comps, n_tr
+    cdef unsigned int offered
+    cdef bint has_dashboard
+    cdef list _keep
+    cdef int* reg_off
+    cdef double* reg
+    cdef int* cr_off
+    cdef int* cr_comp
+    cdef double* cr
+    cdef int* sv_off
+    cdef int* cand_tr
+    cdef int* cand_roff
+    cdef double* cand_rect
+    cdef int* tr_action
+    cdef int* tr_comp
+    cdef int* tr_index
+    cdef int* tr_end
+    cdef int* tr_ent_off
+    cdef int* tr_ent
+    cdef unsigned char* tr_dangerous
+    cdef list tr_params
+    cdef int* wait_tr
+    cdef dict goals
+    cdef dict dyn_memo
+    cdef object classifier
+
+    def __init__(self, machine):
+        cdef int s, v, i
+        self.machine = machine
+        self.state_names = tuple(machine.states)
+        self.n_states = len(self.state_names)
+        self.comp_names = tuple(sorted({t.component for t in machine.transitions if t.action is not None}))
+        self.n_comps = len(self.comp_names)
+        self.comp_id = comp_id = {c: i for i, c in enumerate(self.comp_names)}
+        self.offered = 0
+        for view in machine.views:
+            self.offered |= 1 << <int>VIEW_CODE[view]
+        self.has_dashboard = bool(machine.dashboard_regions)
+        self._keep = []
+        self.goals = {}
+        self.dyn_memo = {}
+        self.classifier = Classifier(machine)
+
+        reg_off = np.zeros(NV + 1, np.int32)
+        reg = []
+        cr_off = np.zeros(NV + 1, np.int32)
+        cr_comp = []
+        cr = []
+        for v in range(NV):
+            view = VIEW_ORDER[v]
+            for r in machine.dashboard_regions.get(view, ()):
+                reg.append(r[:4])
+            reg_off[v + 1] = len(reg)
+            for comp, r in machine.component_rects.get(view, ()):
+                cr_comp.append(comp_id[comp])
+                cr.append(r[:4])
+            cr_off[v + 1] = len(cr)
+        self.reg_off = self._ints(reg_off)
+        self.reg = self._doubles(reg, 4)
+        self.cr_off = self._ints(cr_off)
+        self.cr_comp = self._ints(np.array(cr_comp, np.int32))
+        self.cr = self._doubles(cr, 4)
+
+        transitions = machine.transitions
+        self.n_tr = len(transitions)
+        tr_id = {id(t): i for i, t in enumerate(transitions)}
+        tr_ent_off = np.zeros(self.n_tr + 1, np.int32)
+        tr_ent = []
+        self.tr_params = []
+        self.texts = []
+        arrays = {name: np.zeros(self.n_tr, np.int32) for name in ("action", "comp", "index", "end")}
+        dangerous = np.zeros(self.n_tr, np.uint8)
+        for i, t in enumerate(transitions):
+            arrays["action"][i] = ACTION_CODE[t.action] if t.action is not None else (
+                A_WAIT if t.component == "timed_wait" else -1
+            )
+            arrays["comp"][i] = comp_id.get(t.component, -1)
+            arrays["index"][i] = t.index
+            arrays["end"][i] = t.end
+            dangerous[i] = t.dangerous
+            tr_ent.extend(t.entered)
+            tr_ent_off[i + 1] = len(tr_ent)
+            self.tr_params.append(t.params)
+            # The reference's own text for this transition (`_step._apply`).
+            self.texts.append(_apply(machine, SimState(t.source, "front", False), t)[1].text)
+        self.tr_action = self._ints(arrays["action"])
+        self.tr_comp = self._ints(arrays["comp"])
+        self.tr_index = self._ints(arrays["index"])
+        self.tr_end = self._ints(arrays["end"])
+        self.tr_ent_off = self._ints(tr_ent_off)
+        self.tr_ent = self._ints(np.array(tr_ent, np.int32))
+        self.tr_dangerous = self._bytes(dangerous)
+
+        sv_off = np.zeros(self.n_states * NV + 1, np.int32)
+        cand_tr = []
+        cand_roff = [0]
+        cand_rect = []
+        for s in range(self.n_states):
+            for v in range(NV):
+                for t, rects in machine.by_state_view.get((s, VIEW_ORDER[v]), ()):
+                    cand_tr.append(tr_id[id(t)])
+                    cand_rect.extend(rects)
+                    cand_roff.append(len(cand_rect))
+                sv_off[s * NV + v + 1] = len(cand_tr)
+        self.sv_off = self._ints(sv_off)
+        self.cand_tr = self._ints(np.array(cand_tr, np.int32))
+        self.cand_roff = self._ints(np.array(cand_roff, np.int32))
+        self.cand_rect = self._doubles(cand_rect, 5)
+        wait_tr = np.array(
+            [tr_id[id(w)] if w is not None else -1 for w in machine.wait], np.int32
+        )
+        self.wait_tr = self._ints(wait_tr)
+
+    cdef int* _ints(self, object arr) except NULL:
+        arr = np.ascontiguousarray(arr, np.int32)
+        if arr.size == 0:
+            arr = np.zeros(1, np.int32)
+        self._keep.append(arr)
+        cdef int[::1] view = arr
+        return &view[0]
+
+    cdef unsigned char* _bytes(self, object arr) except NULL:
+        arr = np.ascontiguousarray(arr, np.uint8)
+        if arr.size == 0:
+            arr = np.zeros(1, np.uint8)
+        self._keep.append(arr)
+        cdef unsigned char[::1] view = arr
+        return &view[0]
+
+    cdef double* _doubles(self, list rows, int width) except NULL:
+        arr = np.array(rows, np.float64).reshape(-1, width) if rows else np.zeros((1, width))
+        arr = np.ascontiguousarray(arr.ravel())
+        self._keep.append(arr)
+        cdef double[::1] view = arr
+        return &view[0]
+
+    cdef KGoal goal(self, int g):
+        got = self.goals.get(g)
+        if got is None:
+            got = KGoal(self, g)
+            self.goals[g] = got
+        return <KGoal>got
+
+    cdef object c_opt_dyn(self, int state, int view, bint unlocked, int goal):
+        key = (state, view, unlocked, goal)
+        got = self.dyn_memo.get(key, self)
+        if got is self:
+            got = c_opt_dynamic(self.machine, state, VIEW_ORDER[view], unlocked, goal)
+            self.dyn_memo[key] = got
+        return got
+
+
+cdef class KGoal:
+    """Per goal of a machine: distances, and per state (built on first use) the target
+    components' rects by view and the views where a target has a bbox (switch classes)."""
+
+    cdef KMachine km
+    cdef int goal
+    cdef long long* dist
+    cdef unsigned char* built
+    cdef unsigned char* has_targets
+    cdef unsigned int* pos_views
+    cdef int* tg_start          # per (state, view): range in tg_comp / tg_rect
+    cdef int* tg_end
+    cdef IntVec tg_comp
+    cdef list tg_rect           # flat x0, y0, x1, y1 per target rect (Python floats)
+    cdef double* rects          # tg_rect as C doubles (rebuilt when it grows)
+    cdef object _rects_array
+    cdef list _keep
+
+    def __init__(self, KMachine km, int goal):
+        n = max(km.n_states, 1)
+        self.km = km
+        self.goal = goal
+        dist = np.array(distances(km.machine, goal) or (0,), np.int64)
+        built = np.zeros(n, np.uint8)
+        has_targets = np.zeros(n, np.uint8)
+        pos_views = np.zeros(n, np.uint32)
+        tg_start = np.zeros(n * NV, np.int32)
+        tg_end = np.zeros(n * NV, np.int32)
+        self._keep = [dist, built, has_targets, pos_views, tg_start, tg_end]
+        self.dist = _p64(dist)
+        self.built = _p8(built)
+        self.has_targets = _p8(has_targets)
+        self.pos_views = <unsigned int*>_p32(pos_views.view(np.int32))
+        self.tg_start = _p32(tg_start)
+        self.tg_end = _p32(tg_end)
+        self.tg_comp = IntVec(16)
+        self.tg_rect = []
+        self._rects_array = np.zeros(4)
+        self.rects = _pf(self._rects_array)
+
+    cdef int build(self, int s) except -1:
+        """Fill state `s` (`target_components` and `target_rects` of the reference)."""
+        cdef int v
+        machine = self.km.machine
+        comp_id = self.km.comp_id
+        targets = target_components(machine, s, self.goal)
+        self.has_targets[s] = bool(targets)
+        for view in machine.views:
+            v = VIEW_CODE[view]
+            if any(c in targets for c in machine.state_component_rects.get((s, view), {})):
+                self.pos_views[s] |= 1u << v
+            self.tg_start[s * NV + v] = <int>self.tg_comp.size
+            for comp, r in target_rects(machine, s, self.goal, view):
+                self.tg_comp.push(comp_id[comp])
+                self.tg_rect.extend(r[:4])
+            self.tg_end[s * NV + v] = <int>self.tg_comp.size
+        if self.tg_rect:
+            self._rects_array = np.array(self.tg_rect, np.float64)
+            self.rects = _pf(self._rects_array)
+        self.built[s] = 1
+        return 0
+
+
+def kmachine(machine) -> KMachine:
+    """The kernel tables of a compiled machine, kept in the machine's own cache."""
+    got = machine._cache.get("kernel")
+    if got is None:
+        got = KMachine(machine)
+        machine._cache["kernel"] = got
+    return got
+
+
+# ------------------------------------------------------------------------------ geometry
+
+
+cdef inline bint _inside(const double* r, double px, double py) noexcept:
+    return r[0] <= px <= r[2] and r[1] <= py <= r[3]
+
+
+cdef inline double _rect_distance(const double* r, double px, double py) noexcept:
+    # `_machine.rect_distance`: max() keeps the first of equals; `** 0.5` is C's pow.
+    cdef double dx = r[0] - px, dy = r[1] - py, t
+    if 0.0 > dx:
+        dx = 0.0
+    t = px - r[2]
+    if t > dx:
+        dx = t
+    if 0.0 > dy:
+        dy = 0.0
+    t = py - r[3]
+    if t > dy:
+        dy = t
+    if dx == 0.0:
+        return dy
+    if dy == 0.0:
+        return dx
+    return pow(dx * dx + dy * dy, 0.5)
+
+
+cdef inline bint _in_region(KMachine km, int view, double px, double py) noexcept:
+    cdef int i
+    for i in range(km.reg_off[view], km.reg_off[view + 1]):
+        if _inside(km.reg + 4 * i, px, py):
+            return True
+    return False
+
+
+cdef bint _params_match(object required, tuple params):
+    """`CompiledTransition.params_match`."""
+    cdef Py_ssize_t i, n
+    if not required:
+        return True
+    n = len(<tuple>required)
+    if n != len(params):
+        return False
+    for i in range(n):
+        want = (<tuple>required)[i]
+        if want != "*" and want != params[i]:
+            return False
+    return True
+
+
+# ------------------------------------------------------------------------------ output
+
+
+ctypedef long long* i64p
+ctypedef int* i32p
+ctypedef unsigned char* u8p
+ctypedef double* f64p
+
+
+# Output columns: (name, numpy dtype) of the steps ("s_"), episodes ("e_") and goals ("g_").
+_STEP_COLUMNS = (
+    ("step_k", "i8"), ("step_ep", "i4"), ("scored", "u1"), ("goal_index", "i8"),
+    ("goal_state", "i4"), ("view_before", "i4"), ("view_after", "i4"), ("unlocked", "u1"),
+    ("unlocked_valid", "u1"), ("action_type", "i4"), ("x", "f8"), ("y", "f8"),
+    ("has_coord", "u1"), ("parse_ok", "u1"), ("parse_detail", "i4"), ("kind", "i4"),
+    ("text", "i4"), ("state_before", "i4"), ("state_after", "i4"), ("tr_comp", "i4"),
+    ("dangerous", "u1"), ("is_switch", "u1"), ("completed", "i8"), ("is_interaction", "u1"),
+    ("hit_component", "u1"), ("hit_target", "u1"), ("nearest", "i4"), ("progress", "u1"),
+    ("dist_before", "i8"), ("dist_after", "i8"), ("error_type", "i4"), ("error_detail", "i4"),
+    ("switch_class", "i4"), ("repetitive", "u1"), ("eer_valid", "u1"),
+    ("eer_valid_valid", "u1"), ("distance", "f8"), ("distance_valid", "u1"), ("weight", "i8"),
+    ("budget_global_left", "f8"), ("budget_local_left", "f8"), ("diverged", "u1"),
+    ("diverged_valid", "u1"), ("timestamp", "f8"), ("timestamp_valid", "u1"),
+)
+_EPISODE_COLUMNS = (
+    ("n_goals", "i8"), ("goals_completed", "i8"), ("success", "u1"), ("termination", "i4"),
+    ("l_opt", "i8"), ("l_act", "i8"), ("spl", "f8"), ("state_f1", "f8"), ("n_switches", "i8"),
+    ("vsps_switches", "i8"), ("vsps", "f8"), ("vsps_valid", "u1"), ("n_steps", "i8"),
+    ("truncated", "i8"), ("diverged", "i8"), ("lam", "f8"), ("budget_global", "f8"),
+    ("initial_state", "i4"), ("initial_view", "i4"),
+)
+_GOAL_COLUMNS = (
+    ("episode", "i4"), ("index", "i8"), ("state", "i4"), ("c_opt", "i8"), ("dyn", "i8"),
+    ("dyn_valid", "u1"), ("reached", "u1"), ("completed", "u1"), ("started", "i8"),
+    ("completed_step", "i8"), ("steps_used", "i8"), ("switches", "i8"), ("perfect", "u1"),
+)
+
+
+cdef class Out:
+    """The column buffers of one batch: numpy arrays (`steps`, `episodes`, `goals` dicts),
+    raw pointers into them for the loop, and growable lists and texts."""
+
+    cdef readonly dict steps, episodes, goals
+    # steps
+    cdef i64p step_k, goal_index, completed, dist_before, dist_after, weight
+    cdef i32p step_ep, goal_state, view_before, view_after, action_type, parse_detail
+    cdef i32p kind, text, state_before, state_after, tr_comp, nearest, error_type
+    cdef i32p error_detail, switch_class
+    cdef u8p scored, unlocked, unlocked_valid, has_coord, parse_ok, dangerous
+    cdef u8p is_switch, is_interaction, hit_component, hit_target, progress
+    cdef u8p repetitive, eer_valid, eer_valid_valid, distance_valid, diverged
+    cdef u8p diverged_valid, timestamp_valid
+    cdef f64p x, y, distance, budget_global_left, budget_local_left, timestamp
+    cdef readonly IntVec entered_off, entered, hits_off, hits, div_off, div, params_off
+    cdef readonly TextVec output, thinking, action_raw, params, rec_feedback, rec_state, rec_view
+    # episodes
+    cdef i64p e_n_goals, e_goals_completed, e_l_opt, e_l_act, e_n_switches
+    cdef i64p e_vsps_switches, e_n_steps, e_truncated, e_diverged
+    cdef u8p e_success, e_vsps_valid
+    cdef i32p e_termination, e_initial_state, e_initial_view
+    cdef f64p e_spl, e_state_f1, e_vsps, e_lam, e_budget_global
+    cdef readonly IntVec e_goals_off, e_goals, e_c_opt, e_visited_off, e_visited
+    cdef readonly IntVec e_optimal_off, e_optimal
+    # goals
+    cdef i64p g_index, g_c_opt, g_dyn, g_started, g_completed_step, g_steps_used
+    cdef i64p g_switches
+    cdef i32p g_episode, g_state
+    cdef u8p g_dyn_valid, g_reached, g_completed, g_perfect
+
+    def __init__(self, Py_ssize_t n, Py_ssize_t n_eps, Py_ssize_t n_goals, Py_ssize_t text_bytes):
+        self.steps = {name: np.zeros(max(n, 1), dtype) for name, dtype in _STEP_COLUMNS}
+        self.episodes = {name: np.zeros(max(n_eps, 1), dtype) for name, dtype in _EPISODE_COLUMNS}
+        self.goals = {name: np.zeros(max(n_goals, 1), dtype) for name, dtype in _GOAL_COLUMNS}
+        s, e, g = self.steps, self.episodes, self.goals
+        self.step_k = _p64(s["step_k"]); self.goal_index = _p64(s["goal_index"])
+        self.completed = _p64(s["completed"]); self.dist_before = _p64(s["dist_before"])
+        self.dist_after = _p64(s["dist_after"]); self.weight = _p64(s["weight"])
+        self.step_ep = _p32(s["step_ep"]); self.goal_state = _p32(s["goal_state"])
+        self.view_before = _p32(s["view_before"]); self.view_after = _p32(s["view_after"])
+        self.action_type = _p32(s["action_type"]); self.parse_detail = _p32(s["parse_detail"])
+        self.kind = _p32(s["kind"]); self.text = _p32(s["text"])
+        self.state_before = _p32(s["state_before"]); self.state_after = _p32(s["state_after"])
+        self.tr_comp = _p32(s["tr_comp"]); self.nearest = _p32(s["nearest"])
+        self.error_type = _p32(s["error_type"]); self.error_detail = _p32(s["error_detail"])
+        self.switch_class = _p32(s["switch_class"])
+        self.scored = _p8(s["scored"]); self.unlocked = _p8(s["unlocked"])
+        self.unlocked_valid = _p8(s["unlocked_valid"]); self.has_coord = _p8(s["has_coord"])
+        self.parse_ok = _p8(s["parse_ok"]); self.dangerous = _p8(s["dangerous"])
+        self.is_switch = _p8(s["is_switch"]); self.is_interaction = _p8(s["is_interaction"])
+        self.hit_component = _p8(s["hit_component"]); self.hit_target = _p8(s["hit_target"])
+        self.progress = _p8(s["progress"]); self.repetitive = _p8(s["repetitive"])
+        self.eer_valid = _p8(s["eer_valid"]); self.eer_valid_valid = _p8(s["eer_valid_valid"])
+        self.distance_valid = _p8(s["distance_valid"]); self.diverged = _p8(s["diverged"])
+        self.diverged_valid = _p8(s["diverged_valid"])
+        self.timestamp_valid = _p8(s["timestamp_valid"])
+        self.x = _pf(s["x"]); self.y = _pf(s["y"]); self.distance = _pf(s["distance"])
+        self.budget_global_left = _pf(s["budget_global_left"])
+        self.budget_local_left = _pf(s["budget_local_left"]); self.timestamp = _pf(s["timestamp"])
+        self.entered_off = IntVec(n + 1); self.entered = IntVec(n + 1)
+        self.hits_off = IntVec(n + 1); self.hits = IntVec(n + 1)
+        self.div_off = IntVec(n + 1); self.div = IntVec(16)
+        self.params_off = IntVec(n + 1)
+        for offsets in (self.entered_off, self.hits_off, self.div_off, self.params_off):
+            offsets.push(0)
+        self.output = TextVec(text_bytes + 1); self.thinking = TextVec(text_bytes + 1)
+        self.action_raw = TextVec(n * 32 + 1); self.params = TextVec(n * 4 + 1)
+        self.rec_feedback = TextVec(n * 16 + 1); self.rec_state = TextVec(n * 12 + 1)
+        self.rec_view = TextVec(n * 6 + 1)
+        self.e_n_goals = _p64(e["n_goals"]); self.e_goals_completed = _p64(e["goals_completed"])
+        self.e_l_opt = _p64(e["l_opt"]); self.e_l_act = _p64(e["l_act"])
+        self.e_n_switches = _p64(e["n_switches"]); self.e_vsps_switches = _p64(e["vsps_switches"])
+        self.e_n_steps = _p64(e["n_steps"]); self.e_truncated = _p64(e["truncated"])
+        self.e_diverged = _p64(e["diverged"]); self.e_success = _p8(e["success"])
+        self.e_vsps_valid = _p8(e["vsps_valid"]); self.e_termination = _p32(e["termination"])
+        self.e_initial_state = _p32(e["initial_state"])
+        self.e_initial_view = _p32(e["initial_view"]); self.e_spl = _pf(e["spl"])
+        self.e_state_f1 = _pf(e["state_f1"]); self.e_vsps = _pf(e["vsps"]); self.e_lam = _pf(e["lam"])
+        self.e_budget_global = _pf(e["budget_global"])
+        self.e_goals_off = IntVec(n_eps + 1); self.e_goals = IntVec(n_goals + 1)
+        self.e_c_opt = IntVec(n_goals + 1)
+        self.e_visited_off = IntVec(n_eps + 1); self.e_visited = IntVec(n_eps * 8 + 1)
+        self.e_optimal_off = IntVec(n_eps + 1); self.e_optimal = IntVec(n_eps * 8 + 1)
+        for offsets in (self.e_goals_off, self.e_visited_off, self.e_optimal_off):
+            offsets.push(0)
+        self.g_index = _p64(g["index"]); self.g_c_opt = _p64(g["c_opt"]); self.g_dyn = _p64(g["dyn"])
+        self.g_started = _p64(g["started"]); self.g_completed_step = _p64(g["completed_step"])
+        self.g_steps_used = _p64(g["steps_used"]); self.g_switches = _p64(g["switches"])
+        self.g_episode = _p32(g["episode"]); self.g_state = _p32(g["state"])
+        self.g_dyn_valid = _p8(g["dyn_valid"]); self.g_reached = _p8(g["reached"])
+        self.g_completed = _p8(g["completed"]); self.g_perfect = _p8(g["perfect"])
+
+
+cdef long long* _p64(object arr) except NULL:
+    cdef long long[::1] view = arr
+    return &view[0]
+
+
+cdef int* _p32(object arr) except NULL:
+    cdef int[::1] view = arr
+    return &view[0]
+
+
+cdef unsigned char* _p8(object arr) except NULL:
+    cdef unsigned char[::1] view = arr
+    return &view[0]
+
+
+cdef double* _pf(object arr) except NULL:
+    cdef double[::1] view = arr
+    return &view[0]
+
+
+cdef struct Parsed:
+    bint ok
+    int detail          # -1 when ok
+    int kind            # -1 when not ok
+    bint has_coord
+    double x
+    double y
+
+
+cdef struct Outcome:
+    int kind
+    int text            # code into the batch's text vocabulary
+    int detail          # invalid_action reason, -1 otherwise
+    int tr              # transition id, -1 when none
+    bint dangerous
+    bint switched
+    bint unlocked_now
+
+
+cdef inline Outcome _invalid(int detail) noexcept:
+    cdef Outcome o
+    o.kind = K_INVALID
+    o.text = detail
+    o.detail = detail
+    o.tr = -1
+    o.dangerous = False
+    o.switched = False
+    o.unlocked_now = False
+    return o
+
+
+cdef inline Outcome _plain(int kind, int text) noexcept:
+    cdef Outcome o = _invalid(-1)
+    o.kind = kind
+    o.text = text
+    return o
+
+
+# ------------------------------------------------------------------------------ the step
+
+
+cdef Outcome _step(
+    KMachine km, Parsed* pa, tuple params, int* state, int* view, bint* unlocked, int text_base
+) except *:
+    """`_step.step` on integer codes; updates (state, view, unlocked) in place."""
+    cdef Outcome o
+    cdef int v, i, j, tr, best = -1, best_comp = 0, best_index = 0
+    cdef double px, py, area, best_area = 0.0
+    cdef bint hit = False, found
+    cdef const double* r
+    if not pa.ok:
+        return _invalid(pa.detail if pa.detail >= 0 else D_MALFORMED)
+    if pa.kind == A_SWITCH:
+        if len(params) != 1:
+            return _invalid(D_INVALID_VIEW)
+        code = VIEW_CODE.get(params[0])
+        if code is None or not (km.offered >> <int>code) & 1:
+            return _invalid(D_INVALID_VIEW)
+        v = <int>code
+        if v == V_DASHBOARD and not unlocked[0]:
+            if pa.has_coord and _in_region(km, view[0], pa.x, pa.y):
+                view[0] = V_DASHBOARD
+                unlocked[0] = True
+                o = _plain(K_SWITCHED, T_UNLOCK_SWITCH)
+                o.switched = True
+                o.unlocked_now = True
+                return o
+            return _invalid(D_LOCKED)
+        view[0] = v
+        o = _plain(K_SWITCHED, T_SWITCHED + v)
+        o.switched = True
+        return o
+    if pa.kind == A_WAIT:
+        tr = km.wait_tr[state[0]]
+        if tr < 0:
+            return _plain(K_WAIT_NO_EFFECT, T_WAIT_NO_EFFECT)
+        return _apply_tr(km, tr, state, text_base)
+    if not (INTERACTABLE >> view[0]) & 1:
+        return _invalid(D_AXONOMETRIC)
+    if not pa.has_coord:
+        return _invalid(D_MISSING_COORD)
+    px = pa.x
+    py = pa.y
+    if not (0.0 <= px <= 1000.0 and 0.0 <= py <= 1000.0):
+        return _invalid(D_OUT_OF_RANGE)
+    if not unlocked[0] and km.has_dashboard and _in_region(km, view[0], px, py):
+        unlocked[0] = True
+        o = _plain(K_UNLOCKED, T_UNLOCKED)
+        o.unlocked_now = True
+        return o
+    cdef int sv = state[0] * NV + view[0]
+    for i in range(km.sv_off[sv], km.sv_off[sv + 1]):
+        found = False
+        area = 0.0
+        for j in range(km.cand_roff[i], km.cand_roff[i + 1]):
+            r = km.cand_rect + 5 * j
+            if _inside(r, px, py) and (not found or r[4] < area):
+                area = r[4]
+                found = True
+        if not found:
+            continue
+        hit = True
+        tr = km.cand_tr[i]
+        if km.tr_action[tr] == pa.kind and _params_match(km.tr_params[tr], params):
+            if (
+                best < 0
+                or area < best_area
+                or (area == best_area and (
+                    km.tr_comp[tr] < best_comp
+                    or (km.tr_comp[tr] == best_comp and km.tr_index[tr] < best_index)
+                ))
+            ):
+                best = tr
+                best_area = area
+                best_comp = km.tr_comp[tr]
+                best_index = km.tr_index[tr]
+    if best >= 0:
+        return _apply_tr(km, best, state, text_base)
+    return _plain(K_OPERATIONAL, T_OPERATIONAL) if hit else _plain(K_NULL, T_NULL)
+
+
+cdef inline Outcome _apply_tr(KMachine km, int tr, int* state, int text_base) noexcept:
+    cdef Outcome o = _plain(K_TRANSITION, text_base + tr)
+    o.tr = tr
+    o.dangerous = km.tr_dangerous[tr]
+    state[0] = km.tr_end[tr]
+    return o
+
+
+# ------------------------------------------------------------------------------ the batch
+
+
+cdef class Vocab:
+    """Per-batch string vocabularies: each machine's states, components (then `timed_wait`,
+    which names the wait transitions) and feedback texts get an offset in them."""
+
+    cdef readonly list states, comps, texts
+    cdef dict offsets
+
+    def __init__(self):
+        self.states = []
+        self.comps = []
+        self.texts = list(FIXED_TEXTS)
+        self.offsets = {}
+
+    cdef tuple offsets_of(self, KMachine km):
+        got = self.offsets.get(id(km))
+        if got is None:
+            got = (len(self.states), len(self.comps), len(self.texts), km)
+            self.states.extend(km.state_names)
+            self.comps.extend(km.comp_names)
+            self.comps.append("timed_wait")
+            self.texts.extend(km.texts)
+            self.offsets[id(km)] = got
+        return got
+
+
+cdef inline int _lower_view(object recorded) except -2:
+    code = VIEW_CODE.get(recorded.lower())
+    return -1 if code is None else <int>code
+
+
+cdef object _grid(double value):
+    """`math.floor(value / 10 + 0.5)` as a Python int (exact for any finite value)."""
+    cdef double g = floor(value / 10 + 0.5)
+    if -1e15 < g < 1e15:
+        return <long long>g
+    return math.floor(value / 10 + 0.5)
+
+
+def replay_batch(list episodes, Vocab vocab, dict param_cache):
+    """Replay `episodes` (items with `machine`, `task`, `setup`, `log`, `lam`) into an `Out`.
+
+    `param_cache` maps raw parameter words to their normalised form (kept across batches,
+    bounded by the caller)."""
+    cdef Py_ssize_t n = 0, n_goals = 0, text_bytes = 0, e, row = 0, goal_row = 0
+    for ep in episodes:
+        n += len(ep.log.steps)
+        n_goals += len(ep.setup.goals)
+    cdef Out out = Out(n, len(episodes), n_goals, n * 256)
+    cdef Episode run
+    for e in range(len(episodes)):
+        run = Episode(out, episodes[e], vocab, param_cache, e)
+        row = run.steps(row)
+        run.finish(goal_row)
+        goal_row += run.n_goals
+    return out
+
+
+cdef class Episode:
+    """One episode being replayed: the simulator state, goals, budgets and the classifier's
+    history (as `replay_episode` and `Classifier` keep them)."""
+
+    cdef Out out
+    cdef KMachine km
+    cdef object ep, setup
+    cdef Vocab vocab
+    cdef dict param_cache
+    cdef Py_ssize_t e
+    cdef int sb, cb, tb, n_goals, current, state, view, termination
+    cdef bint unlocked
+    cdef double lam, budget_global, budget_local
+    cdef long long l_opt, taken, n_switches, diverged_steps, truncated_steps
+    cdef IntVec goal_ids, started, completed_at, steps_used, switches, failures, visited
+    cdef IntVec c_opt, seen_state, hit_buf
+    cdef list dyn
+    cdef set seen
+    cdef tuple _params
+    cdef Py_ssize_t _row
+
+    def __init__(self, Out out, object ep, Vocab vocab, dict param_cache, Py_ssize_t e):
+        cdef int g
+        cdef KMachine km = kmachine(ep.machine)
+        self.out = out
+        self.ep = ep
+        self.setup = setup = ep.setup
+        self.km = km
+        self.vocab = vocab
+        self.param_cache = param_cache
+        self.e = e
+        sb, cb, tb, _ = vocab.offsets_of(km)
+        self.sb, self.cb, self.tb = sb, cb, tb
+        goals = setup.goals
+        c_opt = setup.plan.c_opt
+        self.n_goals = len(goals)
+        self.goal_ids = _filled(self.n_goals, 0)
+        self.c_opt = _filled(self.n_goals, 0)
+        self.l_opt = 0
+        for g in range(self.n_goals):
+            self.goal_ids.data[g] = goals[g]
+            self.c_opt.data[g] = c_opt[g]
+            self.l_opt += c_opt[g]
+        self.lam = float(ep.lam)
+        self.budget_global = self.lam * self.l_opt
+        self.budget_local = self.lam * <long long>self.c_opt.data[0]
+        self.state = setup.start_state
+        self.view = VIEW_CODE[setup.initial_view]
+        self.unlocked = False
+        self.current = 0
+        self.termination = -1
+        self.taken = self.n_switches = self.diverged_steps = self.truncated_steps = 0
+        self.started = _filled(self.n_goals, -1)
+        self.completed_at = _filled(self.n_goals, -1)
+        self.steps_used = _filled(self.n_goals, 0)
+        self.switches = _filled(self.n_goals, 0)
+        self.failures = _filled(self.n_goals * km.n_comps + 1, 0)
+        self.seen_state = _filled(km.n_states + 1, 0)
+        self.hit_buf = _filled(km.n_comps + 1, 0)
+        self.visited = IntVec(16)
+        for s in setup.reset_states:
+            self._visit(s)
+        self.started.data[0] = 0
+        self.dyn = [None] * self.n_goals
+        self.dyn[0] = km.c_opt_dyn(self.state, self.view, False, self.goal_ids.data[0])
+        self.seen = set()
+
+    cdef inline int _visit(self, int s) except -1:
+        if not self.seen_state.data[s]:
+            self.seen_state.data[s] = 1
+            self.visited.push(s)
+        return 0
+
+    cdef int _parse(self, object log_step, Parsed* pa) except -1:
+        """Parse a step (PROTOCOL §2) and write the columns a truncated step has too;
+        `self._params` holds its params."""
+        cdef Out out = self.out
+        cdef FastParse fp
+        cdef const char* s = NULL
+        pa.x = pa.y = 0.0
+        cdef Py_ssize_t size = 0, i
+        output = log_step.output
+        self._params = ()
+        fp.status = PARSE_FALLBACK
+        if output is not None and (<str>output).isascii():
+            s = PyUnicode_AsUTF8AndSize(output, &size)
+            parse_ascii(s, size, &fp)
+        if fp.status != PARSE_FALLBACK:
+            out.output.push_bytes(s, size)
+            if fp.thinking.end > fp.thinking.start:
+                out.thinking.push_bytes(s + fp.thinking.start, fp.thinking.end - fp.thinking.start)
+            else:
+                out.thinking.push_null()
+            pa.has_coord = False
+            pa.kind = -1
+            pa.ok = fp.status == PARSE_OK
+            if fp.status == PARSE_NO_ACTION:
+                out.action_raw.push_bytes(s, 0)
+                pa.detail = D_NO_ACTION
+            else:
+                out.action_raw.push_bytes(
+                    s + fp.action_text.start, fp.action_text.end - fp.action_text.start
+                )
+                pa.detail = -1 if pa.ok else D_MULTIPLE
+            if pa.ok:
+                pa.kind = fp.kind
+                pa.has_coord = fp.has_coord
+                pa.x = fp.x
+                pa.y = fp.y
+                if fp.n_params:
+                    cache = self.param_cache
+                    items = []
+                    for i in range(fp.n_params):
+                        word = s[fp.params[i].start:fp.params[i].end].decode("ascii")
+                        norm = cache.get(word)
+                        if norm is None:
+                            norm = normalize_param(word)
+                            cache[word] = norm
+                        items.append(norm)
+                    self._params = tuple(items)
+        else:
+            parsed = parse_log_step(log_step)
+            out.output.push_opt(output)
+            if parsed.thinking:
+                out.thinking.push_str(parsed.thinking)
+            else:
+                out.thinking.push_null()
+            out.action_raw.push_str(parsed.action_text)
+            action = parsed.action
+            pa.ok = parsed.ok
+            pa.detail = -1 if parsed.detail is None else DETAIL_CODE[parsed.detail]
+            pa.kind = -1
+            pa.has_coord = False
+            if action is not None:
+                pa.kind = ACTION_CODE[action.type]
+                coord = action.coord
+                if coord is not None:
+                    pa.has_coord = True
+                    pa.x = coord[0]
+                    pa.y = coord[1]
+                self._params = action.params
+        cdef Py_ssize_t row = self._row
+        out.action_type[row] = pa.kind if pa.ok else -1
+        out.has_coord[row] = pa.ok and pa.has_coord
+        if out.has_coord[row]:
+            out.x[row] = pa.x
+            out.y[row] = pa.y
+        out.parse_ok[row] = pa.ok
+        out.parse_detail[row] = pa.detail
+        for param in self._params:
+            out.params.push_str(param)
+        out.params_off.push(<int>out.params.valid.size)
+        return 0
+
+    cdef Py_ssize_t steps(self, Py_ssize_t row) except -1:
+        cdef Out out = self.out
+        cdef KMachine km = self.km
+        cdef list steps = self.ep.log.steps
+        cdef Py_ssize_t k, i
+        cdef Parsed pa
+        cdef Outcome oc
+        cdef int goal_index, goal, s0, v0, first, kind, c, comp, last_comp, n_hits
+        cdef int nearest, error_type, error_detail, switch_class, div_mask, sb = self.sb
+        cdef int cb = self.cb
+        cdef bint progress, is_interaction, hit_target, has_best, repetitive
+        cdef long long d_before, d_after, weight, completed
+        cdef double px, py, d, best_d
+        cdef KGoal kg = None
+        cdef int kg_goal = -1
+        cdef int* hit_buf = self.hit_buf.data
+        cdef int* goal_ids = self.goal_ids.data
+        for k in range(len(steps)):
+            log_step = steps[k]
+            self._row = row
+            out.step_k[row] = k
+            out.step_ep[row] = self.e
+            self._parse(log_step, &pa)
+            params = self._params
+            recorded_feedback = log_step.feedback
+            recorded_state = log_step.state
+            recorded_view = log_step.view
+            out.rec_feedback.push_opt(recorded_feedback)
+            out.rec_state.push_opt(recorded_state)
+            out.rec_view.push_opt(recorded_view)
+            ts = log_step.timestamp
+            if ts is not None:
+                if type(ts) is not float:
+                    ts = timestamp_seconds(ts)
+                if ts is not None:
+                    out.timestamp[row] = ts
+                    out.timestamp_valid[row] = 1
+            if self.termination >= 0:  # after termination: truncated, nothing scored
+                self.truncated_steps += 1
+                out.entered_off.push(<int>out.entered.size)
+                out.hits_off.push(<int>out.hits.size)
+                out.div_off.push(<int>out.div.size)
+                row += 1
+                continue
+
+            # ---- simulate (PROTOCOL §3)
+            s0 = self.state
+            v0 = self.view
+            goal_index = self.current
+            goal = goal_ids[goal_index]
+            oc = _step(km, &pa, params, &self.state, &self.view, &self.unlocked, self.tb)
+            if oc.tr >= 0:
+                first = self.current
+                for i in range(km.tr_ent_off[oc.tr], km.tr_ent_off[oc.tr + 1]):
+                    c = km.tr_ent[i]
+                    out.entered.push(sb + c)
+                    self._visit(c)
+                    # advance_goals: each goal entered in turn completes at k
+                    if self.current < self.n_goals and c == goal_ids[self.current]:
+                        self.completed_at.data[self.current] = k
+                        if self.current != first:
+                            self.started.data[self.current] = k
+                            self.dyn[self.current] = 0
+                        self.current += 1
+                if first < self.current < self.n_goals:
+                    self.started.data[self.current] = k + 1
+            out.entered_off.push(<int>out.entered.size)
+            completed = self.current - goal_index
+            self.taken += 1
+            self.steps_used.data[goal_index] += 1
+            if oc.switched:
+                self.n_switches += 1
+                self.switches.data[goal_index] += 1
+            self.budget_local -= 1
+            if completed:
+                # refreshed_budget, then C_opt_dyn of the new current goal
+                for c in range(goal_index + 1, min(self.current + 1, self.n_goals)):
+                    if self.lam * <long long>self.c_opt.data[c] > self.budget_local:
+                        self.budget_local = self.lam * <long long>self.c_opt.data[c]
+                if self.current < self.n_goals:
+                    self.dyn[self.current] = km.c_opt_dyn(
+                        self.state, self.view, self.unlocked, goal_ids[self.current]
+                    )
+
+            # ---- classify (PROTOCOL §5), as `Classifier.classify`
+            if goal != kg_goal:
+                kg = km.goal(goal)
+                kg_goal = goal
+            if not kg.built[s0]:
+                kg.build(s0)
+            kind = pa.kind if pa.ok else -1
+            d_before = kg.dist[s0]
+            d_after = kg.dist[self.state]
+            progress = completed > 0 or d_after < d_before
+            is_interaction = (
+                0 <= kind < A_SWITCH and pa.has_coord and (INTERACTABLE >> v0) & 1
+                and oc.kind != K_UNLOCKED
+            )
+            px = pa.x
+            py = pa.y
+            n_hits = 0
+            if kind >= 0 and pa.has_coord and kind != A_SWITCH:
+                last_comp = -1
+                for i in range(km.cr_off[v0], km.cr_off[v0 + 1]):
+                    if _inside(km.cr + 4 * i, px, py):
+                        comp = km.cr_comp[i]
+                        if comp != last_comp:
+                            hit_buf[n_hits] = comp
+                            n_hits += 1
+                            last_comp = comp
+            nearest = -1
+            best_d = 0.0
+            has_best = False
+            hit_target = False
+            weight = 0
+            if is_interaction:
+                for i in range(kg.tg_start[s0 * NV + v0], kg.tg_end[s0 * NV + v0]):
+                    d = _rect_distance(kg.rects + 4 * i, px, py)
+                    comp = kg.tg_comp.data[i]
+                    if d == 0.0:
+                        hit_target = True
+                    if not has_best or d < best_d or (d == best_d and comp < nearest):
+                        best_d = d
+                        nearest = comp
+                        has_best = True
+                if has_best:
+                    i = goal_index * km.n_comps + nearest
+                    weight = 1 + self.failures.data[i]
+                    if not progress:
+                        self.failures.data[i] = <int>weight
+
+            error_type = -1
+            error_detail = -1
+            switch_class = -1
+            if not pa.ok:
+                error_type = E_ACTION
+                error_detail = pa.detail
+            elif kind == A_SWITCH:
+                if not oc.switched:
+                    error_type = E_ACTION
+                    error_detail = oc.detail
+                elif kg.has_targets[s0]:
+                    switch_class = _switch_code(
+                        (kg.pos_views[s0] >> v0) & 1, (kg.pos_views[s0] >> self.view) & 1
+                    )
+                    if switch_class == SC_NN:
+                        error_type = E_SWITCH_NN
+                    elif switch_class == SC_PN:
+                        error_type = E_SWITCH_PN
+            elif kind == A_WAIT:
+                if oc.kind == K_WAIT_NO_EFFECT:
+                    error_type = E_WAITING
+                    error_detail = D_NO_EFFECT
+            elif oc.kind == K_INVALID:
+                if oc.detail == D_OUT_OF_RANGE:
+                    error_type = E_INVALID_COORD
+                    error_detail = D_OUT_OF_RANGE
+                else:
+                    error_type = E_ACTION
+                    error_detail = oc.detail
+            elif oc.kind != K_UNLOCKED and not progress:
+                if n_hits == 0:
+                    error_type = E_INVALID_COORD
+                elif not hit_target:
+                    error_type = E_COMPONENT
+                else:
+                    error_type, error_detail = _target_error(km, s0, goal, v0, kind, px, py, params)
+
+            repetitive = False
+            if pa.ok and kind != A_SWITCH:
+                if not pa.has_coord:
+                    where = ()
+                elif n_hits:
+                    where = ("c",) + _sorted_hits(hit_buf, n_hits)
+                else:
+                    where = ("p", _grid(px), _grid(py))
+                key = (goal_index, s0, kind, where, params, v0)
+                if key in self.seen:
+                    repetitive = True
+                else:
+                    self.seen.add(key)
+
+            # ---- the row
+            out.scored[row] = 1
+            out.goal_index[row] = goal_index
+            out.goal_state[row] = sb + goal
+            out.view_before[row] = v0
+            out.view_after[row] = self.view
+            out.unlocked[row] = self.unlocked
+            out.unlocked_valid[row] = km.has_dashboard
+            out.kind[row] = oc.kind
+            out.text[row] = oc.text
+            out.state_before[row] = sb + s0
+            out.state_after[row] = sb + self.state
+            if oc.tr < 0:
+                out.tr_comp[row] = -1
+            elif km.tr_comp[oc.tr] >= 0:
+                out.tr_comp[row] = cb + km.tr_comp[oc.tr]
+            else:  # a timed_wait transition
+                out.tr_comp[row] = cb + km.n_comps
+            out.dangerous[row] = oc.dangerous
+            out.is_switch[row] = oc.switched
+            out.completed[row] = completed
+            out.is_interaction[row] = is_interaction
+            out.hit_component[row] = n_hits > 0
+            out.hit_target[row] = hit_target
+            if n_hits > 1:
+                for comp in _sorted_hits(hit_buf, n_hits):
+                    out.hits.push(cb + comp)
+            elif n_hits == 1:
+                out.hits.push(cb + hit_buf[0])
+            out.hits_off.push(<int>out.hits.size)
+            out.nearest[row] = -1 if nearest < 0 else cb + nearest
+            out.progress[row] = progress
+            out.dist_before[row] = d_before
+            out.dist_after[row] = d_after
+            out.error_type[row] = error_type
+            out.error_detail[row] = error_detail
+            out.switch_class[row] = switch_class
+            out.repetitive[row] = repetitive
+            if kind != A_SWITCH:
+                out.eer_valid_valid[row] = 1
+                if pa.ok:
+                    out.eer_valid[row] = (
+                        (oc.kind == K_TRANSITION or oc.unlocked_now) and not oc.dangerous
+                        and not repetitive
+                    )
+            if has_best:
+                out.distance[row] = best_d
+                out.distance_valid[row] = 1
+                out.weight[row] = weight
+            out.budget_global_left[row] = self.budget_global - self.taken
+            out.budget_local_left[row] = self.budget_local
+
+            # termination: success, then the global budget, then the local one
+            if self.current >= self.n_goals:
+                self.termination = 0
+            elif self.taken >= self.budget_global:
+                self.termination = 1
+            elif self.budget_local <= 0:
+                self.termination = 2
+
+            # divergence: the recorded values against the replay
+            if recorded_feedback is not None or recorded_state is not None or recorded_view is not None:
+                div_mask = 0
+                if recorded_feedback is not None:
+                    if recorded_feedback in _FEEDBACK_KIND_SET:
+                        if recorded_feedback != FEEDBACK_KINDS[oc.kind]:
+                            div_mask |= 1
+                    elif recorded_feedback != self.vocab.texts[oc.text]:
+                        div_mask |= 1
+                if recorded_state is not None and recorded_state != km.state_names[self.state]:
+                    div_mask |= 2
+                if recorded_view is not None and _lower_view(recorded_view) != self.view:
+                    div_mask |= 4
+                out.diverged_valid[row] = 1
+                if div_mask:
+                    out.diverged[row] = 1
+                    self.diverged_steps += 1
+                    for c in range(3):
+                        if (div_mask >> c) & 1:
+                            out.div.push(c)
+            out.div_off.push(<int>out.div.size)
+            row += 1
+        return row
+
+    cdef int finish(self, Py_ssize_t goal_row) except -1:
+        """The episode row and the goal rows (the end of `replay_episode`)."""
+        cdef Out out = self.out
+        cdef KMachine km = self.km
+        cdef Py_ssize_t e = self.e, r
+        cdef int g, i, inter = 0, sb = self.sb, n_goals = self.n_goals
+        cdef bint success = self.current == n_goals
+        cdef long long vsps_switches = 0, l_act = self.taken, longest
+        cdef IntVec in_optimal = _filled(km.n_states + 1, 0)
+        optimal = _optimal_states(self.setup)
+        for s in optimal:
+            in_optimal.data[<int>s] = 1
+            out.e_optimal.push(sb + <int>s)
+        out.e_optimal_off.push(<int>out.e_optimal.size)
+        for i in range(self.visited.size):
+            out.e_visited.push(sb + self.visited.data[i])
+            inter += in_optimal.data[self.visited.data[i]]
+        out.e_visited_off.push(<int>out.e_visited.size)
+        for g in range(n_goals):
+            if self.completed_at.data[g] >= 0:
+                vsps_switches += self.switches.data[g]
+            out.e_goals.push(sb + self.goal_ids.data[g])
+            out.e_c_opt.push(self.c_opt.data[g])
+        out.e_goals_off.push(<int>out.e_goals.size)
+        longest = l_act if l_act > self.l_opt else self.l_opt
+        out.e_n_goals[e] = n_goals
+        out.e_goals_completed[e] = self.current
+        out.e_success[e] = success
+        out.e_termination[e] = self.termination if self.termination >= 0 else 3
+        out.e_l_opt[e] = self.l_opt
+        out.e_l_act[e] = l_act
+        if success:
+            out.e_spl[e] = (<double>self.l_opt / <double>longest) if self.l_opt else 1.0
+        out.e_state_f1[e] = 2.0 * inter / <double>(self.visited.size + len(optimal))
+        out.e_n_switches[e] = self.n_switches
+        out.e_vsps_switches[e] = vsps_switches
+        if self.current:
+            out.e_vsps[e] = <double>vsps_switches / <double>self.current
+            out.e_vsps_valid[e] = 1
+        out.e_n_steps[e] = len(self.ep.log.steps)
+        out.e_truncated[e] = self.truncated_steps
+        out.e_diverged[e] = self.diverged_steps
+        out.e_lam[e] = self.lam
+        out.e_budget_global[e] = self.budget_global
+        out.e_initial_state[e] = sb + <int>self.setup.initial_state
+        out.e_initial_view[e] = VIEW_CODE[self.setup.initial_view]
+        for g in range(n_goals):
+            r = goal_row + g
+            dyn = self.dyn[g]
+            out.g_episode[r] = <int>e
+            out.g_index[r] = g
+            out.g_state[r] = sb + self.goal_ids.data[g]
+            out.g_c_opt[r] = self.c_opt.data[g]
+            if dyn is not None:
+                out.g_dyn[r] = dyn
+                out.g_dyn_valid[r] = 1
+            out.g_reached[r] = self.started.data[g] >= 0
+            out.g_completed[r] = self.completed_at.data[g] >= 0
+            out.g_started[r] = self.started.data[g]
+            out.g_completed_step[r] = self.completed_at.data[g]
+            out.g_steps_used[r] = self.steps_used.data[g]
+            out.g_switches[r] = self.switches.data[g]
+            out.g_perfect[r] = (
+                self.completed_at.data[g] >= 0 and dyn is not None
+                and self.steps_used.data[g] <= dyn
+            )
+        return 0
+
+
+cdef IntVec _filled(Py_ssize_t n, int value):
+    cdef IntVec vec = IntVec(n if n > 0 else 1)
+    cdef Py_ssize_t i
+    for i in range(n):
+        vec.data[i] = value
+    vec.size = n
+    return vec
+
+
+cdef inline int _switch_code(unsigned int start_positive, unsigned int end_positive) noexcept:
+    if start_positive:
+        return SC_PP if end_positive else SC_PN
+    return SC_NP if end_positive else SC_NN
+
+
+cdef tuple _sorted_hits(int* hits, int n):
+    return tuple(sorted({hits[i] for i in range(n)}))
+
+
+cdef tuple _target_error(KMachine km, int s, int goal, int view, int kind, double px, double py,
+                         tuple params):
+    """The rare case of a target hit without progress: the reference classifier decides."""
+    error_type, detail = km.classifier._interaction_error(
+        s, goal, VIEW_ORDER[view], Action(ACTION_NAMES[kind], (px, py), params), ["hit"], True
+    )
+    return ERROR_TYPES.index(error_type), (-1 if detail is None else DETAIL_CODE[detail])
+
+
+cdef tuple _optimal_states(object setup):
+    """The optimal path's states in first-visit order (reset states, then the plan's)."""
+    seen = {}
+    for s in setup.reset_states:
+        seen.setdefault(s, None)
+    for s in setup.plan.states:
+        seen.setdefault(s, None)
+    return tuple(seen)
