@@ -18,8 +18,6 @@ import replay
 from replay.io._manifest import _RUN_COLUMNS
 from replay.io._mcap import SCHEMA_NAMES, TOPICS
 from replay.semantics import _vocab as vocab
-from replay.semantics._feedback import _INVALID_REASONS
-from replay.semantics._parse import PARSE_DETAILS
 from tests.test_self_contained import repository_files
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -84,7 +82,7 @@ def test_feedback_kinds() -> None:
 
 
 def test_parse_details() -> None:
-    assert names("s2") == list(PARSE_DETAILS)
+    assert names("s2") == list(vocab.PARSE_DETAILS)
 
 
 def test_error_types_and_groups() -> None:
@@ -96,9 +94,8 @@ def test_error_types_and_groups() -> None:
 def test_error_details() -> None:
     # Every detail code a step can carry: parse details, validity details (the reasons of
     # invalid_action feedback), and the two of the classifier.
-    details = set(_INVALID_REASONS) | {"wrong_action", "no_effect"}
-    assert details <= code_words("s2", "s5-2")
-    assert set(_INVALID_REASONS) - set(PARSE_DETAILS) <= code_words("s3-2")
+    assert set(vocab.ERROR_DETAILS) <= code_words("s2", "s5-2")
+    assert set(vocab.INVALID_DETAILS) - set(vocab.PARSE_DETAILS) <= code_words("s3-2")
 
 
 def test_switch_classes_terminations_quarantine_kinds() -> None:
