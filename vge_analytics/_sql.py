@@ -87,14 +87,17 @@ class _Deadline:
 
     def _fire(self) -> None:
         self.fired.set()
-        self._cursor.interrupt()
+        with contextlib.suppress(duckdb.Error):  # the query may just have ended
+            self._cursor.interrupt()
 
     def cancel(self) -> None:
         if self._timer is not None:
             self._timer.cancel()
 
 
-def _limit_error(exc: BaseException, store: Store, limits: SqlLimits, deadline: _Deadline):
+def _limit_error(
+    exc: BaseException, store: Store, limits: SqlLimits, deadline: _Deadline
+) -> Exception:
     """The one-line error for a failure while a query ran or its result was read.
 
     DuckDB's errors reach us as duckdb exceptions, or, while the Arrow reader pulls batches,
@@ -207,10 +210,27 @@ def stream(
         cursor.close()
 
 
-def _too_large(what: str, limits: SqlLimits) -> QueryLimitError:
-    return QueryLimitError(
-        f"{what} is larger than the memory limit ({format_size(limits.memory)})", limit="result"
-    )
+def _collect(
+    result: Batches, limits: SqlLimits, rows: int | None = None
+) -> tuple[list[pa.RecordBatch], bool]:
+    """The batches of a result, at most `rows` rows (None: all) and at most `limits.memory`
+    bytes (`QueryLimitError` past that); and whether rows were left unread."""
+    kept: list[pa.RecordBatch] = []
+    count = size = 0
+    for batch in result:
+        size += batch.nbytes
+        if size > limits.memory:
+            what = "the result" if rows is None else f"the first {rows:,} rows"
+            raise QueryLimitError(
+                f"{what} is larger than the memory limit ({format_size(limits.memory)})",
+                limit="result",
+            )
+        if rows is not None and count + batch.num_rows > rows:
+            kept.append(batch.slice(0, rows - count))
+            return kept, True
+        kept.append(batch)
+        count += batch.num_rows
+    return kept, False
 
 
 def sql(
@@ -229,15 +249,8 @@ def sql(
     other failures (syntax, unknown column) raise `QueryError`. All carry a one-line message.
     """
     limits = SqlLimits.make(memory=memory_limit, timeout=timeout)
-    kept: list[pa.RecordBatch] = []
-    size = 0
     with stream(out, query, limits=limits) as result:
-        for batch in result:
-            size += batch.nbytes
-            if size > limits.memory:
-                raise _too_large("the result", limits)
-            kept.append(batch)
-        return result.frame(kept)
+        return result.frame(_collect(result, limits)[0])
 
 
 @dataclass(frozen=True)
@@ -255,20 +268,8 @@ def sql_head(
     """The first `rows` rows of a read-only query (reading stops after `rows + 1` rows, so
     the rest is never computed when the query can stream). Limits and errors as `stream`."""
     limits = limits or SqlLimits.make()
-    kept: list[pa.RecordBatch] = []
-    count = size = 0
-    truncated = False
     with stream(out, query, limits=limits, batch_rows=min(BATCH_ROWS, rows + 1)) as result:
-        for batch in result:
-            size += batch.nbytes
-            if size > limits.memory:
-                raise _too_large(f"the first {rows:,} rows", limits)
-            if count + batch.num_rows > rows:
-                kept.append(batch.slice(0, rows - count))
-                truncated = True
-                break
-            kept.append(batch)
-            count += batch.num_rows
+        kept, truncated = _collect(result, limits, rows)
         return SqlHead(frame=result.frame(kept), truncated=truncated)
 
 
