@@ -19,6 +19,7 @@ import streamlit as st
 
 import vge_analytics as va
 from vge_analytics import dashboard as dash
+from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits
 
 API: dict[str, Callable[..., Any]] = {
     "metrics": va.metrics,
@@ -26,7 +27,7 @@ API: dict[str, Callable[..., Any]] = {
     "error_groups": va.error_groups,
     "switch_classes": va.switch_classes,
     "compare": va.compare,
-    "sql": va.sql,
+    "sql_preview": dash.sql_preview,
     "runs": va.runs,
     "facets": va.facets,
     "episodes": va.episodes,
@@ -63,15 +64,22 @@ PAGES: dict[str, str] = {
 # --------------------------------------------------------------------------------- OUT
 
 
+def script_option(name: str, argv: Sequence[str] | None = None) -> str | None:
+    """The value of `--name VALUE` (or `--name=VALUE`) among the script arguments (what
+    `vge app` passes after `--`)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    flag = f"--{name}"
+    for i, arg in enumerate(args):
+        if arg == flag and i + 1 < len(args):
+            return args[i + 1]
+        if arg.startswith(f"{flag}="):
+            return arg.split("=", 1)[1]
+    return None
+
+
 def out_argument(argv: Sequence[str] | None = None) -> str:
     """OUT from the script arguments (`-- --out OUT`), else `$VGE_APP_OUT`, else the default."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    for i, arg in enumerate(args):
-        if arg == "--out" and i + 1 < len(args):
-            return args[i + 1]
-        if arg.startswith("--out="):
-            return arg.split("=", 1)[1]
-    return os.environ.get(dash.OUT_ENV) or dash.DEFAULT_OUT
+    return script_option("out", argv) or os.environ.get(dash.OUT_ENV) or dash.DEFAULT_OUT
 
 
 def out_dir() -> Path:
@@ -418,8 +426,18 @@ def step_slider(steps: pl.DataFrame) -> int:
 
 # --------------------------------------------------------------------------------- SQL
 
-MAX_SQL_ROWS = 10_000
-"""Rows the SQL page shows (the CSV download has them all)."""
+
+def sql_settings(argv: Sequence[str] | None = None) -> tuple[SqlLimits, int]:
+    """The SQL page's limits and row cap, from `vge app --sql-timeout/--sql-memory-limit/
+    --sql-max-rows` (passed on as script arguments); defaults 30 s, a quarter of the
+    machine's memory, 10,000 rows."""
+    timeout = script_option("sql-timeout", argv)
+    rows = script_option("sql-max-rows", argv)
+    limits = SqlLimits.make(
+        memory=script_option("sql-memory-limit", argv),
+        timeout=APP_TIMEOUT if timeout is None else float(timeout),
+    )
+    return limits, APP_MAX_ROWS if rows is None else int(rows)
 
 
 def load_example() -> None:

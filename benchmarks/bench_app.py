@@ -3,9 +3,10 @@
     python benchmarks/bench_app.py OUT [--repeat 3] [--sweep]
 
 Starts `vge app OUT --headless` on a free localhost port and loads each page in headless
-Chromium (the driver of the end-to-end test, `tests/app/browser.py`), timing from navigation
-until the page is rendered (the app's end-of-run marker of that run is there, nothing is
-stale, every chart has drawn, every table has its cells, every image has loaded):
+Chromium through Playwright (the helpers of the browser tests, `tests/app/streamlit_browser.py`),
+timing from navigation until the page is rendered (the app's end-of-run marker of that run is
+there, nothing is stale, every chart has drawn, every table has its cells, every image has
+loaded):
 
 - *first visit*: a fresh page load (new Streamlit session, frontend start included) right
   after the server started, which fills the caches (`st.cache_data`);
@@ -29,19 +30,18 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import signal
-import socket
 import statistics
-import subprocess
 import sys
+import tempfile
 import time
-import urllib.request
 from pathlib import Path
+
+from playwright.sync_api import sync_playwright
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.app.browser import Browser  # noqa: E402
+from tests.app.streamlit_browser import LAUNCH_ARGS, AppPage, AppServer  # noqa: E402
 
 PAGES: tuple[tuple[str, str, str], ...] = (
     ("Leaderboard", "", "Per metric"),
@@ -53,29 +53,6 @@ PAGES: tuple[tuple[str, str, str], ...] = (
     ("Episode viewer", "episode_viewer", "Download episode as MCAP"),
     ("SQL", "sql", "rows"),
 )
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def start_app(out: Path, port: int) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "vge_analytics.cli", "app", str(out), "--port", str(port)]
-    cmd += ["--headless", "--address", "127.0.0.1"]
-    proc = subprocess.Popen(
-        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
-    )
-    deadline = time.monotonic() + 60
-    while True:
-        try:
-            with urllib.request.urlopen(f"http://127.0.0.1:{port}/_stcore/health", timeout=2):
-                return proc
-        except OSError:
-            if proc.poll() is not None or time.monotonic() > deadline:
-                raise SystemExit("vge app did not start") from None
-            time.sleep(0.2)
 
 
 SHOTS: tuple[tuple[str, str, str], ...] = (
@@ -101,7 +78,7 @@ def _trim(png: Path, width: int = 900) -> None:
     img.quantize(colors=256, dither=Image.Dither.NONE).save(png, optimize=True)
 
 
-def save_screenshots(browser: Browser, base: str, out: Path, folder: Path) -> None:
+def save_screenshots(browser: AppPage, out: Path, folder: Path) -> None:
     from vge_analytics import _browse as browse
     from vge_analytics import dashboard as dash
 
@@ -113,7 +90,7 @@ def save_screenshots(browser: Browser, base: str, out: Path, folder: Path) -> No
     shots = [*SHOTS, ("episode-viewer", viewer, "Download episode as MCAP")]
     browser.set_height(2400)
     for name, path, expect in shots:
-        browser.open(f"{base}/{path}", expect)
+        browser.open(path, expect)
         target = browser.screenshot(folder / f"app-{name}.png")
         _trim(target)
     browser.set_height(1000)
@@ -142,27 +119,25 @@ def main() -> None:
             f"{time.perf_counter() - started:.1f} s (2 workers), then read from the cache"
         )
 
-    port = free_port()
-    proc = start_app(out, port)
     first: dict[str, float] = {}
     reload: dict[str, list[float]] = {t: [] for t, _, _ in PAGES}
     switch: dict[str, list[float]] = {t: [] for t, _, _ in PAGES}
-    try:
-        with Browser(width=1400, height=1000, timeout=300) as browser:
-            for title, path, expect in PAGES:
-                url = f"http://127.0.0.1:{port}/{path}"
-                first[title] = browser.open(url, expect, settle=0.2)
-                for _ in range(args.repeat):
-                    reload[title].append(browser.open(url, expect, settle=0.2))
-                print(f"{title}: first visit {first[title]:.2f} s", file=sys.stderr)
+    log = Path(tempfile.mkdtemp(prefix="bench-app-")) / "vge-app.log"
+    with AppServer(out, log=log) as server, sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(**LAUNCH_ARGS)
+        page = chromium.new_page(viewport={"width": 1400, "height": 1000})
+        browser = AppPage(page, server.url, timeout=300)
+        for title, path, expect in PAGES:
+            first[title] = browser.open(path, expect, settle=0.2)
             for _ in range(args.repeat):
-                for title, path, expect in PAGES:
-                    switch[title].append(browser.navigate(f"/{path}", expect, settle=0.2))
-            if args.screenshots is not None:
-                save_screenshots(browser, f"http://127.0.0.1:{port}", out, args.screenshots)
-    finally:
-        os.killpg(proc.pid, signal.SIGTERM)
-        proc.wait(timeout=20)
+                reload[title].append(browser.open(path, expect, settle=0.2))
+            print(f"{title}: first visit {first[title]:.2f} s", file=sys.stderr)
+        for _ in range(args.repeat):
+            for title, path, expect in PAGES:
+                switch[title].append(browser.navigate(f"/{path}", expect, settle=0.2))
+        if args.screenshots is not None:
+            save_screenshots(browser, out, args.screenshots)
+        chromium.close()
 
     print(
         f"OUT: {out} ({summary.runs} runs, {summary.episodes:,} episodes, "

@@ -10,7 +10,7 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
 "$VENV/bin/python" -m pip install --quiet -e '.[test]'
-# The dashboard's browser test (tests/app/test_browser.py) drives Debian's Chromium.
+# The dashboard's browser tests (Playwright) drive Debian's Chromium: no browser download.
 if [ ! -x /usr/bin/chromium ]; then
   SUDO=""
   if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
@@ -18,4 +18,5 @@ if [ ! -x /usr/bin/chromium ]; then
   $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
 fi
 "$VENV/bin/ruff" check replay vge_analytics app tests benchmarks
-"$VENV/bin/python" -m pytest -n 2 -p no:cacheprovider "$@"
+# loadgroup: the browser tests share one dashboard server and one Chromium (tests/app/conftest.py).
+"$VENV/bin/python" -m pytest -n 2 --dist loadgroup -p no:cacheprovider "$@"

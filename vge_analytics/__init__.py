@@ -21,8 +21,8 @@ Rows for a dashboard:
     runs(out), facets(out), episodes(out, where), goals(out, where), steps(out, where),
     episode_steps(out, run_id, episode_id), steps_with_error(out, error_type, where)
 
-Read-only SQL:
-    sql(out, "SELECT ...")     views steps, episodes, goals, runs
+Read-only SQL (within a memory and a time limit, see `_limits`):
+    sql(out, "SELECT ...", timeout=300, memory_limit=None)   views steps, episodes, goals, runs
 
 `where` filters are `{column: value or list of values}` over columns of runs/episodes (and
 of steps/goals where the result is computed from them); `by` lists grouping columns.
@@ -36,6 +36,7 @@ from ._errors import (
     AnalyticsError,
     OutputDirError,
     QueryError,
+    QueryLimitError,
     QueryRefused,
     SweepInputError,
     SweepRefused,
@@ -76,6 +77,7 @@ __all__ = [
     "Metric",
     "OutputDirError",
     "QueryError",
+    "QueryLimitError",
     "QueryRefused",
     "SweepInputError",
     "SweepRefused",

@@ -36,6 +36,15 @@ class QueryError(AnalyticsError):
     """A read-only query failed (syntax, unknown column, ...)."""
 
 
+class QueryLimitError(QueryError):
+    """A query went past its memory or time limit and was stopped (`vge_analytics._limits`)."""
+
+    def __init__(self, message: str, *, limit: str) -> None:
+        self.limit = limit
+        """Which limit: `time`, `memory` or `result`."""
+        super().__init__(message)
+
+
 class SweepRefused(AnalyticsError):
     """A lambda sweep cannot be computed from the logs that exist."""
 
@@ -48,6 +57,7 @@ __all__ = [
     "AnalyticsError",
     "OutputDirError",
     "QueryError",
+    "QueryLimitError",
     "QueryRefused",
     "SweepInputError",
     "SweepRefused",

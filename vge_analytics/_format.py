@@ -15,7 +15,8 @@ from __future__ import annotations
 import io
 import json
 import math
-from collections.abc import Mapping, Sequence
+import textwrap
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 import polars as pl
@@ -121,15 +122,36 @@ def render_json(df: pl.DataFrame) -> str:
     return json.dumps(to_records(df), indent=2, ensure_ascii=False, default=_json_default)
 
 
-def render_csv(df: pl.DataFrame) -> str:
+def render_csv(df: pl.DataFrame, *, header: bool = True) -> str:
     flat = df.with_columns(
         pl.col(c).cast(pl.List(pl.String)).list.join("|")
         for c, t in df.schema.items()
         if isinstance(t, pl.List)
     )
     buf = io.StringIO()
-    flat.write_csv(buf)
+    flat.write_csv(buf, include_header=header)
     return buf.getvalue()
+
+
+def stream_chunks(frames: Iterable[pl.DataFrame], fmt: str) -> Iterator[str]:
+    """`render(concatenation of frames, fmt)` for `csv` or `json`, one piece per frame (the
+    frames are consumed one at a time, so the whole never has to be in memory). `frames`
+    holds at least one frame, possibly empty (the columns of an empty result)."""
+    if fmt == "csv":
+        for i, df in enumerate(frames):
+            yield render_csv(df, header=i == 0)
+        return
+    if fmt != "json":
+        raise AnalyticsError(f"format {fmt!r} cannot be streamed; csv and json can")
+    rows = 0
+    for df in frames:
+        pieces = []
+        for record in to_records(df):
+            body = json.dumps(record, indent=2, ensure_ascii=False, default=_json_default)
+            pieces.append(("[\n" if rows == 0 else ",\n") + textwrap.indent(body, "  "))
+            rows += 1
+        yield "".join(pieces)
+    yield "\n]\n" if rows else "[]\n"
 
 
 def _metric_lookup(df: pl.DataFrame) -> list[Metric]:

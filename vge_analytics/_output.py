@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 from collections.abc import Mapping
@@ -10,7 +11,8 @@ import polars as pl
 import typer
 from rich.console import Console
 
-from ._format import render, render_sections
+from ._format import render, render_sections, stream_chunks
+from ._sql import Batches
 
 FORMAT_HELP = "Output format: table (for people), json, csv, markdown or latex."
 
@@ -31,6 +33,28 @@ def emit(df: pl.DataFrame, fmt: str, *, title: str | None = None, marks: bool = 
         _console().print(out)
 
 
+def emit_stream(result: Batches, fmt: str) -> None:
+    """Write a query result in `csv` or `json` as its batches arrive (each is flushed, so a
+    reader sees rows while the query runs). A reader that goes away (`| head`) ends it."""
+
+    def frames():
+        yield result.frame([])  # the header (csv) even when no row comes
+        for batch in result:
+            yield result.frame([batch])
+
+    chunks = stream_chunks(frames(), fmt)
+    try:
+        for chunk in chunks:
+            if chunk:
+                sys.stdout.write(chunk)
+                sys.stdout.flush()
+    except BrokenPipeError:
+        chunks.close()  # stops the query
+        # Python would report the broken pipe again when it flushes stdout at exit.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+
+
 def emit_sections(
     sections: Mapping[str, pl.DataFrame], fmt: str, *, marks: bool = False, fixed: bool = False
 ) -> None:
@@ -46,4 +70,4 @@ def emit_sections(
             console.print(item)
 
 
-__all__ = ["FORMAT_HELP", "emit", "emit_sections"]
+__all__ = ["FORMAT_HELP", "emit", "emit_sections", "emit_stream"]

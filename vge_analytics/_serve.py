@@ -3,7 +3,8 @@
 `vge app` starts the dashboard through this module rather than `python -m streamlit`: before
 the server listens it imports the heavy libraries and opens the replay output (DuckDB views,
 Parquet footers) and runs the leaderboard's default query, all in the server process, so the
-first page a person opens does not pay for them (they are most of a cold first load).
+first page a person opens does not pay for them (they are most of a cold first load). It
+also starts the forkserver the SQL page's query processes come from.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ def _warm(out: str) -> None:
     import importlib
 
     import vge_analytics as va
+    from vge_analytics import _isolated as isolated
 
     # The dashboard's own helpers (and through them streamlit, altair, pandas, polars):
     # the page scripts import the same module objects.
@@ -27,6 +29,8 @@ def _warm(out: str) -> None:
         va.metrics(out)
     except va.AnalyticsError:
         pass  # the app itself reports a bad OUT to the person, in the page
+    # The SQL page's query processes fork from a server that has the libraries loaded.
+    isolated.warm()
 
 
 def main() -> int:

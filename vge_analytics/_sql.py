@@ -1,6 +1,6 @@
-"""Read-only SQL over the replay tables (`vge sql`, the dashboard's query box).
+"""Read-only SQL over the replay tables (`vge sql`, the dashboard's query box), with limits.
 
-Two independent guards:
+Two independent guards keep a query read-only:
 
 1. DuckDB's own settings on the connection (see `_store._secure`): file access limited to
    OUT (`allowed_directories` + `enable_external_access = false`), no extension install or
@@ -12,20 +12,34 @@ Two independent guards:
    `VALUES`, `DESCRIBE`, `SHOW`, `SUMMARIZE`) or EXPLAIN of such a statement. INSERT, CREATE,
    COPY, ATTACH, PRAGMA, SET, INSTALL, LOAD, CALL, ... are refused before they run, so the
    views of the shared connection cannot be replaced or dropped.
+
+And every query runs within `SqlLimits` (`_limits`): DuckDB's memory and spill limits on the
+connection, a timer that interrupts the query, and a result that is read batch by batch
+(`stream`) so it never has to fit in memory: `sql` collects at most `limits.memory` bytes of
+it, `sql_head` the first rows. A query stopped by a limit raises `QueryLimitError`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import re
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
 
 import duckdb
 import polars as pl
+import pyarrow as pa
 
-from ._errors import QueryError, QueryRefused
-from ._store import open_store
+from ._errors import QueryError, QueryLimitError, QueryRefused
+from ._limits import CLI_TIMEOUT, SqlLimits, format_size
+from ._store import Store, open_store
 
 _ALLOWED = {duckdb.StatementType.SELECT}
 _EXPLAIN = re.compile(r"^\s*explain(\s+analy[sz]e)?\s+", re.IGNORECASE)
+BATCH_ROWS = 2048
+"""Rows per result batch read from DuckDB."""
 
 
 def _kind(statement) -> str:
@@ -60,24 +74,203 @@ def check_read_only(query: str) -> str:
     return query
 
 
-def sql(out, query: str) -> pl.DataFrame:
+class _Deadline:
+    """Interrupts a cursor's query after `seconds` (None: never); remembers that it did."""
+
+    def __init__(self, cursor: duckdb.DuckDBPyConnection, seconds: float | None) -> None:
+        self.fired = threading.Event()
+        self._cursor = cursor
+        self._timer = None if seconds is None else threading.Timer(seconds, self._fire)
+        if self._timer is not None:
+            self._timer.daemon = True
+            self._timer.start()
+
+    def _fire(self) -> None:
+        self.fired.set()
+        with contextlib.suppress(duckdb.Error):  # the query may just have ended
+            self._cursor.interrupt()
+
+    def cancel(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+
+
+def _limit_error(
+    exc: BaseException, store: Store, limits: SqlLimits, deadline: _Deadline
+) -> Exception:
+    """The one-line error for a failure while a query ran or its result was read.
+
+    DuckDB's errors reach us as duckdb exceptions, or, while the Arrow reader pulls batches,
+    as pyarrow errors carrying DuckDB's text: both are classified by that text."""
+    first = (str(exc).splitlines() or [type(exc).__name__])[0]
+    if deadline.fired.is_set() and (
+        isinstance(exc, duckdb.InterruptException) or "INTERRUPT" in first
+    ):
+        return QueryLimitError(
+            f"the query ran past its time limit of {limits.timeout:g} s and was stopped",
+            limit="time",
+        )
+    if isinstance(exc, MemoryError | duckdb.OutOfMemoryException) or first.startswith(
+        "Out of Memory Error"
+    ):
+        return QueryLimitError(
+            f"the query needed more memory than its limit ({limits.describe()}) and was stopped",
+            limit="memory",
+        )
+    if isinstance(exc, duckdb.PermissionException) or first.startswith("Permission Error"):
+        return QueryRefused(f"access outside {store.out} is not allowed ({first})")
+    return QueryError(first)
+
+
+_FAILURES = (duckdb.Error, pa.ArrowException, OSError, MemoryError)
+
+
+def unique_names(names: list[str]) -> list[str]:
+    """Column names made unique as DuckDB does for DataFrames (`a, a, a_1` -> `a, a_1,
+    a_1_1`; compared case-insensitively), so `SELECT a.x, b.x` gives two columns."""
+    seen: dict[str, int] = {}
+    unique = []
+    for name in names:
+        low = name.lower()
+        if low not in seen:
+            seen[low] = 1
+            unique.append(name)
+            continue
+        candidate = f"{name}_{seen[low]}"
+        while candidate.lower() in seen:
+            seen[low] += 1
+            candidate = f"{name}_{seen[low]}"
+        seen[candidate.lower()] = 1
+        unique.append(candidate)
+    return unique
+
+
+class Batches:
+    """The result of a running query: its `schema`, and its record batches when iterated
+    (each read from DuckDB when it is asked for; a failure raises the one-line error)."""
+
+    def __init__(self, reader: pa.RecordBatchReader, fail) -> None:
+        names = unique_names(reader.schema.names)
+        self.schema: pa.Schema = pa.schema(
+            [field.with_name(name) for field, name in zip(reader.schema, names, strict=True)]
+        )
+        self._renamed = names != reader.schema.names
+        self._reader = reader
+        self._fail = fail
+
+    def __iter__(self) -> Iterator[pa.RecordBatch]:
+        while True:
+            try:
+                batch = self._reader.read_next_batch()
+            except StopIteration:
+                return
+            except _FAILURES as exc:
+                raise self._fail(exc) from None
+            yield batch.rename_columns(self.schema.names) if self._renamed else batch
+
+    def frame(self, batches: list[pa.RecordBatch]) -> pl.DataFrame:
+        """Batches of this result as one polars DataFrame (the columns even with no rows)."""
+        return pl.from_arrow(pa.Table.from_batches(batches, schema=self.schema))
+
+
+@contextlib.contextmanager
+def stream(
+    out: str | Path | Store,
+    query: str,
+    *,
+    limits: SqlLimits | None = None,
+    batch_rows: int = BATCH_ROWS,
+) -> Iterator[Batches]:
+    """Run one read-only query over OUT; the block gets its result as Arrow record batches,
+    produced as they are read (DuckDB computes the next batch when it is asked for).
+
+    The query is interrupted when `limits.timeout` runs out, also while the block reads;
+    leaving the block early stops it. Failures raise `QueryRefused`, `QueryLimitError` or
+    `QueryError`, each with a one-line message."""
+    limits = limits or SqlLimits.make()
+    check_read_only(query)
+    store = open_store(out, limits)
+    cursor = store.cursor()
+    deadline = _Deadline(cursor, limits.timeout)
+
+    def fail(exc: BaseException) -> Exception:
+        return _limit_error(exc, store, limits, deadline)
+
+    reader = None
+    try:
+        try:
+            reader = cursor.sql(query).to_arrow_reader(batch_size=batch_rows)
+        except _FAILURES as exc:
+            raise fail(exc) from None
+        yield Batches(reader, fail)
+    finally:
+        deadline.cancel()
+        if reader is not None:
+            reader.close()
+        cursor.close()
+
+
+def _collect(
+    result: Batches, limits: SqlLimits, rows: int | None = None
+) -> tuple[list[pa.RecordBatch], bool]:
+    """The batches of a result, at most `rows` rows (None: all) and at most `limits.memory`
+    bytes (`QueryLimitError` past that); and whether rows were left unread."""
+    kept: list[pa.RecordBatch] = []
+    count = size = 0
+    for batch in result:
+        size += batch.nbytes
+        if size > limits.memory:
+            what = "the result" if rows is None else f"the first {rows:,} rows"
+            raise QueryLimitError(
+                f"{what} is larger than the memory limit ({format_size(limits.memory)})",
+                limit="result",
+            )
+        if rows is not None and count + batch.num_rows > rows:
+            kept.append(batch.slice(0, rows - count))
+            return kept, True
+        kept.append(batch)
+        count += batch.num_rows
+    return kept, False
+
+
+def sql(
+    out: str | Path | Store,
+    query: str,
+    *,
+    timeout: float | None = CLI_TIMEOUT,
+    memory_limit: str | int | None = None,
+) -> pl.DataFrame:
     """Run one read-only query over the views `steps episodes goals runs` of OUT.
 
-    Writing statements and any access to files outside OUT raise `QueryRefused`; other
-    failures (syntax, unknown column) raise `QueryError`. Both carry a one-line message.
+    `memory_limit` (bytes or `"4GB"`; default a quarter of the machine's memory) bounds
+    DuckDB's memory (it spills up to twice that to disk) and the result collected here;
+    `timeout` (seconds, None for none) stops the query. Writing statements and any access to
+    files outside OUT raise `QueryRefused`; a query past a limit raises `QueryLimitError`;
+    other failures (syntax, unknown column) raise `QueryError`. All carry a one-line message.
     """
-    store = open_store(out)
-    check_read_only(query)
-    try:
-        rel = store.cursor().sql(query)
-        if rel is None:  # pragma: no cover - only SELECT/EXPLAIN get here
-            return pl.DataFrame()
-        return rel.pl()
-    except duckdb.PermissionException as exc:
-        first = str(exc).splitlines()[0]
-        raise QueryRefused(f"access outside {store.out} is not allowed ({first})") from None
-    except duckdb.Error as exc:
-        raise QueryError(str(exc).splitlines()[0]) from None
+    limits = SqlLimits.make(memory=memory_limit, timeout=timeout)
+    with stream(out, query, limits=limits) as result:
+        return result.frame(_collect(result, limits)[0])
 
 
-__all__ = ["check_read_only", "sql"]
+@dataclass(frozen=True)
+class SqlHead:
+    """The first rows of a query's result."""
+
+    frame: pl.DataFrame
+    truncated: bool
+    """The result has more rows than `frame` holds."""
+
+
+def sql_head(
+    out: str | Path | Store, query: str, rows: int, *, limits: SqlLimits | None = None
+) -> SqlHead:
+    """The first `rows` rows of a read-only query (reading stops after `rows + 1` rows, so
+    the rest is never computed when the query can stream). Limits and errors as `stream`."""
+    limits = limits or SqlLimits.make()
+    with stream(out, query, limits=limits, batch_rows=min(BATCH_ROWS, rows + 1)) as result:
+        kept, truncated = _collect(result, limits, rows)
+        return SqlHead(frame=result.frame(kept), truncated=truncated)
+
+
+__all__ = ["BATCH_ROWS", "Batches", "SqlHead", "check_read_only", "sql", "sql_head", "stream"]

@@ -7,14 +7,19 @@ grouping or filter column before it is quoted into a query.
 
 The connection is locked down as soon as the views exist: file access is limited to OUT
 (`allowed_directories`, then `enable_external_access = false`), extensions cannot be
-installed or loaded, and `lock_configuration = true` makes those settings final. Every query,
-ours or a user's (`vge sql`), runs on a cursor of that connection.
+installed or loaded, its memory is capped (`memory_limit`, spilling to a private temporary
+directory capped by `max_temp_directory_size`; see `_limits`), and `lock_configuration =
+true` makes those settings final. Every query, ours or a user's (`vge sql`), runs on a cursor
+of that connection. A store is cached per (directory, memory limits).
 """
 
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
+import os
+import tempfile
 import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -26,6 +31,7 @@ import pyarrow as pa
 import replay
 
 from ._errors import OutputDirError
+from ._limits import SqlLimits
 
 TABLES: tuple[str, ...] = ("steps", "episodes", "goals", "runs")
 PARTITIONED: tuple[str, ...] = ("steps", "episodes", "goals")
@@ -149,9 +155,23 @@ def _create_views(con: duckdb.DuckDBPyConnection, out: Path) -> None:
     rel.create_view("runs")
 
 
-def _secure(con: duckdb.DuckDBPyConnection, out: Path) -> None:
+_SPILL_DIRS = itertools.count()
+
+
+def _spill_directory() -> str:
+    """A temporary directory of its own for each connection: DuckDB creates it when it first
+    spills and removes it when the connection closes (its default, `.tmp` in the current
+    directory, would litter wherever the command runs)."""
+    name = f"vge-sql-{os.getpid()}-{next(_SPILL_DIRS)}"
+    return str(Path(tempfile.gettempdir()) / name)
+
+
+def _secure(con: duckdb.DuckDBPyConnection, out: Path, limits: SqlLimits) -> None:
     # Order matters: allowed_directories can only be set while external access is on, and
     # lock_configuration must come last (it freezes every setting, including itself).
+    con.execute("SET memory_limit = ?", [f"{limits.memory}B"])
+    con.execute("SET temp_directory = ?", [_spill_directory()])
+    con.execute("SET max_temp_directory_size = ?", [f"{limits.spill}B"])
     con.execute("SET allowed_directories = ?", [[str(out) + "/"]])
     con.execute("SET enable_external_access = false")
     con.execute("SET autoinstall_known_extensions = false")
@@ -182,7 +202,7 @@ def _read_manifest(out: Path) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def _open(out: Path) -> Store:
+def _open(out: Path, limits: SqlLimits) -> Store:
     if not out.is_dir():
         raise OutputDirError(f"{out}: replay output directory not found")
     missing = [t for t in PARTITIONED if not (out / t).is_dir()]
@@ -202,26 +222,29 @@ def _open(out: Path) -> Store:
     for table in TABLES:
         rows = con.execute(f"DESCRIBE {table}").fetchall()  # table names are constants
         columns[table] = {r[0]: str(r[1]) for r in rows}
-    _secure(con, out)
+    _secure(con, out, limits)
     return Store(out=out, con=con, columns=columns, manifest=_read_manifest(out))
 
 
-_CACHE: dict[str, tuple[tuple, Store]] = {}
+_CACHE: dict[tuple[str, int, int], tuple[tuple, Store]] = {}
 _CACHE_LOCK = threading.Lock()
 
 
-def open_store(out: str | Path | Store) -> Store:
-    """The `Store` of an OUT directory, cached per directory (re-opened if it changed)."""
+def open_store(out: str | Path | Store, limits: SqlLimits | None = None) -> Store:
+    """The `Store` of an OUT directory, cached per directory and memory limits (re-opened if
+    the directory changed). `limits`: the memory DuckDB may use (default: `SqlLimits.make()`,
+    a quarter of the machine's memory)."""
     if isinstance(out, Store):
         return out
+    limits = limits or SqlLimits.make()
     path = Path(out).resolve()
     sig = _signature(path)
-    key = str(path)
+    key = (str(path), limits.memory, limits.spill)
     with _CACHE_LOCK:
         hit = _CACHE.get(key)
         if hit is not None and hit[0] == sig:
             return hit[1]
-        store = _open(path)
+        store = _open(path, limits)
         # The previous connection is not closed here: another thread may still be reading
         # from it; it closes when the last reference goes.
         _CACHE[key] = (sig, store)

@@ -25,6 +25,8 @@ import polars as pl
 import replay
 
 from ._errors import OutputDirError, UnknownRunError
+from ._isolated import IsolatedResult, run_isolated
+from ._limits import SqlLimits, format_size
 from ._registry import get_metric
 from ._scope import Filters, build_scope, check_columns
 from ._store import open_store, quote_ident, resolve_input
@@ -928,6 +930,33 @@ def table_columns_frame(out: str | Path) -> pl.DataFrame:
         for column, sql_type in columns.items()
     ]
     return pl.DataFrame(rows, schema={"table": pl.String, "column": pl.String, "type": pl.String})
+
+
+def sql_preview(out: str | Path, query: str, rows: int, limits: SqlLimits) -> IsolatedResult:
+    """The SQL page's query: the first `rows` rows, computed in a process of its own within
+    `limits` (`vge_analytics._isolated`), so no query can take the dashboard down."""
+    return run_isolated(out, query, rows, limits)
+
+
+def sql_limits_note(limits: SqlLimits, rows: int) -> str:
+    """What the SQL page says about its limits."""
+    time = f"after {limits.timeout:g} s or " if limits.timeout is not None else ""
+    return (
+        f"Each query runs in a process of its own and is stopped {time}past "
+        f"{limits.describe()}; the page shows the first {rows:,} rows."
+    )
+
+
+def sql_caption(result: IsolatedResult, rows: int) -> str:
+    """What the SQL page says about a result: rows, time, memory, and the cap when it cut."""
+    took = f"in {result.seconds:.2f} s, peak memory {format_size(result.peak_memory)}"
+    if result.truncated:
+        return (
+            f"The first {rows:,} rows ({took}): the query has more. The page and the CSV "
+            f"download hold these {rows:,} rows; `vge sql OUT QUERY --format csv` writes them all."
+        )
+    n = result.frame.height
+    return f"{n:,} {'row' if n == 1 else 'rows'} ({took})."
 
 
 def csv_bytes(df: pl.DataFrame) -> bytes:

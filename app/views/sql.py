@@ -6,10 +6,13 @@ from app import _ui as ui
 from vge_analytics import AnalyticsError
 from vge_analytics import dashboard as dash
 
+limits, max_rows = ui.sql_settings()
 st.title("SQL")
 st.caption(
     "DuckDB SQL over the replay tables `steps`, `episodes`, `goals` and `runs` (one statement, "
-    "read-only; files outside OUT cannot be read). Ctrl+Enter runs the query."
+    "read-only; files outside OUT cannot be read). "
+    + dash.sql_limits_note(limits, max_rows)
+    + " Ctrl+Enter runs the query."
 )
 examples = dash.EXAMPLE_QUERIES
 st.selectbox(
@@ -26,12 +29,12 @@ with st.expander("Columns of the tables"):
     st.dataframe(ui.call("table_columns"), hide_index=True)
 if query.strip():
     try:
-        result = ui.call("sql", query)
+        result = ui.call("sql_preview", query, max_rows, limits)
     except AnalyticsError as exc:
         ui.show_error(exc)
         ui.stop()
-    st.caption(f"{result.height} rows")
-    st.dataframe(result.head(ui.MAX_SQL_ROWS), hide_index=True)
+    st.caption(dash.sql_caption(result, max_rows))
+    st.dataframe(result.frame, hide_index=True)
     st.download_button(
-        "Download CSV", dash.csv_bytes(result), file_name="query.csv", mime="text/csv"
+        "Download CSV", dash.csv_bytes(result.frame), file_name="query.csv", mime="text/csv"
     )

@@ -5,7 +5,7 @@ after completing goal i is fixed (the immediate chain of g_i), its transition co
 sum of per-goal distances, and only *tight* transitions (those lowering the distance) can
 appear in it. Over that DAG we minimise switches jointly across goals by memoised
 recursion on (goal index, state, view, dashboard unlocked). Switches are folded into the
-interaction that needs them, so they land as late as possible. docs/SEMANTICS.md lists the
+interaction that needs them, so they land as late as possible. PROTOCOL §4.3 lists the
 tie-breaks.
 """
 
@@ -219,7 +219,7 @@ class _Solver:
         if got is not None:
             return got
         best = INF
-        if s == goals[i]:  # goals complete when entered (docs/SEMANTICS.md)
+        if s == goals[i]:  # goals complete when entered (PROTOCOL §3.4)
             memo[key] = best
             return best
         for tr in progressing(self.m, s, goals[i]):
@@ -235,7 +235,7 @@ class _Solver:
         return best
 
     def choose(self, i: int, s: int, view: str, unlocked: bool) -> tuple[_Option, int]:
-        """The optimal option at a node, by the SEMANTICS tie-breaks."""
+        """The optimal option at a node, by the tie-breaks of PROTOCOL §4.3."""
         target = self.value(i, s, view, unlocked)
         best: tuple | None = None
         chosen: tuple[_Option, int] | None = None

@@ -1,9 +1,19 @@
-"""Fixtures of the dashboard tests: a replayed tiny synthetic benchmark, built once.
+"""Fixtures of the dashboard tests: a replayed tiny synthetic benchmark, built once, and the
+dashboard served from it to a browser.
 
 `vge synth --scale tiny` (8 devices, 24 episodes, nine runs: six simulated VLM profiles, a
 human-like run and two history-length variants of one profile) replayed with
 `replay.replay_runs`, MCAP files written for the first episode only (`mcap_episode`), so
 the viewer's download of an episode without a file (made on demand) is exercised too.
+
+Browser fixtures (Playwright through pytest-playwright, Debian's Chromium):
+- `app_server`: one `vge app` per test session on the tiny output (`AppServer`), with small
+  SQL limits (`SQL_LIMITS`) so the runaway-query tests take seconds, under an address-space
+  bound (`SERVER_ADDRESS_SPACE`);
+- `app_page`: a fresh browser page on it (`AppPage`: open, navigate, run a query, wait until
+  rendered, read tables).
+Tests that use `app_server` run in one xdist group (`browser`), so the session starts one
+server and one Chromium.
 """
 
 from __future__ import annotations
@@ -18,7 +28,17 @@ import vge_analytics as va
 from vge_analytics.commands.replay import image_source
 from vge_analytics.synth import generate
 
+from .streamlit_browser import CHROMIUM, LAUNCH_ARGS, AppPage, AppServer
+
 APP = Path(__file__).resolve().parents[2] / "app" / "streamlit_app.py"
+ARTIFACTS = Path(__file__).resolve().parents[1] / "_artifacts"
+"""Screenshots of the browser tests (gitignored)."""
+
+SQL_LIMITS = {"timeout": 2.0, "memory": 256 * 1024**2, "rows": 1000}
+"""The test server's SQL page limits: small, so a runaway query ends within seconds."""
+SERVER_ADDRESS_SPACE = 3 * 1024**3
+"""Address space the test server and the processes it starts may map (a safety net: the
+limits under test keep them far below it)."""
 
 
 def first_episode(bench: Path) -> str:
@@ -72,3 +92,46 @@ def app_env(tiny_out, monkeypatch) -> Path:
     """The app reads OUT from $VGE_APP_OUT (as `vge app` sets it)."""
     monkeypatch.setenv("VGE_APP_OUT", str(tiny_out))
     return tiny_out
+
+
+# ---------------------------------------------------------------------------- browser
+
+
+def pytest_collection_modifyitems(items) -> None:
+    for item in items:
+        if "app_server" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.xdist_group("browser"))
+
+
+@pytest.fixture(scope="session")
+def browser_type_launch_args(browser_type_launch_args) -> dict:
+    assert Path(CHROMIUM).exists(), "Debian's chromium is needed (scripts/test.sh installs it)"
+    return {**browser_type_launch_args, **LAUNCH_ARGS}
+
+
+@pytest.fixture(scope="session")
+def browser_context_args(browser_context_args) -> dict:
+    return {**browser_context_args, "viewport": {"width": 1400, "height": 1600}}
+
+
+@pytest.fixture(scope="session")
+def app_server(tiny_out, tmp_path_factory):
+    """`vge app` on the tiny output (its default address), with the small `SQL_LIMITS`."""
+    options = [
+        "--sql-timeout",
+        str(SQL_LIMITS["timeout"]),
+        "--sql-memory-limit",
+        str(SQL_LIMITS["memory"]),
+        "--sql-max-rows",
+        str(SQL_LIMITS["rows"]),
+    ]
+    log = tmp_path_factory.mktemp("server") / "vge-app.log"
+    with AppServer(tiny_out, options=options, log=log, address_space=SERVER_ADDRESS_SPACE) as s:
+        yield s
+    assert "Traceback" not in s.text(), s.text()
+
+
+@pytest.fixture
+def app_page(page, app_server) -> AppPage:
+    """A new browser page (its own context) on the test server."""
+    return AppPage(page, app_server.url)

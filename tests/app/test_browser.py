@@ -1,21 +1,12 @@
-"""End to end: `vge app` serves the dashboard, headless Chromium loads every page.
+"""End to end: `vge app` serves the dashboard, headless Chromium (Playwright) loads every page.
 
-Starts `vge app OUT --headless --port <free port>` as a user would, loads each page in
-Debian's Chromium (driven over the DevTools protocol, `browser.py`), checks the rendered text
-and table cells against the analytics API, and saves a screenshot per page to
-`tests/_artifacts/` (gitignored).
+The server is the `app_server` fixture (`vge app OUT --headless --port <free port>`, as a
+user starts it); each page is loaded in Debian's Chromium, its rendered text and table cells
+are checked against the analytics API, and a screenshot per page goes to `tests/_artifacts/`
+(gitignored).
 """
 
 from __future__ import annotations
-
-import os
-import signal
-import socket
-import subprocess
-import sys
-import time
-import urllib.request
-from pathlib import Path
 
 import polars as pl
 import pytest
@@ -23,68 +14,7 @@ import pytest
 import vge_analytics as va
 from vge_analytics import dashboard as dash
 
-from .browser import Browser, chromium_path
-
-ARTIFACTS = Path(__file__).resolve().parents[1] / "_artifacts"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@pytest.fixture(scope="module")
-def server(tiny_out, tmp_path_factory):
-    """`vge app` on a free localhost port; yields its base URL."""
-    assert Path(chromium_path()).exists(), (
-        "Debian's chromium is needed (scripts/test.sh installs it)"
-    )
-    port = free_port()
-    log = tmp_path_factory.mktemp("server") / "vge-app.log"
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    env.pop("VGE_APP_OUT", None)
-    with log.open("wb") as sink:
-        proc = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "vge_analytics.cli",
-                "app",
-                str(tiny_out),
-                "--port",
-                str(port),
-                "--headless",
-                "--address",
-                "127.0.0.1",
-            ],
-            stdout=sink,
-            stderr=subprocess.STDOUT,
-            env=env,
-            start_new_session=True,
-        )
-    base = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 30
-        while True:
-            try:
-                with urllib.request.urlopen(f"{base}/_stcore/health", timeout=2) as r:
-                    if r.status == 200:
-                        break
-            except OSError:
-                pass
-            if proc.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError(f"vge app did not start:\n{log.read_text()}")
-            time.sleep(0.2)
-        yield base
-    finally:
-        os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-    assert "Traceback" not in log.read_text(), log.read_text()
+from .conftest import ARTIFACTS
 
 
 def cells_by_first_column(table: list[list[str]]) -> dict[str, dict[str, str]]:
@@ -92,7 +22,7 @@ def cells_by_first_column(table: list[list[str]]) -> dict[str, dict[str, str]]:
     return {row[0]: dict(zip(header, row, strict=False)) for row in rows}
 
 
-def test_every_page_renders_in_chromium(server, tiny_out, tmp_path):
+def test_every_page_renders_in_chromium(app_page, tiny_out, tmp_path):
     metrics = va.metrics(tiny_out)
     runs = metrics["run_id"].to_list()
     episodes = va.episodes(tiny_out, where={"run_id": "sim-vlm-f"})
@@ -116,41 +46,41 @@ def test_every_page_renders_in_chromium(server, tiny_out, tmp_path):
         ),
         ("sql", "sql", "rows"),
     ]
+    browser = app_page
     timings = {}
-    with Browser(width=1400, height=1600, timeout=40) as browser:
-        for name, path, expect in pages:
-            timings[name] = browser.open(f"{server}/{path}", expect)
-            browser.screenshot(ARTIFACTS / f"app-{name}.png")
-            text = browser.text()
-            assert not browser.errors(), (name, browser.errors())
-            assert "Traceback" not in text and "Error:" not in text, name
-            assert "OUT" in text and str(tiny_out) in text, name  # the sidebar indicator
-            if name == "leaderboard":
-                shown = cells_by_first_column(browser.tables()[0])
-                assert list(shown) == runs
-                for row in metrics.iter_rows(named=True):
-                    assert float(shown[row["run_id"]]["SR ↑"]) == pytest.approx(row["SR"])
-            if name == "episode_viewer":
-                assert "Step 2" in text and steps["action_raw"][2] in text
-                mcap = browser.download("Download episode as MCAP", tmp_path / "downloads")
-                assert mcap.name == f"sim-vlm-f-{episode}.mcap"
-                assert mcap.read_bytes() == dash.episode_mcap(tiny_out, "sim-vlm-f", episode)
-            if name == "human_vs_vlm":
-                table = cells_by_first_column(browser.tables()[0])
-                assert set(table) >= {"SR ↑", "EIR ↑", "AvgDist ↓"}
-        # The drill-down chain: error type -> its steps -> the episode viewer at that step.
-        browser.open(f"{server}/errors", "Drill down")
-        first = dash.error_step_sample(tiny_out, "invalid_coord", limit=1)[0].row(0, named=True)
-        browser.select_first_row()
-        address = browser.follow_link(f"Open {first['episode_id']}", "Download episode as MCAP")
-        assert address.endswith(
-            f"/episode_viewer?run={first['run_id']}&episode={first['episode_id']}"
-            f"&step={first['step']}"
-        )
-        assert f"Step {first['step']}" in browser.text()
+    for name, path, expect in pages:
+        timings[name] = browser.open(path, expect)
+        browser.screenshot(ARTIFACTS / f"app-{name}.png")
+        text = browser.text()
+        assert not browser.errors(), (name, browser.errors())
+        assert "Traceback" not in text and "Error:" not in text, name
+        assert "OUT" in text and str(tiny_out) in text, name  # the sidebar indicator
+        if name == "leaderboard":
+            shown = cells_by_first_column(browser.tables()[0])
+            assert list(shown) == runs
+            for row in metrics.iter_rows(named=True):
+                assert float(shown[row["run_id"]]["SR ↑"]) == pytest.approx(row["SR"])
+        if name == "episode_viewer":
+            assert "Step 2" in text and steps["action_raw"][2] in text
+            mcap = browser.download("Download episode as MCAP", tmp_path / "downloads")
+            assert mcap.name == f"sim-vlm-f-{episode}.mcap"
+            assert mcap.read_bytes() == dash.episode_mcap(tiny_out, "sim-vlm-f", episode)
+        if name == "human_vs_vlm":
+            table = cells_by_first_column(browser.tables()[0])
+            assert set(table) >= {"SR ↑", "EIR ↑", "AvgDist ↓"}
+    # The drill-down chain: error type -> its steps -> the episode viewer at that step.
+    browser.open("errors", "Drill down")
+    first = dash.error_step_sample(tiny_out, "invalid_coord", limit=1)[0].row(0, named=True)
+    browser.select_first_row()
+    address = browser.follow_link(f"Open {first['episode_id']}", "Download episode as MCAP")
+    assert address.endswith(
+        f"/episode_viewer?run={first['run_id']}&episode={first['episode_id']}&step={first['step']}"
+    )
+    assert f"Step {first['step']}" in browser.text()
 
-        # Moving around by the sidebar, as a person does (same session, no reload).
-        browser.navigate("/navigation", "NP found the target")
-        assert not browser.errors()
-        assert cells_by_first_column(browser.tables()[0]).keys() == set(runs)
+    # Moving around by the sidebar, as a person does (same session, no reload).
+    browser.navigate("/navigation", "NP found the target")
+    assert not browser.errors()
+    assert cells_by_first_column(browser.tables()[0]).keys() == set(runs)
+    assert not browser.page_errors, browser.page_errors
     print("page load + render seconds:", {k: round(v, 2) for k, v in timings.items()})

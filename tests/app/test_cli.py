@@ -5,8 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from vge_analytics import dashboard as dash
+from vge_analytics._limits import SqlLimits
 from vge_analytics.cli import main
-from vge_analytics.commands.app import streamlit_command
+from vge_analytics.commands.app import is_loopback, streamlit_command
 
 
 def test_default_out_missing_says_run_vge_demo(tmp_path, monkeypatch, capsys):
@@ -26,13 +27,40 @@ def test_not_a_replay_output(tmp_path, capsys):
 
 
 def test_streamlit_command(tiny_out):
-    cmd = streamlit_command(tiny_out, port=8600, headless=True, address="127.0.0.1")
+    cmd = streamlit_command(tiny_out, port=8600, headless=True)
     assert cmd[1:4] == ["-m", "vge_analytics._serve", "run"]  # streamlit run, warmed up
     assert Path(cmd[4]) == dash.app_script() and dash.app_script().name == "streamlit_app.py"
     assert cmd[cmd.index("--server.port") + 1] == "8600"
     assert cmd[cmd.index("--server.headless") + 1] == "true"
-    assert cmd[cmd.index("--server.address") + 1] == "127.0.0.1"
+    assert cmd[cmd.index("--server.address") + 1] == "127.0.0.1"  # this machine only
     assert cmd[-3:] == ["--", "--out", str(tiny_out)]
+    limits = SqlLimits.make(memory="1GB", timeout=12.5)
+    cmd = streamlit_command(tiny_out, port=1, headless=False, host="0.0.0.0", sql=(limits, 50))
+    assert cmd[cmd.index("--server.address") + 1] == "0.0.0.0"
+    script_args = cmd[cmd.index("--") + 1 :]
+    assert script_args == [
+        "--out",
+        str(tiny_out),
+        "--sql-timeout",
+        "12.5",
+        "--sql-memory-limit",
+        str(1024**3),
+        "--sql-max-rows",
+        "50",
+    ]
+    from app import _ui
+
+    assert _ui.sql_settings(script_args) == (limits, 50)
+    default_limits, rows = _ui.sql_settings([])
+    assert (default_limits.timeout, rows) == (30.0, 10_000)
+    assert default_limits.memory == SqlLimits.make().memory
+
+
+def test_loopback_hosts():
+    assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
+    assert is_loopback("127.8.0.1")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.0.2.2")
+    assert not is_loopback("::") and not is_loopback("example.org")
 
 
 def test_out_argument_precedence(monkeypatch):

@@ -4,6 +4,7 @@ reshape and the replayed tiny synthetic benchmark."""
 from __future__ import annotations
 
 import io
+import re
 import shutil
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import replay
 import vge_analytics as va
 from vge_analytics import OutputDirError, compare, error_distribution, sql, switch_classes
 from vge_analytics import dashboard as dash
+from vge_analytics._limits import SqlLimits
 
 # ------------------------------------------------------------------------------ OUT
 
@@ -326,6 +328,39 @@ def test_sweep_curves():
 def test_example_queries_run(tiny_out, name):
     result = sql(tiny_out, dash.EXAMPLE_QUERIES[name])
     assert result.width > 0
+
+
+def test_sql_preview_runs_in_its_own_process(tiny_out):
+    limits = SqlLimits.make(memory="256MB", timeout=10)
+    steps = sql(tiny_out, "SELECT count(*) AS n FROM steps")["n"][0]
+    whole = dash.sql_preview(tiny_out, "SELECT step FROM steps ORDER BY ALL", steps, limits)
+    assert whole.frame.height == steps and not whole.truncated
+    assert whole.frame["step"].to_list() == sorted(
+        sql(tiny_out, "SELECT step FROM steps")["step"].to_list()
+    )
+    cut = dash.sql_preview(tiny_out, "SELECT step FROM steps", 3, limits)
+    assert cut.frame.height == 3 and cut.truncated
+    assert dash.sql_caption(cut, 3).startswith("The first 3 rows (in ")
+    assert dash.sql_caption(cut, 3).endswith(
+        "the query has more. The page and the CSV download hold these 3 rows; "
+        "`vge sql OUT QUERY --format csv` writes them all."
+    )
+    one = dash.sql_preview(tiny_out, "SELECT 1 AS one", 10, limits)
+    assert re.fullmatch(
+        r"1 row \(in \d+\.\d\d s, peak memory \d+(\.\d)? MB\)\.", dash.sql_caption(one, 10)
+    )
+    assert one.peak_memory > 10 * 1024**2  # the query's process, libraries loaded
+    # Errors come back as the same one-line errors as in-process queries.
+    with pytest.raises(va.QueryRefused, match="outside"):
+        dash.sql_preview(tiny_out, "SELECT * FROM read_csv('/etc/passwd')", 10, limits)
+    with pytest.raises(va.QueryRefused, match="read-only"):
+        dash.sql_preview(tiny_out, "DROP VIEW steps", 10, limits)
+    with pytest.raises(va.QueryError, match="no_such"):
+        dash.sql_preview(tiny_out, "SELECT no_such FROM steps", 10, limits)
+    assert dash.sql_limits_note(limits, 1000) == (
+        "Each query runs in a process of its own and is stopped after 10 s or past 256 MB in "
+        "memory, 512 MB on disk; the page shows the first 1,000 rows."
+    )
 
 
 def test_csv_bytes_writes_lists_as_json():

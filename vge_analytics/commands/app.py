@@ -4,10 +4,15 @@ Runs `streamlit run app/streamlit_app.py -- --out OUT` with the same Python (thr
 `vge_analytics._serve`, which warms the libraries and OUT up first). The app reads
 OUT from `--out` (and from the `VGE_APP_OUT` environment variable, which this command also
 sets), so it can be started by hand with either.
+
+The server listens on 127.0.0.1 (this machine only) unless `--host` says otherwise: the
+dashboard shows the logs and the model outputs, and its SQL page runs queries, so opening it
+to the network is a choice this command warns about.
 """
 
 from __future__ import annotations
 
+import ipaddress
 import os
 import subprocess
 import sys
@@ -15,20 +20,41 @@ from pathlib import Path
 
 import typer
 
+from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits, format_size
 from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
+
+LOOPBACK = "127.0.0.1"
+
+
+def is_loopback(host: str) -> bool:
+    """True when `host` is reachable from this machine only (127.0.0.0/8, ::1, localhost)."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 def streamlit_command(
-    out: Path, *, port: int, headless: bool, address: str | None = None
+    out: Path,
+    *,
+    port: int,
+    headless: bool,
+    host: str = LOOPBACK,
+    sql: tuple[SqlLimits, int] | None = None,
 ) -> list[str]:
-    """The argument list that serves the dashboard for OUT: `streamlit run ...` through
-    `vge_analytics._serve`, which warms the libraries and OUT up before the server listens."""
+    """The argument list that serves the dashboard for OUT on `host:port`: `streamlit run
+    ...` through `vge_analytics._serve`, which warms the libraries and OUT up before the
+    server listens. `sql`: the SQL page's limits and row cap, passed on to the app."""
     cmd = [
         sys.executable,
         "-m",
         "vge_analytics._serve",
         "run",
         str(app_script()),
+        "--server.address",
+        host,
         "--server.port",
         str(port),
         "--server.headless",
@@ -39,10 +65,21 @@ def streamlit_command(
         "false",
         "--client.toolbarMode",
         "minimal",
+        "--",
+        "--out",
+        str(out),
     ]
-    if address is not None:
-        cmd += ["--server.address", address]
-    return [*cmd, "--", "--out", str(out)]
+    if sql is not None:
+        limits, rows = sql
+        cmd += [
+            "--sql-timeout",
+            f"{limits.timeout or 0:g}",
+            "--sql-memory-limit",
+            str(limits.memory),
+            "--sql-max-rows",
+            str(rows),
+        ]
+    return cmd
 
 
 def app(
@@ -51,19 +88,49 @@ def app(
         help="Replay output directory (default: ./logs-replayed, written by `vge demo`).",
     ),
     port: int = typer.Option(8501, "--port", help="Port to serve on."),
+    host: str = typer.Option(
+        LOOPBACK,
+        "--host",
+        "--address",
+        help="Address to listen on. The default serves this machine only; 0.0.0.0 opens the "
+        "dashboard (logs, model outputs, the SQL page) to the network.",
+    ),
     headless: bool = typer.Option(
         False, "--headless", help="Do not open a browser (servers, CI, tests)."
     ),
-    address: str = typer.Option(
-        None, "--address", help="Address to listen on (default: Streamlit's, all interfaces)."
+    sql_timeout: float = typer.Option(
+        APP_TIMEOUT, "--sql-timeout", help="The SQL page stops a query after this many seconds."
+    ),
+    sql_memory_limit: str = typer.Option(
+        None,
+        "--sql-memory-limit",
+        help="Memory a query of the SQL page may use, e.g. 1GB (default: a quarter of this "
+        "machine's memory).",
+    ),
+    sql_max_rows: int = typer.Option(
+        APP_MAX_ROWS, "--sql-max-rows", min=1, help="Rows the SQL page shows and downloads."
     ),
 ) -> None:
     """Open the dashboard: leaderboard, errors, navigation, grounding, budgets, human vs VLM,
     episode viewer and SQL over a replay output directory."""
     resolved = check_out(out)
-    cmd = streamlit_command(resolved, port=port, headless=headless, address=address)
+    limits = SqlLimits.make(memory=sql_memory_limit, timeout=sql_timeout)
+    cmd = streamlit_command(
+        resolved, port=port, headless=headless, host=host, sql=(limits, sql_max_rows)
+    )
     env = {**os.environ, OUT_ENV: str(resolved)}
-    typer.echo(f"Dashboard for {resolved} on http://localhost:{port} (Ctrl-C stops it)", err=True)
+    shown = "localhost" if is_loopback(host) else host
+    typer.echo(
+        f"Dashboard for {resolved} on http://{shown}:{port} (Ctrl-C stops it); SQL page "
+        f"queries stop after {limits.timeout or 0:g} s or {format_size(limits.memory)}",
+        err=True,
+    )
+    if not is_loopback(host):
+        typer.echo(
+            f"warning: listening on {host}: anyone who can reach this machine on port {port} "
+            "can read the logs and model outputs and run queries on the SQL page",
+            err=True,
+        )
     sys.stderr.flush()
     if os.name == "posix":
         # Replace this process: signals (Ctrl-C, kill) go straight to Streamlit.

@@ -1,4 +1,5 @@
-"""`vge sql OUT "QUERY"`: read-only SQL over the views steps, episodes, goals, runs."""
+"""`vge sql OUT "QUERY"`: read-only SQL over the views steps, episodes, goals, runs, with
+memory and time limits (see `vge_analytics._limits`)."""
 
 from __future__ import annotations
 
@@ -6,22 +7,63 @@ from pathlib import Path
 
 import typer
 
+from .._errors import QueryLimitError
 from .._format import check_format
-from .._output import FORMAT_HELP, emit
-from .._sql import sql as run_sql
+from .._limits import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap
+from .._output import FORMAT_HELP, emit, emit_stream
+from .._sql import sql_head, stream
+
+_HINTS = {
+    "time": "--timeout sets the limit",
+    "memory": "--memory-limit sets the limit",
+    "result": "--max-rows shows fewer rows; --format csv or json writes them all",
+}
 
 
 def sql(
     out: Path = typer.Argument(..., help="Replay output directory."),
     query: str = typer.Argument(..., help="One SELECT query over steps, episodes, goals, runs."),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    timeout: float = typer.Option(
+        CLI_TIMEOUT, "--timeout", help="Stop the query after this many seconds (0: no limit)."
+    ),
+    memory_limit: str = typer.Option(
+        None,
+        "--memory-limit",
+        help="Memory the query may use, e.g. 512MB or 4GB (default: a quarter of this "
+        "machine's memory); past it the query spills up to twice as much to a temporary "
+        "directory, then stops.",
+    ),
+    max_rows: int = typer.Option(
+        CLI_MAX_ROWS,
+        "--max-rows",
+        min=1,
+        help="Rows printed in the formats for people (table, markdown, latex); csv and json "
+        "write every row, as they come.",
+    ),
 ) -> None:
     """Read-only SQL over the views steps, episodes, goals, runs.
 
     One SELECT statement; writing statements and access to files outside OUT are refused.
+    A query that goes past its time or memory limit stops with a one-line error.
     """
     check_format(fmt)
-    emit(run_sql(out, query), fmt, marks=False)
+    limits = SqlLimits.make(memory=memory_limit, timeout=timeout)
+    try:
+        with process_memory_cap(limits):
+            if fmt in ("csv", "json"):
+                with stream(out, query, limits=limits) as result:
+                    emit_stream(result, fmt)
+                return
+            head = sql_head(out, query, max_rows, limits=limits)
+    except QueryLimitError as exc:
+        raise QueryLimitError(f"{exc} ({_HINTS[exc.limit]})", limit=exc.limit) from None
+    emit(head.frame, fmt, marks=False)
+    if head.truncated:
+        typer.echo(
+            f"note: the first {max_rows:,} rows are shown; --format csv or json writes every row",
+            err=True,
+        )
 
 
 def register(app: typer.Typer) -> None:

@@ -112,7 +112,7 @@ class AgentStep:
 
 
 class BudgetTracker:
-    """PROTOCOL §3 budgets and goal completion, step by step (docs/SEMANTICS.md order)."""
+    """PROTOCOL §3 budgets and goal completion, step by step (in the order of PROTOCOL §3.5)."""
 
     def __init__(self, c_opt: tuple[int, ...], goals: tuple[int, ...], lam: float) -> None:
         self.c_opt = c_opt

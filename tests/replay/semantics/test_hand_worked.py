@@ -2,8 +2,8 @@
 
 Every file in ``tests/data/hand_worked/`` that carries an ``expected`` block is one case:
 an SSM (by file name), a task (PROTOCOL §1.3), an episode line (PROTOCOL §1.4), the lambda to use, and
-the values worked out by hand from ``docs/PROTOCOL.md`` + ``docs/SEMANTICS.md`` (the derivation is in
-the case's ``notes``). The expected values were never produced by running the engine.
+the values worked out by hand from ``docs/PROTOCOL.md`` (the derivation is in the case's
+``notes``). The expected values were never produced by running the engine.
 
 Only the fields present in ``expected`` are asserted. Truncated steps list just ``truncated``
 and the PROTOCOL §5 classifications (all null); what else a truncated row holds is not asserted.

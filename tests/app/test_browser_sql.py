@@ -1,0 +1,91 @@
+"""The SQL page under runaway queries, in the browser: each ends with its one-line error (or
+its first rows) within the limit, the query's process stays within its memory bound, the
+dashboard's own process does not grow, and the next query on the same page works.
+
+The test server (`app_server`) runs with `SQL_LIMITS` (2 s, 256 MB, 1,000 rows) under an
+address-space bound; the memory of its process tree is sampled while each query runs
+(`tests.bounded.TreeMemory`; the query processes are grandchildren of the test).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import vge_analytics as va
+from tests.bounded import TreeMemory
+from vge_analytics._limits import SqlLimits, memory_headroom
+
+from .conftest import ARTIFACTS, SQL_LIMITS
+
+LIMITS = SqlLimits.make(memory=SQL_LIMITS["memory"], timeout=SQL_LIMITS["timeout"])
+CROSS_JOIN = "select a.output, b.output from steps a, steps b"
+SORTED_CROSS_JOIN = CROSS_JOIN + " order by a.output || b.output"
+GROWS = "with recursive r(s) as (select 'x' union all select s || s from r) select count(*) from r"
+NEVER_ENDS = (
+    "with recursive r(n) as (select 1 union all select n + 1 from r) select count(*) from r"
+)
+NEXT = "select run_id, count(*) as n from steps group by run_id order by run_id"
+
+MEMORY_ERROR = (
+    "the query needed more memory than its limit (256 MB in memory, 512 MB on disk) and was stopped"
+)
+TIME_ERROR = "the query ran past its time limit of 2 s and was stopped"
+
+
+def _process_memory(pid: int) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) * 1024
+    raise AssertionError("no VmRSS")
+
+
+# (query, text the page shows when it is done, the error boxes it may show then)
+CASES = {
+    # The first rows stream back; the rest of the join is never computed.
+    "cross-join": (CROSS_JOIN, f"The first {SQL_LIMITS['rows']:,} rows (", []),
+    # Sorting needs the whole join: whichever limit it reaches first stops it.
+    "sorted-cross-join": (SORTED_CROSS_JOIN, "and was stopped", [TIME_ERROR, MEMORY_ERROR]),
+    "growing-recursion": (GROWS, MEMORY_ERROR, [MEMORY_ERROR]),
+    "endless-recursion": (NEVER_ENDS, TIME_ERROR, [TIME_ERROR]),
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_runaway_query_ends_and_the_page_answers_the_next(name, app_page, app_server, tiny_out):
+    query, expect, allowed = CASES[name]
+    browser = app_page
+    browser.open("sql", "rows")
+    expected_next = va.sql(tiny_out, NEXT)
+    assert va.sql(tiny_out, "select count(*) as n from steps")["n"][0] ** 2 > 1_000_000
+    server_before = _process_memory(app_server.pid)
+    # The query process's own size, from a query that needs nothing.
+    with TreeMemory(app_server.pid) as idle:
+        browser.run_query("select 1 as one", "1 row (")
+    idle_peak = idle.largest_below()
+    assert idle_peak > 0
+
+    with TreeMemory(app_server.pid) as tree:
+        seconds = browser.run_query(query, expect)
+    # Within the limit (and its grace): the query's own timer ends it first.
+    assert seconds < SQL_LIMITS["timeout"] + 4, seconds
+    assert tree.largest_below() <= idle_peak + memory_headroom(LIMITS), tree.peaks
+    errors = browser.errors()
+    if allowed:
+        assert len(errors) == 1 and errors[0] in allowed, errors  # one line, nothing else
+    else:
+        assert not errors, errors
+        assert len(browser.tables()[-1]) > 1  # header and the first rows drawn
+    browser.screenshot(ARTIFACTS / f"app-sql-{name}.png")
+
+    # The same page answers the next query.
+    browser.run_query(NEXT, f"{expected_next.height} rows (")
+    assert not browser.errors()
+    shown = browser.tables()[-1]
+    assert shown[0][:2] == ["run_id", "n"]
+    assert [row[:2] for row in shown[1:]] == [[r, str(n)] for r, n in expected_next.iter_rows()]
+
+    # The dashboard's own process did not take the query's memory.
+    assert _process_memory(app_server.pid) < server_before + 128 * 1024**2
+    assert not browser.page_errors, browser.page_errors

@@ -1,0 +1,162 @@
+"""Resource limits of user SQL (`vge sql`, `vge_analytics.sql`, the dashboard's SQL page).
+
+A query can ask for more than the machine has (a cross join of the steps table is hundreds
+of millions of rows). Every place its memory can go is bounded:
+
+- DuckDB's operators: `memory_limit` on the connection, with spilling to a private temporary
+  directory capped by `max_temp_directory_size` (`SqlLimits.spill`);
+- the result: streamed batch by batch (`vge sql --format csv|json`), or cut at a row cap (the
+  dashboard, the formats for people), or collected only up to `SqlLimits.memory` bytes
+  (`vge_analytics.sql`);
+- what DuckDB does not account for (one value larger than memory, `repeat('x', 10^10)`): a
+  cap on the process's data segment (`process_memory_cap`), taken by `vge sql` for the
+  duration of the query and by the dashboard's query process for its whole life;
+- time: the query is interrupted after `SqlLimits.timeout` seconds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import resource
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from ._errors import ConfigError
+
+MEMORY_SHARE = 0.25
+"""Default memory limit: this share of the machine's memory (or of the cgroup's limit)."""
+SPILL_FACTOR = 2
+"""Default spill limit: this many times the memory limit, on disk."""
+CLI_TIMEOUT = 300.0
+"""Default time limit of `vge sql` and `vge_analytics.sql` (seconds): far above any query
+the dashboard runs (under a second on the full synthetic benchmark), short enough that a
+query that never ends does not hold the machine."""
+APP_TIMEOUT = 30.0
+"""Default time limit of the dashboard's SQL page (seconds)."""
+APP_MAX_ROWS = 10_000
+"""Rows the dashboard's SQL page shows (and its CSV download holds)."""
+CLI_MAX_ROWS = 10_000
+"""Rows `vge sql` prints in the formats for people (table, markdown, latex)."""
+
+_UNITS = {"": 1, "B": 1, "K": 1024, "M": 1024**2, "G": 1024**3, "T": 1024**4}
+_SIZE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([KMGT]?)(?:I?B)?\s*$", re.IGNORECASE)
+
+
+def parse_size(value: str | int) -> int:
+    """Bytes from `268435456`, `256MB`, `256MiB`, `1.5GB`, `2G` (units are powers of 1024)."""
+    if isinstance(value, int):
+        size = value
+    else:
+        match = _SIZE.match(value)
+        if match is None:
+            raise ConfigError(f"not a memory size: {value!r} (examples: 512MB, 4GB)")
+        size = int(float(match.group(1)) * _UNITS[match.group(2).upper()])
+    if size < 16 * 1024**2:
+        raise ConfigError(f"a memory limit below 16 MB is not usable, got {value!r}")
+    return size
+
+
+def format_size(size: int) -> str:
+    """`268435456` -> `256 MB` (powers of 1024, as DuckDB and `parse_size` read them)."""
+    for unit in ("TB", "GB", "MB", "KB"):
+        scale = _UNITS[unit[0]]
+        if size >= scale:
+            value = size / scale
+            return f"{value:.0f} {unit}" if value == int(value) else f"{value:.1f} {unit}"
+    return f"{size} B"
+
+
+def machine_memory() -> int:
+    """Bytes of memory this process may use: the machine's, or its cgroup's limit if lower."""
+    total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    with contextlib.suppress(OSError, ValueError):
+        text = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        if text != "max":
+            total = min(total, int(text))
+    return total
+
+
+def default_memory_limit() -> int:
+    return max(int(machine_memory() * MEMORY_SHARE), 64 * 1024**2)
+
+
+@dataclass(frozen=True)
+class SqlLimits:
+    """How much one user query may take."""
+
+    memory: int
+    """Bytes DuckDB may hold in memory; also the most a collected result may take."""
+    spill: int
+    """Bytes DuckDB may write to its temporary directory when memory is full."""
+    timeout: float | None
+    """Seconds before the query is interrupted; None: no time limit."""
+
+    @classmethod
+    def make(
+        cls, *, memory: str | int | None = None, timeout: float | None = CLI_TIMEOUT
+    ) -> SqlLimits:
+        """Limits from user options: `memory` as bytes or a size string (default: a quarter
+        of the machine's memory), `timeout` in seconds (0 or None: none)."""
+        size = default_memory_limit() if memory is None else parse_size(memory)
+        if timeout is not None and timeout < 0:
+            raise ConfigError(f"a time limit cannot be negative, got {timeout}")
+        return cls(memory=size, spill=SPILL_FACTOR * size, timeout=timeout or None)
+
+    def describe(self) -> str:
+        return f"{format_size(self.memory)} in memory, {format_size(self.spill)} on disk"
+
+
+def _data_segment() -> int:
+    """Bytes of the process's data segment now (VmData: what RLIMIT_DATA counts)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmData:"):
+            return int(line.split()[1]) * 1024
+    return 0  # pragma: no cover - every Linux kernel since 2.6 reports VmData
+
+
+def memory_headroom(limits: SqlLimits) -> int:
+    """What a query may add to the process beyond DuckDB's accounted memory: its result
+    batches and DuckDB's unaccounted allocations (half the limit, at least 256 MB)."""
+    return limits.memory + max(limits.memory // 2, 256 * 1024**2)
+
+
+@contextlib.contextmanager
+def process_memory_cap(limits: SqlLimits) -> Iterator[None]:
+    """Cap the process's data segment at its current size plus `memory_headroom(limits)`
+    while the block runs (Linux; the soft limit only, restored afterwards).
+
+    An allocation past the cap fails where it happens: DuckDB raises its out-of-memory
+    error, Python raises MemoryError; neither grows the process further."""
+    try:
+        soft, hard = resource.getrlimit(resource.RLIMIT_DATA)
+        cap = _data_segment() + memory_headroom(limits)
+    except (OSError, ValueError):  # pragma: no cover - not Linux
+        yield
+        return
+    if hard != resource.RLIM_INFINITY:
+        cap = min(cap, hard)
+    if soft != resource.RLIM_INFINITY:
+        cap = min(cap, soft)
+    resource.setrlimit(resource.RLIMIT_DATA, (cap, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_DATA, (soft, hard))
+
+
+__all__ = [
+    "APP_MAX_ROWS",
+    "APP_TIMEOUT",
+    "CLI_MAX_ROWS",
+    "CLI_TIMEOUT",
+    "SqlLimits",
+    "default_memory_limit",
+    "format_size",
+    "machine_memory",
+    "memory_headroom",
+    "parse_size",
+    "process_memory_cap",
+]
