@@ -2,9 +2,11 @@
 
 The inputs come from `OUT/manifest.json` (each run's directory, episodes file and benchmark,
 as given to `vge replay`); their sha256 must still match the manifest (a changed log, task
-file or SSM would make the sweep disagree with OUT, so it is refused). Every episode that OUT holds for a run is replayed again with
-`replay.replay_episode` at each lambda (the task's plan is computed once and reused), and the
-metrics are computed from the resulting episode rows with the registry's own SQL.
+file or SSM would make the sweep disagree with OUT, so it is refused). Every episode that OUT
+holds for a run is replayed again at each lambda by `replay.replay_lambdas`, in batches of
+lines run by the executors of `vge replay` (this process, worker processes, or a Ray
+cluster), and the metrics are computed from the resulting episode rows with the registry's
+own SQL.
 
 Which lambdas the logs support
 ------------------------------
@@ -34,13 +36,11 @@ from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import duckdb
-import msgspec
 import polars as pl
 import pyarrow as pa
 
@@ -82,6 +82,35 @@ class _RunJob:
     bench: str
     episode_ids: frozenset[str]
     lambdas: tuple[float, ...]
+
+    def tasks(self) -> Iterator[replay.LambdaTask]:
+        """The run's lines in batches of BATCH_LINES."""
+        lines: list[tuple[int, bytes]] = []
+        index = 0
+        for item in replay.iter_lines(self.episodes_file):
+            lines.append(item)
+            if len(lines) == BATCH_LINES:
+                yield self._task(index, lines)
+                lines, index = [], index + 1
+        if lines:
+            yield self._task(index, lines)
+
+    def _task(self, index: int, lines: list[tuple[int, bytes]]) -> replay.LambdaTask:
+        return replay.LambdaTask(
+            run_id=self.run_id,
+            model=self.model,
+            agent_kind=self.agent_kind,
+            run_lambda=self.run_lambda,
+            bench=self.bench,
+            index=index,
+            lines=tuple(lines),
+            episode_ids=self.episode_ids,
+            lambdas=self.lambdas,
+        )
+
+
+BATCH_LINES = 1024
+"""Episode lines per sweep task."""
 
 
 def _resolve(out: Path, path: str, what: str, run_id: str) -> Path:
@@ -156,70 +185,35 @@ def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> 
     return jobs
 
 
-_decoder = msgspec.json.Decoder(replay.EpisodeLog)
+def _replay(jobs: list[_RunJob], executor) -> pa.Table:
+    """Episode rows of every run at every lambda, in line order (the first occurrence of an
+    episode counts); the first refusal, in run and line order, ends the sweep."""
+    def items() -> Iterator[tuple[_RunJob, replay.LambdaTask]]:
+        for job in jobs:
+            for task in job.tasks():
+                yield job, task
+
+    tables: list[pa.Table] = []
+    seen: dict[str, set[str]] = {job.run_id: set() for job in jobs}
+    ahead = 2 * executor.slots
+    for job, _, batch in replay.in_order(executor, replay.replay_lambdas, items(), ahead):
+        keep: list[bool] = []
+        for eid, refusal in zip(batch.episode_ids, batch.refusals, strict=True):
+            first = eid not in seen[job.run_id]
+            if first and refusal is not None:
+                raise SweepRefused(refusal)
+            seen[job.run_id].add(eid)
+            keep.extend([first] * len(job.lambdas))
+        tables.append(batch.episodes.filter(pa.array(keep, pa.bool_())))
+    schema = replay.arrow_schema(replay.EpisodeRow)
+    return pa.concat_tables(tables) if tables else schema.empty_table()
 
 
-def _replay_run(job: _RunJob) -> tuple[list[replay.EpisodeRow], str | None]:
-    """Episode rows of one run at every lambda of the job, or a refusal message."""
-    bench = replay.Benchmark.open(job.bench)
-    rows: list[replay.EpisodeRow] = []
-    seen: set[str] = set()
-    for _, line in replay.iter_lines(job.episodes_file):
-        try:
-            log = _decoder.decode(line)
-        except msgspec.DecodeError:
-            continue  # quarantined by the replay: not in OUT either
-        if log.episode_id not in job.episode_ids or log.episode_id in seen:
-            continue
-        seen.add(log.episode_id)
-        entry = bench.tasks.get(log.episode_id)
-        if entry is None:
-            continue
-        task = entry.task
-        machine = bench.machine(task.device_id)
-        setup = replay.setup_episode(machine, task)
-        recorded = next(
-            v for v in (task.lam, job.run_lambda, replay.DEFAULT_LAMBDA) if v is not None
-        )
-
-        def play(lam: float, log=log, task=task, machine=machine, setup=setup):
-            return replay.replay_episode(
-                machine,
-                task,
-                log,
-                lam=lam,
-                run_id=job.run_id,
-                model=job.model,
-                agent_kind=job.agent_kind,
-                setup=setup,
-            ).episode
-
-        at_recorded: str | None = None
-        for lam in job.lambdas:
-            ep = play(lam)
-            if lam > recorded and ep.termination == "log_ended":
-                if at_recorded is None:
-                    at_recorded = play(recorded).termination
-                if at_recorded != "log_ended":
-                    return [], (
-                        f"run {job.run_id}: lambda {lam:g} is above the recorded lambda "
-                        f"{recorded:g} and episode {log.episode_id} hit its budget there "
-                        f"({at_recorded}); its log holds no steps a larger budget would allow "
-                        f"(use lambdas <= {recorded:g} for this run)"
-                    )
-            rows.append(ep)
-    return rows, None
-
-
-def _episodes_table(rows: list[replay.EpisodeRow]) -> pa.Table:
-    return replay.rows_to_table(rows, replay.EpisodeRow)
-
-
-def _metrics_of(rows: list[replay.EpisodeRow], metric_names: list[str]) -> pl.DataFrame:
+def _metrics_of(episodes: pa.Table, metric_names: list[str]) -> pl.DataFrame:
     """Registry metrics per (run_id, model, lambda) over in-memory episode rows."""
     con = duckdb.connect(":memory:")
     try:
-        con.from_arrow(_episodes_table(rows)).create_view("episodes")
+        con.from_arrow(episodes).create_view("episodes")
         for table in ("steps", "goals"):
             schema = replay.arrow_schema(replay.TABLE_ROWS[table])
             con.from_arrow(schema.empty_table()).create_view(table)
@@ -244,6 +238,7 @@ def sweep(
     runs: Sequence[str] | None = None,
     metrics: str | Sequence[str] | None = None,
     workers: int = 1,
+    ray: str | None = None,
 ) -> pl.DataFrame:
     """SR and SSR (or other episode metrics) per run and lambda, by re-replaying the logs.
 
@@ -251,7 +246,8 @@ def sweep(
     lambda of the sweep, in the metric's unit: percentage points for rates) and `M_rel_gain`
     (that gain relative to M at the smallest lambda, in percent; null when that is 0 or null).
     Rows sorted by run_id, lambda. Raises `SweepRefused` when a lambda is above what a run's
-    logs support (see the module docstring).
+    logs support (see the module docstring). `workers` processes replay the batches, or the
+    Ray cluster at `ray` (as `vge replay --ray`); the result does not depend on them.
     """
     store = open_store(out)
     lams = parse_lambdas(lambdas)
@@ -262,21 +258,14 @@ def sweep(
             f"the sweep computes metrics from episode rows only; {', '.join(not_episode)} "
             "need steps or goals (episode metrics: SR, SSR, SPL, State-F1, VSPS, GVPE)"
         )
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ConfigError(f"workers must be a positive integer, not {workers!r}")
     jobs = _jobs(store, runs, lams)
-    if workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            results = list(pool.map(_replay_run, jobs))
-    else:
-        results = [_replay_run(job) for job in jobs]
-    rows: list[replay.EpisodeRow] = []
-    for episode_rows, refusal in results:
-        if refusal is not None:
-            raise SweepRefused(refusal)
-        rows.extend(episode_rows)
+    executor = replay.make_executor(workers, ray)
+    try:
+        episodes = _replay(jobs, executor)
+    finally:
+        executor.close()
     names = [m.name for m in chosen]
-    df = _metrics_of(rows, names)
+    df = _metrics_of(episodes, names)
     base = df.sort("lambda").group_by("run_id", maintain_order=True).first()
     base = base.select("run_id", *[pl.col(n).alias(f"__base_{n}") for n in names])
     df = df.join(base, on="run_id", how="left")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 import sys
+from pathlib import Path
 
 import typer
 
@@ -37,6 +38,24 @@ app = typer.Typer(
 
 _state = {"debug": False}
 
+OPTIONAL_VALUES = {"--ray": "auto"}
+"""Options whose value may be left out (`--ray` alone means `--ray auto`)."""
+
+
+def _fill_optional_values(args: list[str]) -> list[str]:
+    """Insert the default value of an option given without one: at the end, before another
+    option, or before an existing path (a run directory, not an address)."""
+    out: list[str] = []
+    for i, arg in enumerate(args):
+        out.append(arg)
+        default = OPTIONAL_VALUES.get(arg)
+        if default is None:
+            continue
+        following = args[i + 1] if i + 1 < len(args) else None
+        if following is None or following.startswith("-") or Path(following).exists():
+            out.append(default)
+    return out
+
 
 @app.callback()
 def _root(
@@ -54,7 +73,7 @@ def _register_all() -> None:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `vge` console script."""
     _register_all()
-    args = sys.argv[1:] if argv is None else argv
+    args = _fill_optional_values(sys.argv[1:] if argv is None else list(argv))
     _state["debug"] = "--debug" in args
     try:
         result = app(args=args, standalone_mode=False)

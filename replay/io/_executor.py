@@ -1,49 +1,52 @@
-"""Where batches run: in this process, or in worker processes; results come back in order.
+"""Where batches run: in this process, in worker processes, or on a Ray cluster (`_ray`).
 
-Every executor calls the same function (`_worker.replay_batch`) on the same tasks, so the
-files do not depend on the executor. The runner keeps at most `ahead` batches in flight,
-so memory does not grow with the size of the logs.
+An executor runs a batch function (`_worker.replay_batch`, or the sweep's) on picklable
+tasks; `in_order` hands the results back in the order of the tasks with a bounded number in
+flight, so memory does not grow with the size of the logs. The files written do not depend
+on the executor: every executor calls the same function on the same tasks.
 """
 
 from __future__ import annotations
 
 import multiprocessing
-from collections import deque
-from collections.abc import Iterator
+from collections import Counter, deque
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from typing import Generic, Protocol, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
-from .._errors import WorkerError
-from ._task import BatchFailure, BatchReport, BatchTask
-from ._worker import replay_batch
+from .._errors import ConfigError, WorkerError
 
-Result = BatchReport | BatchFailure
 T = TypeVar("T")
+Batch = Callable[[Any], Any]
 
 
 class Executor(Protocol):
-    """Runs `replay_batch` on tasks; `result(handle)` waits for one."""
+    """Runs a batch function on tasks; `result(handle)` waits for one."""
 
     slots: int  # batches it can work on at once
+    nodes: Counter[str]  # batches finished per node (filled by cluster executors)
 
-    def submit(self, task: BatchTask) -> object: ...
+    def submit(self, fn: Batch, task: Any) -> object: ...
 
-    def result(self, handle: object) -> Result: ...
+    def result(self, handle: object) -> Any: ...
 
     def close(self) -> None: ...
 
 
 class InProcess:
-    """Batches replayed here, one after the other (`workers=1`)."""
+    """Batches run here, one after the other (`workers=1`)."""
 
     slots = 1
 
-    def submit(self, task: BatchTask) -> Result:
-        return replay_batch(task)
+    def __init__(self) -> None:
+        self.nodes: Counter[str] = Counter()
 
-    def result(self, handle: object) -> Result:
-        return handle  # type: ignore[return-value]
+    def submit(self, fn: Batch, task: Any) -> Any:
+        return fn(task)
+
+    def result(self, handle: object) -> Any:
+        return handle
 
     def close(self) -> None:
         pass
@@ -57,12 +60,14 @@ class WorkerProcesses:
     def __init__(self, workers: int) -> None:
         context = multiprocessing.get_context("spawn")
         self.slots = workers
+        self.nodes: Counter[str] = Counter()
         self.pools = [ProcessPoolExecutor(max_workers=1, mp_context=context) for _ in range(workers)]
 
-    def submit(self, task: BatchTask) -> Future[Result]:
-        return self.pools[task.index % len(self.pools)].submit(replay_batch, task)
+    def submit(self, fn: Batch, task: Any) -> Future[Any]:
+        index = getattr(task, "index", 0)
+        return self.pools[index % len(self.pools)].submit(fn, task)
 
-    def result(self, handle: object) -> Result:
+    def result(self, handle: object) -> Any:
         try:
             return handle.result()  # type: ignore[attr-defined]
         except BrokenProcessPool:
@@ -76,12 +81,23 @@ class WorkerProcesses:
             pool.shutdown(wait=True, cancel_futures=True)
 
 
-class Pending(Generic[T]):
-    """An item of the ordered stream: a submitted task, or a marker passed through in order."""
+def make_executor(workers: int = 1, ray: str | None = None) -> Executor:
+    """This process (`workers=1`), `workers` processes, or the Ray cluster at `ray`
+    (`auto`: the cluster this host belongs to or `RAY_ADDRESS`; `local`: a cluster started
+    in this process; else an address)."""
+    if ray is not None:
+        from ._ray import RayCluster
 
+        return RayCluster(ray)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers must be a positive integer, not {workers!r}")
+    return InProcess() if workers == 1 else WorkerProcesses(workers)
+
+
+class _Pending(Generic[T]):
     __slots__ = ("item", "task", "handle")
 
-    def __init__(self, item: T, task: BatchTask | None, handle: object) -> None:
+    def __init__(self, item: T, task: Any, handle: object) -> None:
         self.item = item
         self.task = task
         self.handle = handle
@@ -89,16 +105,17 @@ class Pending(Generic[T]):
 
 def in_order(
     executor: Executor,
-    items: Iterator[tuple[T, BatchTask | None]],
+    fn: Batch,
+    items: Iterator[tuple[T, Any]],
     ahead: int,
-) -> Iterator[tuple[T, BatchTask | None, Result | None]]:
-    """(item, task, result) in the order of `items`, with at most `ahead` tasks in flight;
-    an item without a task (a marker) comes back with result None at its place."""
-    pending: deque[Pending[T]] = deque()
+) -> Iterator[tuple[T, Any, Any]]:
+    """(item, task, fn(task)) in the order of `items`, at most `ahead` tasks in flight; an
+    item whose task is None (a marker) comes back with result None at its place."""
+    pending: deque[_Pending[T]] = deque()
     in_flight = 0
     try:
         for item, task in items:
-            pending.append(Pending(item, task, None if task is None else executor.submit(task)))
+            pending.append(_Pending(item, task, None if task is None else executor.submit(fn, task)))
             in_flight += task is not None
             while pending and (in_flight >= ahead or pending[0].task is None):
                 head = pending.popleft()

@@ -168,6 +168,8 @@ class Manifest:
     requested: list[str] = field(default_factory=list)
     replayed: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
+    nodes: dict[str, int] = field(default_factory=dict)
+    """Batches replayed per cluster node (Ray only; never written to a file)."""
 
     def run(self, run_id: str) -> RunEntry:
         for entry in self.content.runs:

@@ -23,7 +23,7 @@ import msgspec
 from .._errors import ConfigError, InputError
 from .._version import ENGINE_VERSION
 from . import _files
-from ._executor import Executor, InProcess, WorkerProcesses, in_order
+from ._executor import Executor, InProcess, in_order, make_executor
 from ._load import Benchmark
 from ._manifest import Hasher, Manifest, RunEntry, RunOptions, read_manifest
 from ._mcap import ImageSource
@@ -61,7 +61,7 @@ def _options(
     )
 
 
-def _make_progress(enabled: bool) -> Progress | None:
+def _make_progress(enabled: bool, *, cluster: bool = False) -> Progress | None:
     if not enabled:
         return None
     from rich.console import Console
@@ -76,16 +76,16 @@ def _make_progress(enabled: bool) -> Progress | None:
     console = Console(stderr=True)
     if not console.is_terminal:
         return None
-    return Progress(
+    columns = [
         SpinnerColumn(),
         TextColumn("[bold]{task.description}"),
         BarColumn(bar_width=None),
         TextColumn("{task.completed:>9,.0f} episodes"),
         TextColumn("{task.fields[rate]:>8} ep/s"),
-        TimeElapsedColumn(),
-        console=console,
-        transient=False,
-    )
+    ]
+    if cluster:
+        columns.append(TextColumn("{task.fields[nodes]} node(s)"))
+    return Progress(*columns, TimeElapsedColumn(), console=console, transient=False)
 
 
 def _rate(progress: Progress, task: TaskID) -> str:
@@ -107,6 +107,7 @@ def replay_runs(
     force: bool = False,
     progress: bool = True,
     image_source: ImageSource | None = None,
+    ray: str | None = None,
 ) -> Manifest:
     """Replay run directories against a benchmark into `out_dir` (PROTOCOL §7).
 
@@ -116,6 +117,9 @@ def replay_runs(
     unless `force`. Lambda precedence: `lam` > task `lambda` > run.json `lambda` > 5.
     `mcap_episodes` limits MCAP files to those episode ids (and implies `mcap`).
     `image_source(machine, view)` gives view images for MCAP (picklable when `workers > 1`).
+    `ray` replays the batches as Ray tasks instead of local workers (`auto`: the cluster this
+    host belongs to or `RAY_ADDRESS`; `local`: one started in this process; or an address);
+    every node must reach `bench_dir`, `out_dir` and the image source (docs/SCALE.md).
     Raises `VGEError` subclasses on fatal problems; bad records are quarantined instead.
     """
     options = _options(lam, mcap, mcap_episodes, workers)
@@ -149,8 +153,8 @@ def replay_runs(
                     continue
             todo.append(run)
         adopt(WorkerState(bench), bench_given)  # the main process replays with this one
-        executor: Executor = InProcess() if workers == 1 or not todo else WorkerProcesses(workers)
-        bar = _make_progress(progress)
+        executor: Executor = make_executor(workers, ray) if todo else InProcess()
+        bar = _make_progress(progress, cluster=ray is not None)
         try:
             if bar is not None:
                 bar.start()
@@ -174,6 +178,7 @@ def replay_runs(
         requested=[r.header.run_id for r in runs],
         replayed=replayed,
         skipped=skipped,
+        nodes=dict(sorted(executor.nodes.items())),
     )
 
 
@@ -210,18 +215,20 @@ def _replay_all(
             job.reader = LineReader(run.episodes, BATCH_LINES)
             open_jobs.append(job)
             if bar is not None:
-                bars[job.ctx.run_id] = bar.add_task(job.ctx.run_id, total=None, rate="-")
+                bars[job.ctx.run_id] = bar.add_task(job.ctx.run_id, total=None, rate="-", nodes=0)
             for index, lines in enumerate(job.reader.batches()):
                 yield job, job.task(index, lines)
             yield job, None  # the end of the run, in order after its batches
 
     try:
-        for job, task, result in in_order(executor, items(), AHEAD_PER_WORKER * executor.slots):
+        ahead = AHEAD_PER_WORKER * executor.slots
+        for job, task, result in in_order(executor, replay_batch, items(), ahead):
             if task is not None and result is not None:
                 n = job.take(task, result, redo=replay_batch)
                 if bar is not None:
-                    bar.advance(bars[job.ctx.run_id], n)
-                    bar.update(bars[job.ctx.run_id], rate=_rate(bar, bars[job.ctx.run_id]))
+                    task_id = bars[job.ctx.run_id]
+                    bar.advance(task_id, n)
+                    bar.update(task_id, rate=_rate(bar, task_id), nodes=len(executor.nodes))
                 continue
             job.finish_reading(job.reader.last_line, job.reader.error)
             job.entry = job.commit(run_inputs(job.run, bench_given, hasher, job.devices))

@@ -76,6 +76,14 @@ def replay_command(
         help="Comma-separated episode ids to write MCAP for (implies --mcap).",
     ),
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
+    ray: str | None = typer.Option(
+        None,
+        "--ray",
+        metavar="[ADDRESS]",
+        help="Replay on a Ray cluster instead of local workers: auto (this host's cluster or "
+        "$RAY_ADDRESS; the default when no address follows), local (start one here), or an "
+        "address. Needs pip install 'vge-analytics[ray]'.",
+    ),
     force: bool = typer.Option(False, "--force", help="Replay runs even when up to date."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
 ) -> None:
@@ -98,6 +106,7 @@ def replay_command(
         force=force,
         progress=progress,
         image_source=image_source(bench),
+        ray=ray,
     )
     console.print(_summary(manifest))
     for run_id in manifest.skipped:

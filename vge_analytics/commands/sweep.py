@@ -21,7 +21,13 @@ def sweep(
     metric_names: str = typer.Option(
         ",".join(DEFAULT_SWEEP_METRICS), "--metrics", help="Episode metrics to compute."
     ),
-    workers: int = typer.Option(1, "--workers", help="Processes (one run per process)."),
+    workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
+    ray: str | None = typer.Option(
+        None,
+        "--ray",
+        metavar="[ADDRESS]",
+        help="Replay on a Ray cluster instead of local workers (as vge replay --ray).",
+    ),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
     """SR and SSR per run at each lambda, by re-replaying the logs.
@@ -31,7 +37,9 @@ def sweep(
     """
     check_format(fmt)
     run_ids = [r.strip() for r in runs.split(",") if r.strip()] if runs else None
-    df = compute_sweep(out, lambdas, runs=run_ids, metrics=metric_names.split(","), workers=workers)
+    df = compute_sweep(
+        out, lambdas, runs=run_ids, metrics=metric_names.split(","), workers=workers, ray=ray
+    )
     emit(df, fmt, title="Budget sweep (gain over the smallest lambda)", marks=False)
 
 
