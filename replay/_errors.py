@@ -54,3 +54,8 @@ class ConfigError(VGEError):
 class WorkerError(VGEError):
     """A replay worker process died (killed, out of memory, or a script without a
     `if __name__ == "__main__":` guard started `replay_runs(workers > 1)`)."""
+
+
+def decode_error_message(exc: Exception) -> str:
+    """msgspec's message, made readable: 'Expected `str`, got `int` - at `$.goals[0]`'."""
+    return str(exc).replace("`", "")

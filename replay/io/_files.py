@@ -19,6 +19,8 @@ from typing import BinaryIO
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+STATE_DIR = ".replay"
+"""Private state under OUT: per-run quarantine records, the lock, staging and trash."""
 ROW_GROUP_ROWS = 65_536
 """Rows per Parquet row group."""
 COMPRESSION = "zstd"

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import msgspec
 
-from .._errors import InputError, Problem, SSMError, TaskError, VGEError
+from .._errors import InputError, Problem, SSMError, TaskError, VGEError, decode_error_message
 from ..semantics._machine import Machine, compile_machine, validate_machine
 from ..semantics._records import EpisodeLog, RunHeader, StateMachine, Task
 
@@ -27,11 +27,6 @@ def _line_of(data: bytes, message: str) -> int | None:
     if not m:
         return None
     return data.count(b"\n", 0, int(m.group(1))) + 1
-
-
-def decode_error_message(exc: Exception) -> str:
-    """msgspec's message, made readable: 'Expected `str`, got `int` - at `$.goals[0]`'."""
-    return str(exc).replace("`", "")
 
 
 def _read(path: Path) -> bytes:

@@ -19,8 +19,7 @@ import msgspec
 import pyarrow as pa
 from msgspec import Meta
 
-from .._errors import InputError
-from ._load import decode_error_message
+from .._errors import InputError, decode_error_message
 
 MANIFEST_FORMAT = "vge-replay-manifest"
 MANIFEST_VERSION = 1

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import BinaryIO
+from typing import TYPE_CHECKING, BinaryIO
 
 import msgspec
 from foxglove_schemas_protobuf.CircleAnnotation_pb2 import CircleAnnotation
@@ -37,10 +37,12 @@ from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from ..semantics._episode import EpisodeResult
 from ..semantics._machine import Machine, Rect
 from ..semantics._plan import target_rects
 from ..semantics._rows import StepRow
+
+if TYPE_CHECKING:
+    from ..semantics._episode import EpisodeResult
 
 ImageTuple = tuple[bytes, str, int, int]
 """(encoded image bytes, format `png`/`jpeg`, width, height)."""

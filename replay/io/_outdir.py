@@ -16,7 +16,7 @@ from .._errors import ConfigError
 from .._version import ENGINE_VERSION
 from ..semantics._records import SCHEMA_VERSION
 from ..semantics._vocab import DEFAULT_LAMBDA
-from ._files import atomic_write, atomic_write_bytes
+from ._files import STATE_DIR, atomic_write, atomic_write_bytes
 from ._manifest import (
     Hasher,
     ManifestFile,
@@ -28,7 +28,6 @@ from ._manifest import (
     totals_of,
 )
 from ._reading import RunInput
-from ._runjob import STATE_DIR
 
 
 def run_inputs(run: RunInput, bench_dir: str, hasher: Hasher, devices: Iterable[str]) -> RunInputs:

@@ -14,7 +14,7 @@ from typing import BinaryIO
 from .._errors import InputError
 from .._version import ENGINE_VERSION
 from ..semantics._tables import TABLE_ROWS, arrow_schema
-from ._files import remove_dir, swap_in, write_part
+from ._files import STATE_DIR, remove_dir, swap_in, write_part
 from ._load import Benchmark
 from ._manifest import (
     Divergence,
@@ -39,8 +39,6 @@ from ._task import (
     safe_file_name,
 )
 
-STATE_DIR = ".replay"
-"""Private state under OUT: per-run quarantine records, the lock, staging and trash."""
 DIVERGENCE_FIELDS = ("feedback", "state", "view")
 
 

@@ -24,12 +24,13 @@ from .._errors import ConfigError, InputError
 from .._version import ENGINE_VERSION
 from . import _files
 from ._executor import Executor, InProcess, in_order, make_executor
+from ._files import STATE_DIR
 from ._load import Benchmark
 from ._manifest import Hasher, Manifest, RunEntry, RunOptions, read_manifest
 from ._mcap import ImageSource
 from ._outdir import OutputLock, publish, run_inputs, up_to_date
 from ._reading import LineReader, RunInput, read_runs
-from ._runjob import STATE_DIR, RunJob
+from ._runjob import RunJob
 from ._task import BatchTask
 from ._worker import WorkerState, adopt, replay_batch
 

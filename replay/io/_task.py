@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field, replace
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 from urllib.parse import quote
 
-from ._mcap import ImageSource
+if TYPE_CHECKING:
+    from ._mcap import ImageSource
 
 _SAFE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9._+@-]{0,199}$")
 
