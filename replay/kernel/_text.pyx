@@ -15,6 +15,7 @@ checks the two parsers against each other on generated texts.
 
 from cpython.conversion cimport PyOS_string_to_double
 from cpython.unicode cimport Py_UNICODE_ISALNUM, Py_UNICODE_ISSPACE
+from libc.string cimport memchr
 from libc.math cimport isfinite
 
 # Python's str.isspace() and re's \s, restricted to ASCII.
@@ -144,44 +145,48 @@ cdef bint _byte_safe(const char* s, Py_ssize_t n) noexcept:
 
 cdef int _labels(const char* s, Py_ssize_t n, Span* first, Span* second) noexcept:
     """The reference's `_find_labels`: line-start `Action:` labels if any, else labels
-    anywhere (not inside a word). Returns how many (the first two are stored)."""
+    anywhere (not inside a word). Returns how many (the first two are stored).
+
+    Found from the colons: a label is "action" (any case), label decoration, then ":", so
+    each colon closes at most one label, and colons come in the order of their labels."""
     cdef int n_line = 0, n_any = 0
     cdef Span line0, line1, any0, any1
-    cdef Py_ssize_t pos = 0, j, sol
+    cdef Py_ssize_t colon, pos, k, sol
     cdef bint at_line
-    while pos + 6 <= n:
-        if not _at_nocase(s, n, pos, b"action", 6):
-            pos += 1
+    cdef const char* hit = <const char*>memchr(s, 58, n)
+    while hit != NULL:
+        colon = hit - s
+        hit = <const char*>memchr(hit + 1, 58, n - colon - 1) if colon + 1 < n else NULL
+        k = colon - 1
+        while k >= 0 and _label_decor(s[k]):
+            k -= 1
+        pos = k - 5
+        if pos < 0 or not _at_nocase(s, n, pos, b"action", 6):
             continue
-        j = pos + 6
-        while j < n and _label_decor(s[j]):
-            j += 1
-        if j < n and s[j] == 58:  # ':'
-            sol = pos
-            while sol > 0 and s[sol - 1] != 10:
-                sol -= 1
-            at_line = True
-            for k in range(sol, pos):
-                if not _line_decor(s[k]):
-                    at_line = False
-                    break
-            if at_line:
-                if n_line == 0:
-                    line0.start = sol
-                    line0.end = j + 1
-                elif n_line == 1:
-                    line1.start = sol
-                    line1.end = j + 1
-                n_line += 1
-            elif pos == 0 or not _word_before(s, pos):
-                if n_any == 0:
-                    any0.start = pos
-                    any0.end = j + 1
-                elif n_any == 1:
-                    any1.start = pos
-                    any1.end = j + 1
-                n_any += 1
-        pos += 1
+        sol = pos
+        while sol > 0 and s[sol - 1] != 10:
+            sol -= 1
+        at_line = True
+        for k in range(sol, pos):
+            if not _line_decor(s[k]):
+                at_line = False
+                break
+        if at_line:
+            if n_line == 0:
+                line0.start = sol
+                line0.end = colon + 1
+            elif n_line == 1:
+                line1.start = sol
+                line1.end = colon + 1
+            n_line += 1
+        elif pos == 0 or not _word_before(s, pos):
+            if n_any == 0:
+                any0.start = pos
+                any0.end = colon + 1
+            elif n_any == 1:
+                any1.start = pos
+                any1.end = colon + 1
+            n_any += 1
     if n_line:
         first[0] = line0
         second[0] = line1
@@ -195,19 +200,54 @@ cdef Span _thinking(const char* s, Py_ssize_t end) noexcept:
     """The reference's `_thinking`: the text after the first line-start `Thinking:` label
     before `end`, else everything before `end`; stripped."""
     cdef Py_ssize_t p = 0, q
+    cdef const char* nl
     while p <= end:
-        if p == 0 or s[p - 1] == 10:
-            q = p
-            while q < end and _line_decor(s[q]):
+        q = p
+        while q < end and _line_decor(s[q]):
+            q += 1
+        if _at_nocase(s, end, q, b"thinking", 8):
+            q += 8
+            while q < end and _label_decor(s[q]):
                 q += 1
-            if _at_nocase(s, end, q, b"thinking", 8):
-                q += 8
-                while q < end and _label_decor(s[q]):
-                    q += 1
-                if q < end and s[q] == 58:
-                    return _strip(s, q + 1, end)
-        p += 1
+            if q < end and s[q] == 58:
+                return _strip(s, q + 1, end)
+        if p >= end:
+            break
+        nl = <const char*>memchr(s + p, 10, end - p)
+        if nl == NULL:
+            break
+        p = nl - s + 1
     return _strip(s, 0, end)
+
+
+cdef double _POW10[23]
+_POW10[0] = 1.0
+for _i in range(1, 23):
+    _POW10[_i] = _POW10[_i - 1] * 10.0
+
+
+cdef bint _exact_decimal(const char* s, Py_ssize_t a, Py_ssize_t b, double* value) noexcept:
+    """`[-+]?digits[.digits]` in s[a:b] as Python's float() reads it, when the digits fit
+    in 2**53 and there are at most 22 after the point: then digits / 10**k is one IEEE
+    division of two exact numbers, correctly rounded like the decimal itself."""
+    cdef unsigned long long m = 0
+    cdef int fraction = -1, count = 0
+    cdef bint negative = s[a] == 45
+    cdef Py_ssize_t q = a + (s[a] == 43 or s[a] == 45)
+    for q in range(q, b):
+        if s[q] == 46:
+            fraction = 0
+            continue
+        m = m * 10 + <unsigned long long>(s[q] - 48)
+        count += 1
+        if fraction >= 0:
+            fraction += 1
+        if count > 15:
+            return False
+    value[0] = <double>m / _POW10[fraction] if fraction > 0 else <double>m
+    if negative:
+        value[0] = -value[0]
+    return True
 
 
 cdef int _number(const char* s, Py_ssize_t n, Py_ssize_t* p, double* value) except -1:
@@ -224,11 +264,12 @@ cdef int _number(const char* s, Py_ssize_t n, Py_ssize_t* p, double* value) exce
         q += 2
         while q < n and _digit(s[q]):
             q += 1
-    # The text goes on with a non-number character, where Python's float parser stops too.
-    value[0] = PyOS_string_to_double(s + start, &end, NULL)
-    if end != s + q:
-        return 0
     p[0] = q
+    if not _exact_decimal(s, start, q, value):
+        # The text goes on with a non-number character, where Python's float parser stops too.
+        value[0] = PyOS_string_to_double(s + start, &end, NULL)
+        if end != s + q:
+            return 0
     return 1
 
 
