@@ -3,7 +3,7 @@
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-KERNEL = ["_text", "_engine"]
+KERNEL = ["_text", "_engine", "_words"]
 
 setup(
     ext_modules=cythonize(

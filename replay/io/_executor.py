@@ -52,24 +52,74 @@ class InProcess:
         pass
 
 
+class _Share:
+    """A task given to `WorkerProcesses`: kept here (`future` None) or sent to the pool."""
+
+    __slots__ = ("fn", "task", "future", "done", "value")
+
+    def __init__(self, fn: Batch, task: Any, future: Future[Any] | None) -> None:
+        self.fn = fn
+        self.task = task
+        self.future = future
+        self.done = False
+        self.value: Any = None
+
+    def run_here(self) -> None:
+        self.value = self.fn(self.task)
+        self.done = True
+        self.fn = self.task = None  # the task's lines are no longer needed
+
+
 class WorkerProcesses:
-    """N worker processes (spawned). Batch k of every run goes to worker k mod N: runs that
-    list the same episodes in the same order then find each task's plan in that worker's
-    cache."""
+    """N workers: this process and N - 1 spawned ones. The task of batch k stays here when
+    k mod N is 0 and goes to the pool otherwise (runs that list the same episodes in the
+    same order then find each task's plan in the same process's cache). While waiting for a
+    result, this process works: on its own tasks first, then on pool tasks that no worker
+    has started (a pending future can be cancelled). So no process idles while another has
+    a queue, and this one, whose libraries and benchmark are already loaded, starts at
+    once."""
 
     def __init__(self, workers: int) -> None:
         context = multiprocessing.get_context("spawn")
         self.slots = workers
         self.nodes: Counter[str] = Counter()
-        self.pools = [ProcessPoolExecutor(max_workers=1, mp_context=context) for _ in range(workers)]
+        self.pool = ProcessPoolExecutor(max_workers=workers - 1, mp_context=context)
+        self._open: deque[_Share] = deque()  # submitted, result not taken yet
 
-    def submit(self, fn: Batch, task: Any) -> Future[Any]:
+    def submit(self, fn: Batch, task: Any) -> _Share:
         index = getattr(task, "index", 0)
-        return self.pools[index % len(self.pools)].submit(fn, task)
+        here = index % self.slots == 0
+        share = _Share(fn, task, None if here else self.pool.submit(fn, task))
+        self._open.append(share)
+        return share
 
     def result(self, handle: object) -> Any:
+        share: _Share = handle  # type: ignore[assignment]
+        while not share.done:
+            if share.future is None or share.future.cancel():
+                share.run_here()
+            elif share.future.done() or not self._work_on_another(share):
+                share.value = self._pool_result(share.future)
+                share.done = True
+        self._open.remove(share)
+        return share.value
+
+    def _work_on_another(self, waiting: _Share) -> bool:
+        """Run one other open task here: one of ours, else one no worker has started."""
+        for share in self._open:
+            if share is not waiting and not share.done and share.future is None:
+                share.run_here()
+                return True
+        for share in self._open:
+            if share is not waiting and not share.done and share.future.cancel():  # type: ignore[union-attr]
+                share.run_here()
+                return True
+        return False
+
+    @staticmethod
+    def _pool_result(future: Future[Any]) -> Any:
         try:
-            return handle.result()  # type: ignore[attr-defined]
+            return future.result()
         except BrokenProcessPool:
             raise WorkerError(
                 "a replay worker process died (killed or out of memory; a script calling "
@@ -77,8 +127,8 @@ class WorkerProcesses:
             ) from None
 
     def close(self) -> None:
-        for pool in self.pools:
-            pool.shutdown(wait=True, cancel_futures=True)
+        self._open.clear()
+        self.pool.shutdown(wait=True, cancel_futures=True)
 
 
 def make_executor(workers: int = 1, ray: str | None = None) -> Executor:

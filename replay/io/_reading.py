@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from queue import Full, Queue
 
 from .._errors import ConfigError, InputError
 from ..semantics._records import RunHeader
@@ -54,8 +56,16 @@ def read_runs(run_dirs: Sequence[str | os.PathLike[str]]) -> list[RunInput]:
     return [runs[k] for k in sorted(runs)]
 
 
+READ_AHEAD = 2
+"""Batches the reading thread keeps ready."""
+_END = object()
+
+
 class LineReader:
-    """Lines of an episodes file in batches; a read error ends the file (kept in `error`)."""
+    """Lines of an episodes file in batches; a read error ends the file (kept in `error`).
+
+    A thread reads ahead (`READ_AHEAD` batches): inflating gzip releases the GIL, so the
+    reading overlaps the replay of the batches already read."""
 
     def __init__(self, path: Path, batch_lines: int) -> None:
         self.path = path
@@ -64,6 +74,43 @@ class LineReader:
         self.error: InputError | None = None
 
     def batches(self) -> Iterator[list[tuple[int, bytes]]]:
+        ready: Queue[object] = Queue(maxsize=READ_AHEAD)
+        stop = threading.Event()
+        failure: list[BaseException] = []
+
+        def put(item: object) -> bool:
+            while not stop.is_set():
+                try:
+                    ready.put(item, timeout=0.05)
+                    return True
+                except Full:
+                    continue
+            return False
+
+        def produce() -> None:
+            try:
+                for batch in self._read():
+                    if not put(batch):
+                        return
+            except BaseException as exc:  # handed to the consumer, raised there
+                failure.append(exc)
+            put(_END)
+
+        reader = threading.Thread(target=produce, name=f"vge-read {self.path.name}", daemon=True)
+        reader.start()
+        try:
+            while True:
+                item = ready.get()
+                if item is _END:
+                    break
+                yield item  # type: ignore[misc]
+        finally:
+            stop.set()
+            reader.join()
+        if failure:
+            raise failure[0]
+
+    def _read(self) -> Iterator[list[tuple[int, bytes]]]:
         batch: list[tuple[int, bytes]] = []
         lines = iter_lines(self.path)
         while True:

@@ -19,17 +19,18 @@ from ..semantics._vocab import (
     TERMINATIONS,
     VIEW_ORDER,
 )
+from ._words import Words
 
 STRING = pa.string()
-_VIEWS = pa.array(VIEW_ORDER, STRING)
-_ACTIONS = pa.array(ACTION_NAMES, STRING)
-_DETAILS = pa.array(ERROR_DETAILS, STRING)
-_KINDS = pa.array(FEEDBACK_KINDS, STRING)
-_ERROR_TYPES = pa.array(ERROR_TYPES, STRING)
-_ERROR_GROUPS = pa.array([ERROR_GROUPS[t] for t in ERROR_TYPES], STRING)
-_SWITCH_CLASSES = pa.array(SWITCH_CLASSES, STRING)
-_TERMINATIONS = pa.array(TERMINATIONS, STRING)
-_DIVERGENCE_FIELDS = pa.array(("feedback", "state", "view"), STRING)
+_VIEWS = Words(VIEW_ORDER)
+_ACTIONS = Words(ACTION_NAMES)
+_DETAILS = Words(ERROR_DETAILS)
+_KINDS = Words(FEEDBACK_KINDS)
+_ERROR_TYPES = Words(ERROR_TYPES)
+_ERROR_GROUPS = Words([ERROR_GROUPS[t] for t in ERROR_TYPES])
+_SWITCH_CLASSES = Words(SWITCH_CLASSES)
+_TERMINATIONS = Words(TERMINATIONS)
+_DIVERGENCE_FIELDS = Words(("feedback", "state", "view"))
 
 
 def _bitmap(valid: np.ndarray) -> tuple[pa.Buffer | None, int]:
@@ -48,12 +49,15 @@ def numbers(values: np.ndarray, type_: pa.DataType, valid: np.ndarray | None = N
     return pa.array(values, type=type_, mask=~valid.astype(np.bool_))
 
 
-def coded(dictionary: pa.Array, codes: np.ndarray, valid: np.ndarray | None = None) -> pa.Array:
-    """`dictionary[code]` per row; null where `valid` is false or the code is negative."""
+def coded(words: Words, codes: np.ndarray, valid: np.ndarray | None = None) -> pa.Array:
+    """`words[code]` per row; null where `valid` is false or the code is negative."""
+    codes = np.ascontiguousarray(codes, np.int32)
     ok = codes >= 0 if valid is None else (codes >= 0) & valid.astype(np.bool_)
-    if ok.all():
-        return dictionary.take(pa.array(codes, pa.int32()))
-    return dictionary.take(pa.array(np.where(ok, codes, 0), pa.int32(), mask=~ok))
+    data, offsets = words.expand(codes, ok.view(np.uint8))
+    bitmap, nulls = _bitmap(ok)
+    return pa.StringArray.from_buffers(
+        len(codes), pa.py_buffer(offsets), pa.py_buffer(data), bitmap, nulls
+    )
 
 
 def text(buffers: tuple[bytes, np.ndarray, np.ndarray]) -> pa.Array:
@@ -74,24 +78,19 @@ def tables(out, vocab, episodes: list, head: tuple[str, str, str]) -> tuple:
     """(steps, episodes, goals) tables of a replayed batch, and rows per episode."""
     s, e, g = out.steps, out.episodes, out.goals
     n_eps = len(episodes)
-    states = pa.array(vocab.states, STRING)
-    comps = pa.array(vocab.comps, STRING)
-    texts = pa.array(vocab.texts, STRING)
+    states = Words(vocab.states)
+    comps = Words(vocab.comps)
+    texts = Words(vocab.texts)
     per_episode = {
-        "episode_id": pa.array([ep.task.episode_id for ep in episodes], STRING),
-        "device_id": pa.array([ep.machine.device_id for ep in episodes], STRING),
-        "category": pa.array([ep.machine.category for ep in episodes], STRING),
+        "episode_id": Words([ep.task.episode_id for ep in episodes]),
+        "device_id": Words([ep.machine.device_id for ep in episodes]),
+        "category": Words([ep.machine.category for ep in episodes]),
     }
-
-    def fixed(value: str, rows: int) -> pa.Array:
-        return pa.array([value], STRING).take(pa.array(np.zeros(rows, np.int32)))
+    run = dict(zip(("run_id", "model", "agent_kind"), (Words([v]) for v in head), strict=True))
 
     def head_columns(episode_of: np.ndarray, rows: int) -> dict[str, pa.Array]:
-        index = pa.array(episode_of, pa.int32())
-        columns = {name: fixed(value, rows) for name, value in zip(
-            ("run_id", "model", "agent_kind"), head, strict=True
-        )}
-        columns.update({name: array.take(index) for name, array in per_episode.items()})
+        columns = {name: coded(words, np.zeros(rows, np.int32)) for name, words in run.items()}
+        columns.update({name: coded(words, episode_of) for name, words in per_episode.items()})
         return columns
 
     step_counts = np.array([len(ep.log.steps) for ep in episodes], np.int64)

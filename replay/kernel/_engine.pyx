@@ -4,8 +4,7 @@
 Each rule here restates one of the reference engine (`replay.semantics`: `_step.step`,
 `_episode.replay_episode`, `_classify.Classifier`) over integer-coded machines
 (`KMachine`, `KGoal`); rare situations call the reference functions themselves (responses
-the compiled parser leaves open, structured actions, the error of a target hit without
-progress, C_opt_dyn). `tests/replay/kernel` proves the tables byte-identical to the
+the compiled parser leaves open, structured actions, C_opt_dyn). `tests/replay/kernel` proves the tables byte-identical to the
 reference's. Strings become codes into per-batch vocabularies (`Vocab`) or are copied into
 `TextVec` buffers; `_assemble.py` turns the buffers into Arrow tables.
 """
@@ -33,9 +32,7 @@ from ..semantics._plan import (
     c_opt_dynamic,
     distances,
     target_components,
-    target_rects,
 )
-from ..semantics._classify import Classifier
 from ..semantics._step import SimState, _apply
 from ..semantics._vocab import (
     ACTION_NAMES,
@@ -285,7 +282,6 @@ cdef class KMachine:
     cdef int* wait_tr
     cdef dict goals
     cdef dict dyn_memo
-    cdef object classifier
 
     def __init__(self, machine):
         cdef int s, v, i
@@ -302,7 +298,6 @@ cdef class KMachine:
         self._keep = []
         self.goals = {}
         self.dyn_memo = {}
-        self.classifier = Classifier(machine)
 
         reg_off = np.zeros(NV + 1, np.int32)
         reg = []
@@ -454,20 +449,27 @@ cdef class KGoal:
         self.rects = _pf(self._rects_array)
 
     cdef int build(self, int s) except -1:
-        """Fill state `s` (`target_components` and `target_rects` of the reference)."""
+        """Fill state `s`: `target_components` of the reference and, per view, the rects of
+        those components (`target_rects`, read from the same table in one pass)."""
         cdef int v
+        cdef bint positive
         machine = self.km.machine
         comp_id = self.km.comp_id
+        scr = machine.state_component_rects
         targets = target_components(machine, s, self.goal)
         self.has_targets[s] = bool(targets)
         for view in machine.views:
             v = VIEW_CODE[view]
-            if any(c in targets for c in machine.state_component_rects.get((s, view), {})):
-                self.pos_views[s] |= 1u << v
             self.tg_start[s * NV + v] = <int>self.tg_comp.size
-            for comp, r in target_rects(machine, s, self.goal, view):
-                self.tg_comp.push(comp_id[comp])
-                self.tg_rect.extend(r[:4])
+            positive = False
+            for comp, rects in scr.get((s, view), {}).items():
+                if comp in targets:
+                    positive = True
+                    for r in rects:
+                        self.tg_comp.push(comp_id[comp])
+                        self.tg_rect.extend(r[:4])
+            if positive:
+                self.pos_views[s] |= 1u << v
             self.tg_end[s * NV + v] = <int>self.tg_comp.size
         if self.tg_rect:
             self._rects_array = np.array(self.tg_rect, np.float64)
@@ -1195,7 +1197,7 @@ cdef class Episode:
                 elif not hit_target:
                     error_type = E_COMPONENT
                 else:
-                    error_type, error_detail = _target_error(km, s0, goal, v0, kind, px, py, params)
+                    error_type, error_detail = _target_error(km, kg, s0, goal, v0, kind, px, py, params)
 
             repetitive = False
             if pa.ok and kind != A_SWITCH:
@@ -1383,13 +1385,40 @@ cdef tuple _sorted_hits(int* hits, int n):
     return tuple(sorted({hits[i] for i in range(n)}))
 
 
-cdef tuple _target_error(KMachine km, int s, int goal, int view, int kind, double px, double py,
-                         tuple params):
-    """The rare case of a target hit without progress: the reference classifier decides."""
-    error_type, detail = km.classifier._interaction_error(
-        s, goal, VIEW_ORDER[view], Action(ACTION_NAMES[kind], (px, py), params), ["hit"], True
-    )
-    return ERROR_TYPES.index(error_type), (-1 if detail is None else DETAIL_CODE[detail])
+cdef tuple _target_error(KMachine km, KGoal kg, int s, int goal, int view, int kind, double px,
+                         double py, tuple params):
+    """A target hit without progress (`Classifier._interaction_error` with a hit target): the
+    candidates are the progressing transitions from `s` with an atomic action and a box of
+    their own in `view` holding the point; none of the action's type is a wrong action, a
+    matching type with no matching params a params error, else a component selection."""
+    cdef int i, j, tr, e
+    cdef bint same_type = False
+    cdef bint progressing
+    cdef long long ds = kg.dist[s]
+    for i in range(km.sv_off[s * NV + view], km.sv_off[s * NV + view + 1]):
+        tr = km.cand_tr[i]
+        if not (0 <= km.tr_action[tr] < A_SWITCH):
+            continue
+        progressing = kg.dist[km.tr_end[tr]] < ds
+        if not progressing:
+            for e in range(km.tr_ent_off[tr], km.tr_ent_off[tr + 1]):
+                if km.tr_ent[e] == goal:
+                    progressing = True
+                    break
+        if not progressing:
+            continue
+        for j in range(km.cand_roff[i], km.cand_roff[i + 1]):
+            if _inside(km.cand_rect + 5 * j, px, py):
+                break
+        else:
+            continue
+        if km.tr_action[tr] == kind:
+            same_type = True
+            if _params_match(km.tr_params[tr], params):
+                return E_COMPONENT, -1
+    if not same_type:
+        return E_ACTION, D_WRONG_ACTION
+    return E_PARAMS, -1
 
 
 cdef tuple _optimal_states(object setup):
