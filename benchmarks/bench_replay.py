@@ -77,7 +77,7 @@ from pathlib import Path
 runs, bench, out, workers, nodes = json.loads(sys.argv[1])
 cluster = None
 if nodes:
-    import psutil, ray
+    import ray
     from ray.cluster_utils import Cluster
     head = {"num_cpus": 1, "node_ip_address": "127.0.0.1", "include_dashboard": False}
     cluster = Cluster(initialize_head=True, head_node_args=head)
@@ -86,13 +86,25 @@ if nodes:
     ray.init(address=cluster.address, log_to_driver=False)
     cluster.wait_for_nodes()
     def tree_cpu():
-        total = 0.0
-        for p in psutil.Process().children(recursive=True):
-            try:
-                t = p.cpu_times()
-                total += t.user + t.system
-            except psutil.Error:
-                pass
+        # CPU seconds of every live descendant of this process, from /proc (Linux)
+        tick = os.sysconf("SC_CLK_TCK")
+        stats = {}
+        for entry in os.listdir("/proc"):
+            if entry.isdigit():
+                try:
+                    text = open(f"/proc/{entry}/stat").read()
+                except OSError:
+                    continue
+                fields = text[text.rindex(")") + 2:].split()
+                stats[int(entry)] = (int(fields[1]), (int(fields[11]) + int(fields[12])) / tick)
+        mine, total, grew = {os.getpid()}, 0.0, True
+        while grew:
+            grew = False
+            for pid, (ppid, cpu) in stats.items():
+                if ppid in mine and pid not in mine:
+                    mine.add(pid)
+                    total += cpu
+                    grew = True
         return total
     ray_cpu0 = tree_cpu()
 import replay
