@@ -250,6 +250,50 @@ def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
     }
 
 
+def engine_core(data: Path) -> dict[str, float]:
+    """CPU µs per step of the engines alone on the largest run, in this process: the same
+    decoded episodes with their plans (prepared beforehand, not timed) to the same three
+    Arrow tables, by `replay_episode` + `rows_to_table` and by the kernel, in batches of
+    4,096 episodes; each timed twice, the second time (machines and goals warm) kept."""
+    from replay.io._worker import reference_tables, worker_state
+    from replay.kernel._batch import EpisodeInput, replay_kernel
+
+    state = worker_state(str(data / "bench"))
+    largest = max(_episode_files(data), key=lambda p: p.stat().st_size)
+    episodes = []
+    for line in _read(largest).splitlines():
+        log = episode_decoder.decode(line)
+        task = state.bench.tasks[log.episode_id].task
+        machine = state.bench.machine(task.device_id)
+        episodes.append(EpisodeInput(machine, task, state.setup(machine, task), log, 5.0))
+    steps = sum(len(e.log.steps) for e in episodes)
+    batches = [episodes[i : i + 4096] for i in range(0, len(episodes), 4096)]
+
+    def reference() -> None:
+        for batch in batches:
+            reference_tables(
+                [
+                    replay.replay_episode(
+                        e.machine, e.task, e.log, lam=e.lam, run_id="r", model="m",
+                        agent_kind="vlm", setup=e.setup,
+                    )
+                    for e in batch
+                ]
+            )
+
+    def kernel() -> None:
+        for batch in batches:
+            replay_kernel(batch, run_id="r", model="m", agent_kind="vlm")
+
+    out = {"steps": float(steps)}
+    for name, fn in (("reference", reference), ("kernel", kernel)):
+        for _ in range(2):
+            c0 = time.process_time()
+            fn()
+            out[name] = 1e6 * (time.process_time() - c0) / steps
+    return out
+
+
 def _load() -> str:
     return " / ".join(f"{x:.1f}" for x in os.getloadavg())
 
@@ -321,6 +365,13 @@ def main() -> None:
         one = results.get("kernel, 1 worker")
         if ref and one:
             print(f"- kernel vs reference, 1 worker: {ref['wall_s'] / one['wall_s']:.1f}x faster")
+        core = engine_core(data)
+        print(
+            f"- engines alone (largest run, {core['steps']:,.0f} steps, decoded and planned "
+            f"beforehand, to the same Arrow tables, warm): reference {core['reference']:.2f} "
+            f"µs/step, kernel {core['kernel']:.2f} µs/step: "
+            f"{core['reference'] / core['kernel']:.1f}x faster"
+        )
         m = mcap_ms_per_episode(data, args.mcap_episodes)
         print(
             f"- MCAP: {m['ms_per_episode']:.2f} ms per episode to write "
