@@ -159,8 +159,16 @@ def run_command(
             **_figures(counters, started, state["before"]),
         )
 
-    with bar:
-        summary = run_live(live_agent, options, progress=tick)
+    try:
+        with bar:
+            summary = run_live(live_agent, options, progress=tick)
+    except KeyboardInterrupt:
+        console.print(
+            f"interrupted: the finished episodes are in {escape(str(out))}; the same command "
+            "with --resume completes the run",
+            soft_wrap=True,
+        )
+        raise typer.Exit(130) from None
     c = summary.counters
     h = summary.header
     out_console = Console(highlight=False)

@@ -279,7 +279,12 @@ class _Worker:
                     f"agent {self.agent.spec} raised {type(exc).__name__}: "
                     f"{' '.join(str(exc).split())} (episode {episode_id!r}, step {len(steps)})"
                 ) from exc
-            obs, _, terminated, truncated, info = self.env.step(reply.action)
+            try:
+                obs, _, terminated, truncated, info = self.env.step(reply.action)
+            except replay.ActionError as exc:
+                raise AgentError(
+                    f"agent {self.agent.spec}: {exc} (episode {episode_id!r}, step {len(steps)})"
+                ) from None
             steps.append(
                 msgspec.structs.replace(
                     log_step_of(reply.action),

@@ -51,6 +51,10 @@ def returns_int(obs):
     return 7
 
 
+def bad_action(obs):
+    return {"type": "Press", "coord": "middle"}
+
+
 def raises(obs):
     raise RuntimeError("the model\\nfell over")
 """
@@ -154,6 +158,10 @@ def test_a_killed_run_resumed_is_byte_identical_to_an_uninterrupted_one(
         (
             "liveagent:raises",
             "agent liveagent:raises raised RuntimeError: the model fell over (episode 'open-lid'",
+        ),
+        (
+            "liveagent:bad_action",
+            "agent liveagent:bad_action: structured action {'type': 'Press', 'coord': 'middle'}:",
         ),
         ("sim:nobody", "agent sim:nobody: no such profile; the profiles are sim-vlm-a"),
     ],
