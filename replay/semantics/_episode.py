@@ -155,6 +155,11 @@ class EpisodeSession:
     `replay_episode` is a loop over it, and the live tools (the Gymnasium environment, the
     agent harness) drive the same object, so a live run and its replay cannot disagree.
     Pure like the step function: no clock, no randomness, no I/O.
+
+    Read (never written from outside): `sim` (state, view, dashboard), `current` (the
+    current goal's index; `n_goals` once all are completed), `goals` (state indices),
+    `taken` (scored steps), `budget_local`, `budget_global_left`, `termination` (None while
+    the episode runs), `rows` (the step rows so far), `instruction`, `done`.
     """
 
     __slots__ = (

@@ -125,7 +125,7 @@ def test_a_scripted_server_run_replays_with_zero_divergence(
 
 
 def test_a_request_that_keeps_failing_is_an_infrastructure_failure_and_resume_plays_it(
-    kettle_bench: Path, tmp_path: Path
+    kettle_bench: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     run = tmp_path / "run"
     script = [answer(OPEN_LID), answer(PUSH_POWER), error(500, "down"), error(503, "still down")]
@@ -142,8 +142,13 @@ def test_a_request_that_keeps_failing_is_an_infrastructure_failure_and_resume_pl
     assert manifest.run("run").counts.replayed == 1
 
     # Other settings than the run started with are refused, in one line.
+    capsys.readouterr()
     with chat_server([]) as server:
         assert _vge_run(kettle_bench, run, server.url, "--resume", "--history", "2") == 1
+    assert capsys.readouterr().err == (
+        "error: --resume with other settings than the run was started with "
+        "(history_length: 'unlimited' then, '2' now)\n"
+    )
 
     with chat_server([answer(PUSH_POWER), answer(WAIT)]) as server:
         assert _vge_run(kettle_bench, run, server.url, "--retries", "1", "--resume") == 0
