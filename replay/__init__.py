@@ -3,13 +3,23 @@
 The public API, by layer: `semantics` holds the rules as a readable reference (records,
 action grammar, compiled machine, pure step function, planner, classification, episode
 replay; PROTOCOL §1-§5), `kernel` the fast batch engine proven identical to it, `io` the
-loaders, the runner behind `vge replay` and its outputs (PROTOCOL §7). Everything not named
-here is private.
+loaders, the runner behind `vge replay` and its outputs (PROTOCOL §7). `replay.env`, imported
+on its own (it needs Gymnasium), is the live environment `vge/Device-v0` over the same episode
+(PROTOCOL §10). Everything not named here is private.
 """
 
 # The rules (the readable reference engine): records, grammar, machine, step, planner,
 # classification, episode replay, and the output rows and their Arrow schema.
-from ._errors import ConfigError, InputError, Problem, SSMError, TaskError, VGEError, WorkerError
+from ._errors import (
+    ActionError,
+    ConfigError,
+    InputError,
+    Problem,
+    SSMError,
+    TaskError,
+    VGEError,
+    WorkerError,
+)
 from ._version import ENGINE_VERSION
 from .io._executor import Executor, in_order, make_executor
 from .io._lambdas import LambdaBatch, LambdaTask, replay_lambdas
@@ -36,6 +46,7 @@ from .io._task import safe_file_name
 from .semantics._classify import Classification, Classifier
 from .semantics._episode import (
     EpisodeResult,
+    EpisodeSession,
     EpisodeSetup,
     parse_log_step,
     replay_episode,
@@ -116,6 +127,7 @@ __all__ = [
     "TERMINATIONS",
     "VIEW_ORDER",
     "Action",
+    "ActionError",
     "action_from_record",
     "ActionRecord",
     "arrow_schema",
@@ -136,6 +148,7 @@ __all__ = [
     "EpisodeResult",
     "EpisodeRow",
     "episodes_file",
+    "EpisodeSession",
     "EpisodeSetup",
     "Executor",
     "GoalRow",

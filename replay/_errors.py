@@ -51,6 +51,11 @@ class ConfigError(VGEError):
     """Bad options or arguments (unknown metric, bad lambda, missing directory...)."""
 
 
+class ActionError(VGEError):
+    """An action given to the live environment is neither text nor a structured action
+    `{"type", "coord", "params"}` (PROTOCOL §1.4)."""
+
+
 class WorkerError(VGEError):
     """A replay worker process died (killed, out of memory, or a script without a
     `if __name__ == "__main__":` guard started `replay_runs(workers > 1)`)."""

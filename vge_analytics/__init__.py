@@ -21,6 +21,9 @@ Rows for a dashboard:
     runs(out), facets(out), episodes(out, where), goals(out, where), steps(out, where),
     episode_steps(out, run_id, episode_id), steps_with_error(out, error_type, where)
 
+Live runs (`vge run`): `vge_analytics.live` (agents, the OpenAI-compatible client, the
+prompt, the run writer; docs/LIVE.md).
+
 Read-only SQL (within a memory and a time limit, see `_limits`):
     sql(out, "SELECT ...", timeout=300, memory_limit=None)   views steps, episodes, goals, runs
 
@@ -33,11 +36,14 @@ from . import dashboard  # the functions behind the Streamlit pages
 from ._browse import episode_steps, episodes, facets, goals, runs, steps, steps_with_error
 from ._compare import Comparison, compare, mcnemar_exact
 from ._errors import (
+    AgentError,
     AnalyticsError,
+    InfrastructureError,
     OutputDirError,
     QueryError,
     QueryLimitError,
     QueryRefused,
+    RunDirError,
     SweepInputError,
     SweepRefused,
     UnknownColumnError,
@@ -72,13 +78,16 @@ __all__ = [
     "MAIN_TABLE",
     "METRIC_NAMES",
     "SWITCH_CLASSES",
+    "AgentError",
     "AnalyticsError",
     "Comparison",
     "Metric",
+    "InfrastructureError",
     "OutputDirError",
     "QueryError",
     "QueryLimitError",
     "QueryRefused",
+    "RunDirError",
     "SweepInputError",
     "SweepRefused",
     "UnknownColumnError",

@@ -45,6 +45,20 @@ class QueryLimitError(QueryError):
         super().__init__(message)
 
 
+class AgentError(ConfigError, AnalyticsError):
+    """The agent of `vge run` cannot be loaded or misbehaves (a module callable that raises or
+    returns something other than text, an unknown profile, a service refusing the key)."""
+
+
+class InfrastructureError(AnalyticsError):
+    """A model request still failed after its retries. `vge run` records the episode as an
+    infrastructure failure, apart from the agent's errors, and never scores it."""
+
+
+class RunDirError(AnalyticsError):
+    """RUN_DIR of `vge run` cannot be started or resumed as asked."""
+
+
 class SweepRefused(AnalyticsError):
     """A lambda sweep cannot be computed from the logs that exist."""
 
@@ -54,11 +68,14 @@ class SweepInputError(AnalyticsError):
 
 
 __all__ = [
+    "AgentError",
     "AnalyticsError",
+    "InfrastructureError",
     "OutputDirError",
     "QueryError",
     "QueryLimitError",
     "QueryRefused",
+    "RunDirError",
     "SweepInputError",
     "SweepRefused",
     "UnknownColumnError",

@@ -188,6 +188,7 @@ def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> 
 def _replay(jobs: list[_RunJob], executor) -> pa.Table:
     """Episode rows of every run at every lambda, in line order (the first occurrence of an
     episode counts); the first refusal, in run and line order, ends the sweep."""
+
     def items() -> Iterator[tuple[_RunJob, replay.LambdaTask]]:
         for job in jobs:
             for task in job.tasks():

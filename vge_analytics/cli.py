@@ -20,6 +20,7 @@ COMMAND_MODULES = (
     "validate",
     "replay",
     "synth",
+    "run",
     "metrics",
     "errors",
     "compare",

@@ -1,7 +1,8 @@
 """Replay one logged episode: simulator + goals + budgets + classification -> rows.
 
-This is the inner loop of `vge replay`. It is pure: the same machine, task, log and lambda
-always give the same rows.
+`EpisodeSession` plays an episode one step at a time; `replay_episode`, the inner loop of
+`vge replay`, is a loop over it, and so are the live tools. Pure: the same machine, task, log
+and lambda always give the same rows.
 """
 
 from __future__ import annotations
@@ -147,54 +148,102 @@ def _first_visit_order(states: list[int]) -> list[int]:
     return list(seen)
 
 
-def replay_episode(
-    machine: Machine,
-    task: Task,
-    log: EpisodeLog,
-    *,
-    lam: float,
-    run_id: str,
-    model: str,
-    agent_kind: str,
-    setup: EpisodeSetup | None = None,
-) -> EpisodeResult:
-    """Re-execute a logged episode (PROTOCOL §3-5) and return its step, episode and goal rows."""
-    if setup is None:
-        setup = setup_episode(machine, task)
-    names = machine.states
-    goals = setup.goals
-    n_goals = len(goals)
-    plan = setup.plan
-    c_opt = plan.c_opt
-    lam = float(lam)
-    budget_global = lam * sum(c_opt)
-    budget_local = lam * c_opt[0]
+class EpisodeSession:
+    """One episode played step by step (PROTOCOL §3-5): the simulator, goals, budgets and
+    classification of `replay_episode`, one logged step at a time.
 
-    sim, _ = reset(machine, setup.initial_state, setup.initial_view)
-    visited: list[int] = list(setup.reset_states)
-    classifier = Classifier(machine)
-    classify = classifier.classify
-    has_dashboard = bool(machine.dashboard_regions)
+    `replay_episode` is a loop over it, and the live tools (the Gymnasium environment, the
+    agent harness) drive the same object, so a live run and its replay cannot disagree.
+    Pure like the step function: no clock, no randomness, no I/O.
 
-    # Per-goal bookkeeping.
-    started: list[int | None] = [None] * n_goals
-    completed_at: list[int | None] = [None] * n_goals
-    steps_used = [0] * n_goals
-    switches = [0] * n_goals
-    dyn: list[int | None] = [None] * n_goals
-    started[0] = 0
-    dyn[0] = c_opt_dynamic(machine, sim.state, sim.view, sim.unlocked, goals[0])
+    Read (never written from outside): `sim` (state, view, dashboard), `current` (the
+    current goal's index; `n_goals` once all are completed), `goals` (state indices),
+    `taken` (scored steps), `budget_local`, `budget_global_left`, `termination` (None while
+    the episode runs), `rows` (the step rows so far), `instruction`, `done`.
+    """
 
-    current = 0
-    taken = 0
-    termination: str | None = None
-    n_switches = 0
-    diverged_steps = 0
-    truncated_steps = 0
-    rows: list[tuple] = []
-    head = (run_id, model, agent_kind, task.episode_id, machine.device_id, machine.category)
+    __slots__ = (
+        "machine", "task", "setup", "lam", "budget_global", "c_opt", "goals", "n_goals",
+        "sim", "visited", "current", "taken", "termination", "n_switches", "diverged_steps",
+        "truncated_steps", "budget_local", "rows", "_head", "_classify", "_has_dashboard",
+        "_started", "_completed_at", "_steps_used", "_switches", "_dyn",
+    )  # fmt: skip
 
-    for k, log_step in enumerate(log.steps):
+    def __init__(
+        self,
+        machine: Machine,
+        task: Task,
+        *,
+        lam: float,
+        run_id: str,
+        model: str,
+        agent_kind: str,
+        setup: EpisodeSetup | None = None,
+    ) -> None:
+        if setup is None:
+            setup = setup_episode(machine, task)
+        self.machine = machine
+        self.task = task
+        self.setup = setup
+        self.goals = setup.goals
+        self.n_goals = n_goals = len(setup.goals)
+        self.c_opt = c_opt = setup.plan.c_opt
+        self.lam = lam = float(lam)
+        self.budget_global = lam * sum(c_opt)
+        self.budget_local = lam * c_opt[0]
+        self.sim = sim = reset(machine, setup.initial_state, setup.initial_view)[0]
+        self.visited: list[int] = list(setup.reset_states)
+        self._classify = Classifier(machine).classify
+        self._has_dashboard = bool(machine.dashboard_regions)
+        # Per-goal bookkeeping.
+        self._started: list[int | None] = [None] * n_goals
+        self._completed_at: list[int | None] = [None] * n_goals
+        self._steps_used = [0] * n_goals
+        self._switches = [0] * n_goals
+        self._dyn: list[int | None] = [None] * n_goals
+        self._started[0] = 0
+        self._dyn[0] = c_opt_dynamic(machine, sim.state, sim.view, sim.unlocked, setup.goals[0])
+        self.current = 0
+        self.taken = 0
+        self.termination: str | None = None
+        self.n_switches = 0
+        self.diverged_steps = 0
+        self.truncated_steps = 0
+        self.rows: list[tuple] = []
+        self._head = (
+            run_id,
+            model,
+            agent_kind,
+            task.episode_id,
+            machine.device_id,
+            machine.category,
+        )
+
+    # ------------------------------------------------------------------ live view
+
+    @property
+    def done(self) -> bool:
+        """The episode has terminated (PROTOCOL §3.5); later steps are truncated."""
+        return self.termination is not None
+
+    @property
+    def budget_global_left(self) -> float:
+        """`B_global` minus the steps taken."""
+        return self.budget_global - self.taken
+
+    @property
+    def instruction(self) -> str:
+        """The instruction of the current goal ("" once every goal is completed)."""
+        instructions = self.task.instructions
+        return instructions[self.current] if self.current < len(instructions) else ""
+
+    # ------------------------------------------------------------------ one step
+
+    def advance(self, log_step: LogStep) -> tuple:
+        """Play one logged step; returns its row (a tuple in `StepRow` field order)."""
+        machine = self.machine
+        names = machine.states
+        k = len(self.rows)
         parsed = parse_log_step(log_step)
         action = parsed.action
         if action is not None:
@@ -208,50 +257,55 @@ def replay_episode(
         ts = log_step.timestamp
         if ts is not None:
             ts = timestamp_seconds(ts)
-        if termination is not None:
-            truncated_steps += 1
+        if self.termination is not None:
+            self.truncated_steps += 1
             # Field order: StepRow (see _rows.py); nothing after termination is scored.
-            rows.append(
-                (
-                    *head, k, None, None, None, None, None, action_type, parsed.action_text,
-                    parsed.thinking or None, log_step.output, x, y, params, parsed.ok,
-                    parsed.detail, None, None, None, None, [], None, None, None, None,
-                    *_UNCLASSIFIED_HEAD, [], *_UNCLASSIFIED_TAIL,
-                    None, None, True, log_step.feedback, log_step.state, log_step.view, None, [], ts,
-                )
+            row = (
+                *self._head, k, None, None, None, None, None, action_type, parsed.action_text,
+                parsed.thinking or None, log_step.output, x, y, params, parsed.ok,
+                parsed.detail, None, None, None, None, [], None, None, None, None,
+                *_UNCLASSIFIED_HEAD, [], *_UNCLASSIFIED_TAIL,
+                None, None, True, log_step.feedback, log_step.state, log_step.view, None, [], ts,
             )  # fmt: skip
-            continue
+            self.rows.append(row)
+            return row
 
-        before = sim
-        goal_index = current
-        goal = goals[current]
-        sim, outcome = step(machine, sim, parsed)
+        goals = self.goals
+        before = self.sim
+        goal_index = self.current
+        goal = goals[goal_index]
+        sim, outcome = step(machine, before, parsed)
+        self.sim = sim
 
-        visited.extend(outcome.entered)
-        current = advance_goals(outcome.entered, goals, current, k, started, completed_at, dyn)
+        self.visited.extend(outcome.entered)
+        current = advance_goals(
+            outcome.entered, goals, goal_index, k, self._started, self._completed_at, self._dyn
+        )
+        self.current = current
         completed = current - goal_index
-        taken += 1
-        steps_used[goal_index] += 1
+        self.taken = taken = self.taken + 1
+        self._steps_used[goal_index] += 1
         switched = outcome.switched
         if switched:
-            n_switches += 1
-            switches[goal_index] += 1
-        budget_local -= 1
+            self.n_switches += 1
+            self._switches[goal_index] += 1
+        budget_local = self.budget_local - 1
         if completed:
-            budget_local = refreshed_budget(budget_local, lam, c_opt, goal_index, current)
-            if current < n_goals:
-                dyn[current] = c_opt_dynamic(
+            budget_local = refreshed_budget(budget_local, self.lam, self.c_opt, goal_index, current)
+            if current < self.n_goals:
+                self._dyn[current] = c_opt_dynamic(
                     machine, sim.state, sim.view, sim.unlocked, goals[current]
                 )
+        self.budget_local = budget_local
 
-        cls = classify(goal_index, goal, before, parsed, outcome, sim, completed)
+        cls = self._classify(goal_index, goal, before, parsed, outcome, sim, completed)
 
-        if current >= n_goals:
-            termination = "success"
-        elif taken >= budget_global:
-            termination = "budget_global"
+        if current >= self.n_goals:
+            self.termination = "success"
+        elif taken >= self.budget_global:
+            self.termination = "budget_global"
         elif budget_local <= 0:
-            termination = "budget_local"
+            self.termination = "budget_local"
 
         state_after = names[sim.state]
         diverged_fields = []
@@ -270,98 +324,136 @@ def replay_episode(
                 diverged_fields.append("view")
             diverged = bool(diverged_fields)
             if diverged:
-                diverged_steps += 1
+                self.diverged_steps += 1
 
         tr = outcome.transition
         # Field order: StepRow (see _rows.py); `cls` is the CLASSIFICATION_FIELDS block.
-        rows.append(
-            (
-                *head, k, goal_index, names[goal], before.view, sim.view,
-                sim.unlocked if has_dashboard else None, action_type, parsed.action_text,
-                parsed.thinking or None, log_step.output, x, y, params, parsed.ok, parsed.detail,
-                outcome.kind, outcome.text, names[before.state], state_after,
-                [names[s] for s in outcome.entered], tr.component if tr is not None else None,
-                outcome.dangerous, switched, completed,
-                *cls,
-                budget_global - taken, budget_local, False,
-                recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts,
-            )
+        row = (
+            *self._head, k, goal_index, names[goal], before.view, sim.view,
+            sim.unlocked if self._has_dashboard else None, action_type, parsed.action_text,
+            parsed.thinking or None, log_step.output, x, y, params, parsed.ok, parsed.detail,
+            outcome.kind, outcome.text, names[before.state], state_after,
+            [names[s] for s in outcome.entered], tr.component if tr is not None else None,
+            outcome.dangerous, switched, completed,
+            *cls,
+            self.budget_global - taken, budget_local, False,
+            recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts,
         )  # fmt: skip
+        self.rows.append(row)
+        return row
 
-    if termination is None:
-        termination = "log_ended"
-    goals_completed = current
-    success = goals_completed == n_goals
-    l_opt = sum(c_opt)
-    l_act = taken
-    spl = (l_opt / max(l_act, l_opt) if l_opt else 1.0) if success else 0.0
-    visited_set = set(visited)
-    optimal_list = list(setup.reset_states) + list(plan.states)
-    optimal_set = set(optimal_list)
-    state_f1 = 2.0 * len(visited_set & optimal_set) / (len(visited_set) + len(optimal_set))
-    vsps_switches = sum(switches[g] for g in range(n_goals) if completed_at[g] is not None)
-    vsps = vsps_switches / goals_completed if goals_completed else None
+    # ------------------------------------------------------------------ the end
 
-    common = dict(
-        zip(
-            ("run_id", "model", "agent_kind", "episode_id", "device_id", "category"),
-            head,
-            strict=True,
+    def finish(self) -> EpisodeResult:
+        """The step, episode and goal rows; an episode not terminated ends as `log_ended`."""
+        if self.termination is None:
+            self.termination = "log_ended"
+        machine = self.machine
+        names = machine.states
+        setup = self.setup
+        task = self.task
+        goals = self.goals
+        n_goals = self.n_goals
+        c_opt = self.c_opt
+        started = self._started
+        completed_at = self._completed_at
+        dyn = self._dyn
+        steps_used = self._steps_used
+        switches = self._switches
+        goals_completed = self.current
+        success = goals_completed == n_goals
+        l_opt = sum(c_opt)
+        l_act = self.taken
+        spl = (l_opt / max(l_act, l_opt) if l_opt else 1.0) if success else 0.0
+        visited_set = set(self.visited)
+        optimal_list = list(setup.reset_states) + list(setup.plan.states)
+        optimal_set = set(optimal_list)
+        state_f1 = 2.0 * len(visited_set & optimal_set) / (len(visited_set) + len(optimal_set))
+        vsps_switches = sum(switches[g] for g in range(n_goals) if completed_at[g] is not None)
+        vsps = vsps_switches / goals_completed if goals_completed else None
+
+        common = dict(
+            zip(
+                ("run_id", "model", "agent_kind", "episode_id", "device_id", "category"),
+                self._head,
+                strict=True,
+            )
         )
-    )
-    episode = EpisodeRow(
-        **common,
-        n_goals=n_goals,
-        goals_completed=goals_completed,
-        success=success,
-        termination=termination,
-        L_opt=l_opt,
-        L_act=l_act,
-        spl=spl,
-        state_f1=state_f1,
-        n_switches=n_switches,
-        vsps_switches=vsps_switches,
-        vsps=vsps,
-        n_steps=len(log.steps),
-        truncated_steps=truncated_steps,
-        diverged_steps=diverged_steps,
-        lam=lam,
-        budget_global=budget_global,
-        initial_state=names[setup.initial_state],
-        initial_view=setup.initial_view,
-        goals=[names[g] for g in goals],
-        c_opt=list(c_opt),
-        c_opt_stated=list(task.c_opt) if task.c_opt is not None else None,
-        visited_states=[names[s] for s in _first_visit_order(visited)],
-        optimal_states=[names[s] for s in _first_visit_order(optimal_list)],
-    )
-    instructions = task.instructions
-    goal_rows = [
-        GoalRow(
+        episode = EpisodeRow(
             **common,
             n_goals=n_goals,
-            goal_index=g,
-            goal_state=names[goals[g]],
-            instruction=instructions[g] if g < len(instructions) else None,
-            c_opt=c_opt[g],
-            c_opt_dyn=dyn[g],
-            reached=started[g] is not None,
-            completed=completed_at[g] is not None,
-            started_step=started[g],
-            completed_step=completed_at[g],
-            steps_used=steps_used[g],
-            switches=switches[g],
-            perfect=(
-                completed_at[g] is not None and dyn[g] is not None and steps_used[g] <= dyn[g]
-            ),
+            goals_completed=goals_completed,
+            success=success,
+            termination=self.termination,
+            L_opt=l_opt,
+            L_act=l_act,
+            spl=spl,
+            state_f1=state_f1,
+            n_switches=self.n_switches,
+            vsps_switches=vsps_switches,
+            vsps=vsps,
+            n_steps=len(self.rows),
+            truncated_steps=self.truncated_steps,
+            diverged_steps=self.diverged_steps,
+            lam=self.lam,
+            budget_global=self.budget_global,
+            initial_state=names[setup.initial_state],
+            initial_view=setup.initial_view,
+            goals=[names[g] for g in goals],
+            c_opt=list(c_opt),
+            c_opt_stated=list(task.c_opt) if task.c_opt is not None else None,
+            visited_states=[names[s] for s in _first_visit_order(self.visited)],
+            optimal_states=[names[s] for s in _first_visit_order(optimal_list)],
         )
-        for g in range(n_goals)
-    ]
-    return EpisodeResult(rows, episode, goal_rows)
+        instructions = task.instructions
+        goal_rows = [
+            GoalRow(
+                **common,
+                n_goals=n_goals,
+                goal_index=g,
+                goal_state=names[goals[g]],
+                instruction=instructions[g] if g < len(instructions) else None,
+                c_opt=c_opt[g],
+                c_opt_dyn=dyn[g],
+                reached=started[g] is not None,
+                completed=completed_at[g] is not None,
+                started_step=started[g],
+                completed_step=completed_at[g],
+                steps_used=steps_used[g],
+                switches=switches[g],
+                perfect=(
+                    completed_at[g] is not None and dyn[g] is not None and steps_used[g] <= dyn[g]
+                ),
+            )
+            for g in range(n_goals)
+        ]
+        return EpisodeResult(self.rows, episode, goal_rows)
+
+
+def replay_episode(
+    machine: Machine,
+    task: Task,
+    log: EpisodeLog,
+    *,
+    lam: float,
+    run_id: str,
+    model: str,
+    agent_kind: str,
+    setup: EpisodeSetup | None = None,
+) -> EpisodeResult:
+    """Re-execute a logged episode (PROTOCOL §3-5) and return its step, episode and goal rows."""
+    session = EpisodeSession(
+        machine, task, lam=lam, run_id=run_id, model=model, agent_kind=agent_kind, setup=setup
+    )
+    advance = session.advance
+    for log_step in log.steps:
+        advance(log_step)
+    return session.finish()
 
 
 __all__ = [
     "EpisodeResult",
+    "EpisodeSession",
     "EpisodeSetup",
     "TaskError",
     "parse_log_step",

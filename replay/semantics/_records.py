@@ -162,6 +162,13 @@ class LogStep(msgspec.Struct):
     timestamp: Annotated[
         float | str | None, _doc("Seconds since the epoch or ISO 8601 time of the step")
     ] = None
+    prompt_tokens: Annotated[
+        int | None, _doc("Tokens of the request the model answered (as its API counted them)")
+    ] = None
+    completion_tokens: Annotated[int | None, _doc("Tokens of the model's answer")] = None
+    latency_seconds: Annotated[
+        float | None, _doc("Seconds the model took to answer (the request that succeeded)")
+    ] = None
 
 
 class EpisodeLog(msgspec.Struct):

@@ -1,6 +1,7 @@
 """The layout of `replay/` shows its design: the readable rules (`semantics`) depend on
 nothing else of the package, the compiled engine (`kernel`) on the rules only, input and
-output (`io`) on both; and the import chains stay short."""
+output (`io`) on both, the live environment (`env`) on all three; and the import chains stay
+short."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import re
 from pathlib import Path
 
 REPLAY = Path(__file__).resolve().parents[2] / "replay"
-LAYERS = ("semantics", "kernel", "io")
+LAYERS = ("semantics", "kernel", "io", "env")
 _PYX_IMPORT = re.compile(r"^from (\.+)([\w.]*) c?import", re.MULTILINE)
 
 
@@ -66,6 +67,7 @@ def test_layers_depend_downwards_only() -> None:
         "semantics": {"semantics", "top"},
         "kernel": {"kernel", "semantics", "top"},
         "io": {"io", "kernel", "semantics", "top"},
+        "env": {"env", "io", "kernel", "semantics", "top"},
     }
     for module, deps in _graph().items():
         layer = _layer(module)

@@ -24,10 +24,31 @@ CATALOG_DIR = DATA / "catalog"
 KETTLE_LISTING = ROOT / "tests" / "data" / "kettle_ucsm.json"
 
 CATEGORIES = (
-    "AirFryer", "AirPurifier", "CarKey", "CoffeeMachine", "DigitalAlarmClock", "DigitalCamera",
-    "ElectricFan", "ElectricKettle", "ElectricToothbrush", "FilmCamera", "Flashlight", "HairDryer",
-    "Heater", "Humidifier", "Lamp", "Landline", "Lighter", "MechanicalAlarmClock", "Microwave",
-    "PowerBank", "Razor", "RiceCooker", "ThermometerGun", "Vacuum", "WashingMachine",
+    "AirFryer",
+    "AirPurifier",
+    "CarKey",
+    "CoffeeMachine",
+    "DigitalAlarmClock",
+    "DigitalCamera",
+    "ElectricFan",
+    "ElectricKettle",
+    "ElectricToothbrush",
+    "FilmCamera",
+    "Flashlight",
+    "HairDryer",
+    "Heater",
+    "Humidifier",
+    "Lamp",
+    "Landline",
+    "Lighter",
+    "MechanicalAlarmClock",
+    "Microwave",
+    "PowerBank",
+    "Razor",
+    "RiceCooker",
+    "ThermometerGun",
+    "Vacuum",
+    "WashingMachine",
     "WeighingScale",
 )
 DASHBOARD_REQUIRED = {"WashingMachine", "Microwave", "CoffeeMachine", "AirFryer"}
@@ -128,7 +149,8 @@ def _goalable(ucsm: dict) -> set[str]:
     the result states of timed processes stay goal-able even when they settle immediately."""
     timed = _timed_results(ucsm)
     return {
-        s for s in ucsm["states"]
+        s
+        for s in ucsm["states"]
         if not _is_error(ucsm, s) and (not _has_immediate(ucsm, s) or s in timed)
     }
 
@@ -168,7 +190,9 @@ def _totals() -> dict[str, object]:
         u = UCSMS[c]
         comps = {comp for _, comp, _ in _transitions(u) if comp not in NON_COMPONENTS}
         per[c] = (len(u["states"]), sum(1 for _ in _transitions(u)), len(comps))
-    names = {comp for c in CATEGORIES for _, comp, _ in _transitions(UCSMS[c])} - set(NON_COMPONENTS)
+    names = {comp for c in CATEGORIES for _, comp, _ in _transitions(UCSMS[c])} - set(
+        NON_COMPONENTS
+    )
     return {
         "states": sum(v[0] for v in per.values()),
         "transitions": sum(v[1] for v in per.values()),
@@ -196,7 +220,9 @@ def test_ucsm_structure(category):
         on = body.get("on")
         assert isinstance(on, dict) and on, f"{state}: no transitions"
         for component, trans in on.items():
-            assert component in NON_COMPONENTS or re.fullmatch(r"[a-z][a-z0-9_]*", component), component
+            assert component in NON_COMPONENTS or re.fullmatch(r"[a-z][a-z0-9_]*", component), (
+                component
+            )
             assert isinstance(trans, list) and trans, f"{state}.{component}: empty list"
             for t in trans:
                 where = f"{category}:{state}.{component}"
@@ -236,7 +262,9 @@ def test_actions_and_parameters(category):
         on = body["on"]
         if "immediate" in on:
             n = sum(len(v) for v in on.values())
-            assert n == 1, f"{category}:{state}: a state with `immediate` has exactly one transition"
+            assert n == 1, (
+                f"{category}:{state}: a state with `immediate` has exactly one transition"
+            )
         if "timed_wait" in on:
             assert len(on["timed_wait"]) == 1, f"{category}:{state}: several timed_wait"
         for component, trans in on.items():
@@ -277,7 +305,9 @@ def test_reachability_both_ways(category):
     fwd = _reach(adj, init)
     assert fwd == set(u["states"]), f"{category}: unreachable {sorted(set(u['states']) - fwd)}"
     back = _reach(_reverse(adj), init)
-    assert back == set(u["states"]), f"{category}: no way back from {sorted(set(u['states']) - back)}"
+    assert back == set(u["states"]), (
+        f"{category}: no way back from {sorted(set(u['states']) - back)}"
+    )
 
 
 @pytest.mark.parametrize("category", CATEGORIES)
@@ -309,8 +339,7 @@ def test_pruning_keeps_machine_usable(category):
             kept = _reach(adj, init)
             sub = {s: adj[s] & kept for s in kept}
             back = _reach(_reverse(sub), init)
-            assert back == kept, (
-                f"{category} without {missing}: stuck in {sorted(kept - back)}")
+            assert back == kept, f"{category} without {missing}: stuck in {sorted(kept - back)}"
             goals = (kept & goalable) - {init}
             assert len(goals) >= 2, f"{category} without {missing}: only goals {goals}"
 
@@ -328,7 +357,8 @@ def test_catalog(category):
     used = {comp for _, comp, _ in _transitions(u) if comp not in NON_COMPONENTS}
     assert set(cat["components"]) == used, (
         f"catalog-only {sorted(set(cat['components']) - used)}, "
-        f"ucsm-only {sorted(used - set(cat['components']))}")
+        f"ucsm-only {sorted(used - set(cat['components']))}"
+    )
     n_dash = 0
     for name, c in cat["components"].items():
         assert c["kind"] in KIND_ACTIONS, f"{name}: kind {c['kind']!r}"
@@ -368,7 +398,8 @@ def test_goal_phrases(category):
             assert text[0].isupper(), f"{category}:{state}: {text!r}"
             for name in names:
                 assert f" {name} " not in _words(text), (
-                    f"{category}:{state}: {text!r} names the component {name!r}")
+                    f"{category}:{state}: {text!r} names the component {name!r}"
+                )
             assert text.lower() not in seen, f"{category}: {text!r} used twice"
             seen[text.lower()] = state
 
@@ -383,8 +414,11 @@ def test_kettle_follows_paper_listing():
     assert ours == paper
     real = [(c, t) for _, c, t in _transitions(UCSMS["ElectricKettle"]) if c not in NON_COMPONENTS]
     assert all("atomic_action" in t for _, t in real)
-    by = {(s, c, t["next_state"]): (t["atomic_action"], t["parameter"])
-          for s, c, t in _transitions(UCSMS["ElectricKettle"]) if c not in NON_COMPONENTS}
+    by = {
+        (s, c, t["next_state"]): (t["atomic_action"], t["parameter"])
+        for s, c, t in _transitions(UCSMS["ElectricKettle"])
+        if c not in NON_COMPONENTS
+    }
     assert by[("Standby", "power_button", "Boiling")] == ("push", ["1"])
     assert by[("Boiling", "power_button", "Standby")] == ("push", ["0"])
     assert by[("Standby", "lid_release_button", "LidOpen")] == ("push", ["1"])
@@ -393,11 +427,15 @@ def test_kettle_follows_paper_listing():
 
 def test_totals_within_targets():
     t = _totals()
-    per = "\n".join(f"  {c:22s} states={s:3d} transitions={n:4d} components={k:3d}"
-                    for c, (s, n, k) in t["per_category"].items())
-    msg = (f"totals: states={t['states']} transitions={t['transitions']} "
-           f"components={t['components']} (distinct names across categories: "
-           f"{t['distinct_component_names_global']})\n{per}")
+    per = "\n".join(
+        f"  {c:22s} states={s:3d} transitions={n:4d} components={k:3d}"
+        for c, (s, n, k) in t["per_category"].items()
+    )
+    msg = (
+        f"totals: states={t['states']} transitions={t['transitions']} "
+        f"components={t['components']} (distinct names across categories: "
+        f"{t['distinct_component_names_global']})\n{per}"
+    )
     assert STATES_RANGE[0] <= t["states"] <= STATES_RANGE[1], msg
     assert TRANSITIONS_RANGE[0] <= t["transitions"] <= TRANSITIONS_RANGE[1], msg
     assert COMPONENTS_RANGE[0] <= t["components"] <= COMPONENTS_RANGE[1], msg

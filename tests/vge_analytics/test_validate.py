@@ -22,8 +22,19 @@ def _kettle_bench(root: Path, tasks: list[dict]) -> Path:
 
 
 GOOD_TASKS = [
-    {"episode_id": "k1", "device_id": "kettle", "goals": ["Boiling"], "instructions": ["Boil the water"]},
-    {"episode_id": "k2", "device_id": "kettle", "goals": ["LidOpen", "Standby", "Boiling"], "initial_view": "front_top", "c_opt": [2, 1, 1]},
+    {
+        "episode_id": "k1",
+        "device_id": "kettle",
+        "goals": ["Boiling"],
+        "instructions": ["Boil the water"],
+    },
+    {
+        "episode_id": "k2",
+        "device_id": "kettle",
+        "goals": ["LidOpen", "Standby", "Boiling"],
+        "initial_view": "front_top",
+        "c_opt": [2, 1, 1],
+    },
 ]
 
 
@@ -51,7 +62,9 @@ def test_every_problem_is_reported(tmp_path: Path, capsys) -> None:
     run = tmp_path / "run"
     run.mkdir()
     (run / "run.json").write_text(json.dumps({"run_id": "r", "model": "m", "agent_kind": "vlm"}))
-    (run / "episodes.jsonl").write_text('{"episode_id": "k1", "steps": []}\n{"episode_id": "nope", "steps": []}\nnot json\n')
+    (run / "episodes.jsonl").write_text(
+        '{"episode_id": "k1", "steps": []}\n{"episode_id": "nope", "steps": []}\nnot json\n'
+    )
     assert main(["validate", str(bench), str(run)]) == 1
     out = capsys.readouterr().out
     lines = [line for line in out.splitlines() if line.startswith(("error", "warning"))]

@@ -4,7 +4,7 @@ simulated agents (docs/SYNTHETIC.md).
 `generate` is what `vge synth` runs; the other names are its parts, for tests and tools.
 """
 
-from ._agent import AgentStep, BudgetTracker, play_episode
+from ._agent import AgentStep, BudgetTracker, StepPlayer, play_episode
 from ._build import SCALES, Scale, Summary, SynthError, generate, plan_devices
 from ._catalog import (
     PAPER_DEVICE_COUNTS,
@@ -41,6 +41,7 @@ __all__ = [
     "Scale",
     "Summary",
     "SynthError",
+    "StepPlayer",
     "SyntheticDevice",
     "TaskRecord",
     "available_categories",

@@ -675,6 +675,47 @@ def _where(rect: tuple) -> str:
     return position_words(rect)
 
 
+class StepPlayer:
+    """The agent of a profile, one response at a time, inside a loop that owns the device and
+    the budgets (`play_episode` here, the harness of `vge run` elsewhere): `act` decides and
+    formats, `observe` takes in what the step did."""
+
+    def __init__(
+        self,
+        machine: replay.Machine,
+        catalog: Catalog,
+        profile: Profile,
+        task: TaskRecord,
+        rng: random.Random,
+    ) -> None:
+        self.profile = profile
+        self.rng = rng
+        self.agent = Agent(machine, catalog, profile, task, rng)
+        self._pending: tuple[Decision, replay.ParsedAction, int, int] | None = None
+
+    def act(
+        self, sim: replay.SimState, goal_index: int, goal: int
+    ) -> tuple[str | None, dict | None, replay.ParsedAction, Decision]:
+        """The logged form of the next response: text (`output`) or a structured `record`."""
+        decision = self.agent.decide(sim, goal_index, goal)
+        output, record, parsed = _format(decision, self.profile, self.rng, sim)
+        self._pending = (decision, parsed, goal_index, goal)
+        return output, record, parsed, decision
+
+    def observe(
+        self,
+        before: replay.SimState,
+        after: replay.SimState,
+        outcome: replay.Outcome,
+        completed: int,
+    ) -> None:
+        """What the last response did (the device before and after it, its outcome)."""
+        assert self._pending is not None, "observe() follows act()"
+        decision, parsed, goal_index, goal = self._pending
+        self._pending = None
+        self.agent.observe(decision, parsed, before, after, outcome, goal_index, goal, completed)
+
+
 def play_episode(
     machine: replay.Machine,
     catalog: Catalog,
@@ -687,17 +728,15 @@ def play_episode(
     setup = replay.setup_episode(machine, task.to_task())
     sim, _ = replay.reset(machine, setup.initial_state, setup.initial_view)
     tracker = BudgetTracker(setup.plan.c_opt, setup.goals, lam)
-    agent = Agent(machine, catalog, profile, task, rng)
+    player = StepPlayer(machine, catalog, profile, task, rng)
     steps: list[AgentStep] = []
     while tracker.termination is None:
         goal_index = tracker.current
-        goal = setup.goals[goal_index]
-        decision = agent.decide(sim, goal_index, goal)
-        output, record, parsed = _format(decision, profile, rng, sim)
+        output, record, parsed, decision = player.act(sim, goal_index, setup.goals[goal_index])
         before = sim
         sim, outcome = replay.step(machine, sim, parsed)
         completed = tracker.advance(outcome.entered)
-        agent.observe(decision, parsed, before, sim, outcome, goal_index, goal, completed)
+        player.observe(before, sim, outcome, completed)
         steps.append(
             AgentStep(decision, output, record, outcome, sim.view, machine.states[sim.state])
         )

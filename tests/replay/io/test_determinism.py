@@ -55,7 +55,9 @@ def test_identical_across_repeats_and_workers(
     for part in parts:
         meta = pq.ParquetFile(tmp_path / "a" / part).metadata
         groups = [meta.row_group(i).num_rows for i in range(meta.num_row_groups)]
-        assert groups == [40] * (meta.num_rows // 40) + ([meta.num_rows % 40] if meta.num_rows % 40 else [])
+        assert groups == [40] * (meta.num_rows // 40) + (
+            [meta.num_rows % 40] if meta.num_rows % 40 else []
+        )
         rows += meta.num_rows
     assert rows == 240
 
@@ -80,7 +82,9 @@ def test_batch_size_changes_only_the_part_layout(
     for out in outs[1:]:
         for table in ("steps", "episodes", "goals"):
             assert _rows(out, table).equals(_rows(outs[0], table))
-        assert (out / "quarantine.jsonl").read_bytes() == (outs[0] / "quarantine.jsonl").read_bytes()
+        assert (out / "quarantine.jsonl").read_bytes() == (
+            outs[0] / "quarantine.jsonl"
+        ).read_bytes()
         assert (out / "runs" / "runs.parquet").read_bytes() == (
             outs[0] / "runs" / "runs.parquet"
         ).read_bytes()

@@ -350,10 +350,20 @@ def test_compiled_parser_matches_the_reference(text: str) -> None:
 def test_compiled_parser_decides_the_common_shapes() -> None:
     """The shapes of nearly every response are decided without the reference parser."""
     assert parse_fields("Thinking: ok.\nAction: Press(coord=[1, 2], params=[0])") == (
-        "ok", 0, (1.0, 2.0), ("0",), "Press(coord=[1, 2], params=[0])", "ok."
+        "ok",
+        0,
+        (1.0, 2.0),
+        ("0",),
+        "Press(coord=[1, 2], params=[0])",
+        "ok.",
     )
     assert parse_fields("Thinking: no.\nAction: `Switch_view(params=['top'])`.") == (
-        "ok", 5, None, ("top",), "Switch_view(params=['top'])", "no."
+        "ok",
+        5,
+        None,
+        ("top",),
+        "Switch_view(params=['top'])",
+        "no.",
     )
     assert parse_fields("I will wait.") == ("no_action", None, None, (), "", "I will wait.")
     assert parse_fields("Action: Timed_wait()\nAction: Press()")[0] == "multiple_actions"

@@ -1,0 +1,240 @@
+"""`vge/Device-v0`: one benchmark episode at a time, as a Gymnasium environment.
+
+A thin wrapper over `EpisodeSession`, the object `replay_episode` loops over: each `step`
+is one `advance` of the session with the action as a log step would carry it, so a live
+episode and the replay of its log give the same rows (zero divergent steps by
+construction). Nothing inside a step reads a clock or draws a random number; the only random
+choice is which episode `reset` picks when it is not told, from the seeded `np_random`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import msgspec
+import numpy as np
+from gymnasium.error import ResetNeeded
+
+from .._errors import ActionError, ConfigError, VGEError
+from ..io._load import Benchmark
+from ..io._mcap import ImageSource
+from ..semantics._episode import EpisodeSession
+from ..semantics._machine import Machine
+from ..semantics._records import ActionRecord, LogStep, Task
+from ..semantics._rows import StepRow
+from ..semantics._vocab import DASHBOARD, DEFAULT_LAMBDA
+from ._images import ViewImages, default_image_source
+from ._spaces import action_space, observation_space
+
+STEP_FIELDS: tuple[str, ...] = tuple(StepRow.__struct_fields__)
+"""The keys of a step's `info`: the columns of the steps table (PROTOCOL §7.2)."""
+
+TERMINATED = "success"
+TRUNCATED = ("budget_global", "budget_local")
+
+_RESET_OPTIONS = ("episode_id",)
+
+
+def episode_lambda(task: Task, run_lambda: float | None) -> float:
+    """λ of a live episode: the task's own, else the run's, else 5 (PROTOCOL §3.5; a live run
+    has no replay option, so its replay without `--lambda` uses the same λ)."""
+    for value in (task.lam, run_lambda):
+        if value is not None:
+            return float(value)
+    return DEFAULT_LAMBDA
+
+
+def log_step_of(action: str | Mapping[str, Any]) -> LogStep:
+    """An action as the log carries it (PROTOCOL §1.4): text is the model's `output`; a
+    mapping is a structured `action` `{"type", "coord", "params"}`."""
+    if isinstance(action, str):
+        return LogStep(output=action)
+    if isinstance(action, Mapping):
+        try:
+            return LogStep(action=msgspec.convert(dict(action), ActionRecord))
+        except msgspec.ValidationError as exc:
+            raise ActionError(f"structured action {dict(action)!r}: {exc}") from None
+    raise ActionError(
+        f"an action is the model's text or a mapping {{type, coord, params}}, not {type(action).__name__}"
+    )
+
+
+class DeviceEnv(gymnasium.Env):
+    """A device of a VGEBench-style benchmark, operated by clicking points of its views.
+
+    `bench` is a benchmark directory (PROTOCOL §1.1) or an open `Benchmark`. `lam` is the
+    run's λ (a task's own λ wins, PROTOCOL §3.5). `episodes` limits the episodes `reset` picks
+    from when it is not given one. `image_source(machine, view)` supplies view images (default:
+    the benchmark's files and rendered synthetic views); every view is shown at
+    `image_width` x `image_height`. `run_id`, `model` and `agent_kind` fill the matching
+    fields of `info`. docs/LIVE.md describes the observation.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1}
+
+    def __init__(
+        self,
+        bench: str | Path | Benchmark,
+        *,
+        lam: float | None = None,
+        episodes: Sequence[str] | None = None,
+        image_width: int = 768,
+        image_height: int = 768,
+        image_source: ImageSource | None = None,
+        render_mode: str | None = None,
+        run_id: str = "live",
+        model: str = "live",
+        agent_kind: str = "vlm",
+    ) -> None:
+        self.bench = bench if isinstance(bench, Benchmark) else Benchmark.open(bench)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ConfigError(f"render_mode must be 'rgb_array' or None, not {render_mode!r}")
+        if image_width < 1 or image_height < 1:
+            raise ConfigError(f"image size must be positive, not {image_width} x {image_height}")
+        self.render_mode = render_mode
+        self.lam = None if lam is None else float(lam)
+        if episodes is None:
+            pool = list(self.bench.tasks)
+        else:
+            pool = list(episodes)
+            unknown = [e for e in pool if e not in self.bench.tasks]
+            if unknown:
+                raise ConfigError(
+                    f"episode(s) not in {self.bench.tasks_path}: {', '.join(map(repr, unknown))}"
+                )
+        if not pool:
+            raise ConfigError(f"{self.bench.tasks_path}: no episode to play")
+        self.episode_pool: tuple[str, ...] = tuple(pool)
+        self.observation_space = observation_space(image_width, image_height)
+        self.action_space = action_space()
+        source = default_image_source(self.bench.root) if image_source is None else image_source
+        self._images = ViewImages(source, image_width, image_height)
+        self._head = (run_id, model, agent_kind)
+        self.session: EpisodeSession | None = None
+        """The episode being played (the same object `replay_episode` drives)."""
+        self.machine: Machine | None = None
+        self._feedback = ("", "")
+
+    # ------------------------------------------------------------------ Gymnasium API
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Start an episode: `options={"episode_id": ...}`, else a seeded choice among the
+        playable episodes of the pool."""
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(_RESET_OPTIONS))
+        if unknown:
+            raise ConfigError(
+                f"unknown reset option(s) {', '.join(unknown)}; known: {', '.join(_RESET_OPTIONS)}"
+            )
+        episode_id = options.get("episode_id")
+        if episode_id is not None:
+            self._start(str(episode_id))
+        else:
+            self._start_any()
+        self._feedback = ("", "")
+        return self._observation(), self._reset_info()
+
+    def step(
+        self, action: str | Mapping[str, Any]
+    ) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        """One agent response: the model's text, or a structured action."""
+        session = self.session
+        if session is None:
+            raise ResetNeeded("call reset() before step()")
+        if session.done:
+            raise ResetNeeded(f"the episode ended ({session.termination}); call reset()")
+        row = session.advance(log_step_of(action))
+        info = dict(zip(STEP_FIELDS, row, strict=True))
+        self._feedback = (info["feedback_text"], info["feedback_kind"])
+        termination = session.termination
+        return (
+            self._observation(),
+            float(info["completed_goals"]),
+            termination == TERMINATED,
+            termination in TRUNCATED,
+            info,
+        )
+
+    def render(self) -> np.ndarray | None:
+        """The current view (`rgb_array`), or None without a render mode."""
+        if self.render_mode is None or self.session is None:
+            return None
+        return self._image()
+
+    # ------------------------------------------------------------------ internals
+
+    def _start(self, episode_id: str) -> None:
+        entry = self.bench.tasks.get(episode_id)
+        if entry is None:
+            raise ConfigError(f"episode {episode_id!r} is not in {self.bench.tasks_path}")
+        task = entry.task
+        machine = self.bench.machine(task.device_id)
+        self.session = EpisodeSession(
+            machine,
+            task,
+            lam=episode_lambda(task, self.lam),
+            run_id=self._head[0],
+            model=self._head[1],
+            agent_kind=self._head[2],
+        )
+        self.machine = machine
+
+    def _start_any(self) -> None:
+        """Try the pool in a seeded order; tasks that cannot be played are passed over."""
+        order = self.np_random.permutation(len(self.episode_pool))
+        problems: list[str] = []
+        for index in order:
+            try:
+                self._start(self.episode_pool[int(index)])
+                return
+            except VGEError as exc:
+                problems.append(str(exc))
+        raise ConfigError(f"no playable episode in the pool (first problem: {problems[0]})")
+
+    def _image(self) -> np.ndarray:
+        assert self.session is not None and self.machine is not None
+        return self._images.array(self.machine, self.session.sim.view)
+
+    def _observation(self) -> dict[str, Any]:
+        session = self.session
+        assert session is not None and self.machine is not None
+        sim = session.sim
+        text, kind = self._feedback
+        return {
+            "episode_id": session.task.episode_id,
+            "step": len(session.rows),
+            "image": self._image(),
+            "view": sim.view,
+            "views": tuple(self.machine.views),
+            "dashboard_unlocked": int(sim.unlocked and DASHBOARD in self.machine.views),
+            "instruction": session.instruction,
+            "goal_index": session.current,
+            "n_goals": session.n_goals,
+            "feedback": text,
+            "feedback_kind": kind,
+            "budget_global_left": np.array(session.budget_global_left, dtype=np.float64),
+            "budget_local_left": np.array(session.budget_local, dtype=np.float64),
+        }
+
+    def _reset_info(self) -> dict[str, Any]:
+        session = self.session
+        assert session is not None and self.machine is not None
+        names = self.machine.states
+        return {
+            "device_id": self.machine.device_id,
+            "category": self.machine.category,
+            "lambda": session.lam,
+            "budget_global": session.budget_global,
+            "goals": [names[g] for g in session.goals],
+            "c_opt": list(session.c_opt),
+            "initial_state": names[session.setup.initial_state],
+        }
+
+
+__all__ = ["STEP_FIELDS", "DeviceEnv", "episode_lambda", "log_step_of"]

@@ -1,0 +1,29 @@
+"""Live runs: `vge run` plays agents (module callables, simulated profiles, VLMs) through `vge/Device-v0`."""
+
+from ._agents import AgentOptions, EpisodeStart, LiveAgent, Player, Reply, load_agent
+from ._harness import Counters, RunOptions, RunSummary, run_live, select_episodes
+from ._openai import ChatClient, ClientSettings, Completion
+from ._prompt import SYSTEM_PROMPT, build_messages, observation_text
+from ._rundir import FAILURES, FailureRecord
+
+__all__ = [
+    "FAILURES",
+    "SYSTEM_PROMPT",
+    "AgentOptions",
+    "ChatClient",
+    "ClientSettings",
+    "Completion",
+    "Counters",
+    "EpisodeStart",
+    "FailureRecord",
+    "LiveAgent",
+    "Player",
+    "Reply",
+    "RunOptions",
+    "RunSummary",
+    "build_messages",
+    "load_agent",
+    "observation_text",
+    "run_live",
+    "select_episodes",
+]

@@ -1,0 +1,145 @@
+"""The ReAct prompt of the `openai:MODEL` agent: the rules of the device world (the system
+message) and one user message per step.
+
+Built like the paper's appendix (output format, coordinate system, action space, constraints,
+examples), in our own words, and kept in step with the grammar the replay parses (PROTOCOL
+§2) and the simulator's rules (PROTOCOL §3).
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from PIL import Image
+
+SYSTEM_PROMPT = """\
+You operate household devices by looking at pictures of them. Each turn you get the user's \
+request, the view of the device you are looking at, and what happened after your last action. \
+You answer with one action.
+
+## 1. How to answer
+Write exactly two parts:
+Thinking: what you see in the picture, which part of the device can do what the user asks \
+(a button, a knob, a door, a lid, or a process that only needs time), and why you choose \
+your action. If the part you need is not in this view, or the device is still busy, say so \
+and choose an action that does not touch the device.
+Action: one call, written as Name(coord=[x, y], params=[...]). Leave out coord for an \
+action that needs no point.
+
+## 2. Coordinates
+Points are given on the picture you see, whatever its pixel size: x runs from 0 (left edge) \
+to 1000 (right edge), y from 0 (top edge) to 1000 (bottom edge), both as whole numbers. \
+[0, 0] is the top-left corner, [1000, 1000] the bottom-right one.
+
+## 3. Actions
+- Press(coord, params=[kind]): buttons, touch areas, switches, triggers. kind: 0 a short \
+press, 1 a long press (held more than a second), 2 a double press.
+- Rotate(coord, params=[direction, steps]): knobs, dials, keys, winders. direction: 0 \
+clockwise, 1 counter-clockwise; steps: how many notches. Either may be * when it does not \
+matter.
+- Push(coord, params=[direction]): sliding, closing, inserting. direction: 0 up, 1 down, \
+2 left, 3 right, 4 in or forward (closing a door, inserting a plug).
+- Pull(coord, params=[direction]): opening, lifting off, unplugging. direction: 0 up, 1 down, \
+2 left, 3 right, 4 out or backward (opening a door, pulling a drawer out).
+- Grasp(coord, params=[state]): handles and handheld devices. state: 0 take hold or pick \
+up, 1 let go or put down.
+- Switch_view(params=[view]): look at the device from another side. view is one of the views \
+listed for the device. Use it when what you need is not visible here.
+- Timed_wait(): let time pass while the device finishes something it is doing.
+
+## 4. Views
+The standard views are front, back, left, right, top and bottom, looked at straight on, and \
+two angled overviews, front_top and back_bottom. In an angled overview nothing can be \
+operated: only Switch_view works there. Large devices may also offer a dashboard view, a \
+close-up of the control panel. While it is listed as "dashboard (locked)" you cannot switch \
+to it by name alone. Unlock it in one of two ways:
+- Switch_view(coord=[x, y], params=[dashboard]) with the point on the control panel in the \
+current view: the dashboard unlocks and you see it at once.
+- Any other action with its point on the control panel: the dashboard unlocks, but that \
+action does nothing and the view stays as it is.
+Once unlocked, the dashboard is a view like the others; operate the panel's controls there.
+
+## 5. Rules
+Give exactly one Action per answer: a single call, never two.
+
+## 6. Examples
+Thinking: The user wants the fan faster. On the front I see a round knob marked with speed \
+levels, set to 1; level 3 is two notches clockwise. I will turn it two notches clockwise.
+Action: Rotate(coord=[512, 640], params=[0, 2])
+
+Thinking: The user wants the battery compartment opened. Nothing on this side looks like a \
+cover, and such compartments are often underneath, so I will look at the bottom.
+Action: Switch_view(params=[bottom])
+
+Thinking: The rice is still cooking and the lid is locked while it does. I have to wait \
+until it finishes.
+Action: Timed_wait()
+
+Thinking: The labels of the buttons on the panel are too small to read from here. I will \
+move closer to the panel at the top right of the picture.
+Action: Switch_view(coord=[780, 210], params=[dashboard])
+"""
+
+
+def png_data_url(image: np.ndarray) -> str:
+    """The image as a `data:image/png;base64,...` URL."""
+    buf = io.BytesIO()
+    Image.fromarray(np.asarray(image, dtype=np.uint8)).save(buf, format="PNG", compress_level=6)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def views_text(obs: Mapping[str, Any]) -> str:
+    """The views of the device, the locked dashboard marked as such."""
+    names = []
+    for view in obs["views"]:
+        if view == "dashboard" and not obs["dashboard_unlocked"]:
+            names.append("dashboard (locked)")
+        else:
+            names.append(view)
+    return ", ".join(names)
+
+
+def observation_text(obs: Mapping[str, Any], last_action: str | None) -> str:
+    """What the user message says at a step (the picture is attached beside it)."""
+    n_goals = int(obs["n_goals"])
+    lines = [f"Request: {obs['instruction']}"]
+    if n_goals > 1:
+        lines.append(f"(part {int(obs['goal_index']) + 1} of {n_goals} of the task)")
+    lines += [
+        f"Current view: {obs['view']}",
+        f"Views of this device: {views_text(obs)}",
+    ]
+    if last_action is None:
+        lines.append("This is your first action.")
+    else:
+        lines.append(f"Your last action: {last_action or '(it could not be read)'}")
+        lines.append(f"What happened: {obs['feedback']}")
+    return "\n".join(lines)
+
+
+def build_messages(
+    history: list[tuple[str, str]], current: str, image_url: str
+) -> list[dict[str, Any]]:
+    """System rules, the past turns kept (text only: what was said and answered), then the
+    current step with its picture."""
+    messages: list[dict[str, Any]] = [{"role": "system", "content": SYSTEM_PROMPT}]
+    for said, answered in history:
+        messages.append({"role": "user", "content": said})
+        messages.append({"role": "assistant", "content": answered})
+    messages.append(
+        {
+            "role": "user",
+            "content": [
+                {"type": "text", "text": current},
+                {"type": "image_url", "image_url": {"url": image_url}},
+            ],
+        }
+    )
+    return messages
+
+
+__all__ = ["SYSTEM_PROMPT", "build_messages", "observation_text", "png_data_url", "views_text"]

@@ -1,0 +1,78 @@
+"""`openai:MODEL`: a vision-language model behind an OpenAI-compatible chat API, prompted
+ReAct-style (`_prompt.py`) with the current view as a PNG and the last K steps of the
+conversation (`--history K`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import replay
+
+from ._agents import AgentOptions, EpisodeStart, Reply, history_text
+from ._openai import ChatClient
+from ._prompt import build_messages, observation_text, png_data_url
+
+
+class OpenAIAgent:
+    looks = True
+    agent_kind = "vlm"
+
+    def __init__(self, model: str, options: AgentOptions, client: ChatClient | None = None) -> None:
+        self.spec = f"openai:{model}"
+        self.model = model
+        self.history = options.history
+        self.client_settings = options.client
+        self.client = client if client is not None else ChatClient(model, options.client)
+
+    def settings(self) -> dict[str, Any]:
+        s = self.client_settings
+        out: dict[str, Any] = {
+            "agent": self.spec,
+            "history_length": history_text(self.history),
+            "base_url": s.base_url or "",
+            "request_timeout_seconds": s.timeout,
+            "retries": s.retries,
+        }
+        if s.temperature is not None:
+            out["temperature"] = s.temperature
+        if s.max_tokens is not None:
+            out["max_tokens"] = s.max_tokens
+        return out
+
+    def start(self, episode: EpisodeStart) -> _VLMPlayer:
+        return _VLMPlayer(self.client, self.history)
+
+
+class _VLMPlayer:
+    def __init__(self, client: ChatClient, history: int | None) -> None:
+        self.client = client
+        self.history = history
+        self.turns: list[tuple[str, str]] = []
+        self.last_action: str | None = None
+        self._pending: tuple[str, str] | None = None
+
+    def act(self, obs: dict[str, Any]) -> Reply:
+        said = observation_text(obs, self.last_action)
+        if self.history is None:
+            kept = self.turns
+        else:
+            kept = self.turns[len(self.turns) - self.history :] if self.history else []
+        answer = self.client.complete(build_messages(kept, said, png_data_url(obs["image"])))
+        self._pending = (said, answer.text)
+        return Reply(
+            answer.text,
+            prompt_tokens=answer.prompt_tokens,
+            completion_tokens=answer.completion_tokens,
+            latency_seconds=round(answer.latency_seconds, 3),
+            timestamp=round(answer.timestamp, 3),
+        )
+
+    def observe(self, obs: dict[str, Any], info: dict[str, Any]) -> None:
+        assert self._pending is not None
+        self.turns.append(self._pending)
+        # What the model is told it did: the call it wrote, as the grammar read it.
+        self.last_action = replay.parse_action(self._pending[1]).action_text
+        self._pending = None
+
+
+__all__ = ["OpenAIAgent"]
