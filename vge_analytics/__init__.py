@@ -9,6 +9,11 @@ Metrics (PROTOCOL §6, one registry, SQL in `vge_analytics/sql/`):
     polars_metrics(out, by=..., metrics=...)       the same numbers computed with polars
     metric_table(), registry(), get_metric(name), METRIC_NAMES, MAIN_TABLE
 
+Metrics that users define (a folder of `.sql` files in the format of the built-ins):
+    load_metrics(folder=None) -> MetricSet          default $VGE_METRICS_DIR, else built-ins
+    metrics(out, ..., metrics_dir=DIR)              also episode_terms, compare, sweep
+    rescore(out, DIR, against=None, by="run_id")    -> Rescore (values, ranks, Kendall tau-b)
+
 Error taxonomy and navigation (PROTOCOL §5):
     error_distribution(out, by, where), error_groups(out, by, where),
     switch_classes(out, by, where)
@@ -34,6 +39,7 @@ from ._browse import episode_steps, episodes, facets, goals, runs, steps, steps_
 from ._compare import Comparison, compare, mcnemar_exact
 from ._errors import (
     AnalyticsError,
+    MetricFileError,
     OutputDirError,
     QueryError,
     QueryLimitError,
@@ -45,9 +51,12 @@ from ._errors import (
     UnknownRunError,
 )
 from ._format import FORMATS, render, render_latex, render_markdown
+from ._metric_set import METRICS_DIR_ENV, MetricSet, load_metrics
 from ._metrics import episode_terms, metric_table, metrics
 from ._polars import polars_metrics
+from ._ranking import competition_ranks, kendall_tau_b
 from ._registry import MAIN_TABLE, METRIC_NAMES, Metric, get_metric, registry
+from ._rescore import Rescore, rescore
 from ._scope import DEFAULT_BY, groupable_columns
 from ._sql import sql
 from ._store import clear_cache, open_store, table_columns
@@ -71,14 +80,18 @@ __all__ = [
     "FORMATS",
     "MAIN_TABLE",
     "METRIC_NAMES",
+    "METRICS_DIR_ENV",
     "SWITCH_CLASSES",
     "AnalyticsError",
     "Comparison",
     "Metric",
+    "MetricFileError",
+    "MetricSet",
     "OutputDirError",
     "QueryError",
     "QueryLimitError",
     "QueryRefused",
+    "Rescore",
     "SweepInputError",
     "SweepRefused",
     "UnknownColumnError",
@@ -86,6 +99,7 @@ __all__ = [
     "UnknownRunError",
     "clear_cache",
     "compare",
+    "competition_ranks",
     "episode_steps",
     "episode_terms",
     "episodes",
@@ -95,6 +109,8 @@ __all__ = [
     "get_metric",
     "goals",
     "groupable_columns",
+    "kendall_tau_b",
+    "load_metrics",
     "mcnemar_exact",
     "metric_table",
     "metrics",
@@ -105,6 +121,7 @@ __all__ = [
     "render",
     "render_latex",
     "render_markdown",
+    "rescore",
     "runs",
     "sql",
     "steps",

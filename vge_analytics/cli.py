@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "metrics",
     "errors",
     "compare",
+    "rescore",
     "sweep",
     "sql",
     "app",
