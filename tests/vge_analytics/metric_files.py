@@ -36,24 +36,14 @@ def metric_text(
     )
 
 
-SR_MULTI = metric_text(
-    "SR-multi",
-    "count(*) FILTER (WHERE success AND n_goals > 1)",
-    "count(*) FILTER (WHERE n_goals > 1)",
-    title="Success Rate on multi-goal episodes",
-    definition="Mean over the episodes with more than one goal of success, in percent.",
-)
-"""SR over the episodes with more than one goal (episodes grain)."""
+EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples" / "metrics"
+"""The metrics folder docs/METRICS.md works through (SR-multi, TIR-dashboard, PSR)."""
 
-TIR_DASHBOARD = metric_text(
-    "TIR-dashboard",
-    "count(*) FILTER (WHERE is_interaction AND hit_target AND view_before = 'dashboard')",
-    "count(*) FILTER (WHERE is_interaction AND view_before = 'dashboard')",
-    grain="steps",
-    title="Target Interaction Rate on the dashboard view",
-    definition="TIR over the interactions made in the dashboard view only.",
-)
-"""TIR over the interactions in the dashboard view (steps grain)."""
+SR_MULTI = (EXAMPLES / "sr_multi.sql").read_text(encoding="utf-8")
+"""SR over the episodes with more than one goal (episodes grain; docs/examples/metrics)."""
+
+TIR_DASHBOARD = (EXAMPLES / "tir_dashboard.sql").read_text(encoding="utf-8")
+"""TIR over the interactions in the dashboard view (steps grain; docs/examples/metrics)."""
 
 GOALS_DONE = metric_text(
     "GoalsDone",

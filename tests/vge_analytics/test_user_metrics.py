@@ -29,7 +29,7 @@ import vge_analytics as va
 from replay import ConfigError
 from vge_analytics.cli import main
 
-from .metric_files import GOALS_DONE, SR_AS_SSR, SR_MULTI, TIR_DASHBOARD, write_folder
+from .metric_files import EXAMPLES, GOALS_DONE, SR_AS_SSR, SR_MULTI, TIR_DASHBOARD, write_folder
 from .test_metrics_hand import EXPECTED
 
 HAND_VALUES = {
@@ -75,6 +75,26 @@ def test_user_metrics_equal_the_hand_values(hand_out: Path, mine: Path) -> None:
         assert _close(row["SR"], EXPECTED[row["run_id"]]["SSR"])
         assert _close(row["SSR"], EXPECTED[row["run_id"]]["SSR"])
         assert _close(row["EIR"], EXPECTED[row["run_id"]]["EIR"])
+
+
+def test_the_documented_examples(hand_out: Path, sample_out: Path) -> None:
+    # docs/examples/metrics: SR-multi and TIR-dashboard (above), and PSR over the goals
+    # reached. Every goal of the hand runs became current (an episode stops at the goal it
+    # fails, its last), so there the corrected PSR equals the built-in one: 5/13 and 3/8.
+    examples = va.load_metrics(EXAMPLES)
+    assert examples.names == (*va.METRIC_NAMES, "SR-multi", "TIR-dashboard")
+    changed = {m.name: examples.origin(m.name) for m in examples if examples.origin(m.name) != "built-in"}
+    assert changed == {"PSR": "override", "SR-multi": "added", "TIR-dashboard": "added"}
+    df = va.metrics(hand_out, metrics=["SR-multi", "TIR-dashboard", "PSR"], metrics_dir=EXAMPLES)
+    for row in df.iter_rows(named=True):
+        for name in ("SR-multi", "TIR-dashboard"):
+            assert _close(row[name], HAND_VALUES[row["run_id"]][name])
+        assert _close(row["PSR"], EXPECTED[row["run_id"]]["PSR"])
+    # On the bundled sample, episodes stop before their later goals: the corrected PSR is
+    # higher for every run (fewer goals in the denominator, the same perfect ones above it).
+    before = va.metrics(sample_out, metrics="PSR")["PSR"].to_list()
+    after = va.metrics(sample_out, metrics="PSR", metrics_dir=EXAMPLES)["PSR"].to_list()
+    assert all(a > b for a, b in zip(after, before, strict=True) if b)
 
 
 def test_grouping_applies_to_user_metrics(hand_out: Path, mine: Path) -> None:
