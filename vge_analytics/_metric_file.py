@@ -1,19 +1,16 @@
-"""The metric file format: one `.sql` file, one metric (docs/METRICS.md, "Metric files").
+"""The metric file format: one `.sql` file, one metric (docs/METRICS.md, "The file format").
 
 The built-in metrics (`vge_analytics/sql/*.sql`) and the files of a user's metrics folder
-(`--metrics-dir`) are read by this one parser, with the same rules::
+(`--metrics-dir`) are read by this one parser, with the same rules. A file::
 
-    -- metric: SR-multi                      header: `-- key: value` lines
+    -- metric: SR-multi
     -- title: Success Rate on multi-goal episodes
-    -- direction: higher                     higher | lower (which way is better)
-    -- unit: percent                         percent (x 100) | ratio | distance
-    -- grain: episodes                       episodes | steps | goals (the rows aggregated)
-    -- version: 1                            a whole number >= 1
-    -- definition: Mean over the episodes with more than one goal of success, in percent;
-    --   a continuation line starts with `--` and two or more spaces.
-    -- level: episode-mean                   optional: episode-mean | step-ratio |
-    --                                         run-level ratio | goal-ratio
-    -- null: null when no episode has more than one goal.      optional
+    -- direction: higher
+    -- unit: percent
+    -- grain: episodes
+    -- version: 1
+    -- definition: Mean over the episodes with more than one goal of success, in
+    --   percent.
 
     -- numerator
     count(*) FILTER (WHERE success AND n_goals > 1)
@@ -21,12 +18,15 @@ The built-in metrics (`vge_analytics/sql/*.sql`) and the files of a user's metri
     -- denominator
     count(*) FILTER (WHERE n_goals > 1)
 
-In the header, a line `-- word: ...` must be one of the keys above (a misspelt key is an
-error, not a comment), a line `--` + two or more spaces + text continues the value above it
-(unless it is itself a `-- key:` line), and any other `--` line is a comment. After `-- numerator` and
-`-- denominator`, everything up to the next section is SQL (comment lines included), except a
-header line, which is an error there. Every problem is a `Problem` naming the file and the
-line; `parse_metric_file` reports all of a file's problems at once.
+Header keys (`HEADER_KEYS`): `metric` (a `NAME`), `title`, `direction` (`DIRECTIONS`),
+`unit` (`UNITS`), `grain` (`GRAINS`), `version` (a whole number >= 1) and `definition` are
+required; `level` (`LEVELS`) and `null` are optional. In the header, a line `-- word: ...`
+must use one of these keys (a misspelt key is an error, not a comment), a line `--` + two or
+more spaces + text continues the value above it (unless it is itself a `-- key:` line), and
+any other `--` line is a comment. After `-- numerator` and `-- denominator`, everything up to
+the next section is SQL (comment lines included), except a header line, which is an error
+there. Every problem is a `Problem` naming the file and the line; `parse_metric_file`
+reports all of a file's problems at once.
 
 Whether the SQL binds (columns exist, it is one aggregate giving numbers) is checked
 separately (`_metric_check`), against the schema of the tables.

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import polars as pl
 
-from ._errors import ConfigError
+from ._errors import ConfigError, UnknownMetricError
 from ._metric_set import MetricSet, MetricsSource, default_folder, metric_set, same_definition
 from ._metrics import metrics as compute_metrics
 from ._ranking import competition_ranks, kendall_tau_b
@@ -137,6 +137,24 @@ def _column(frame: pl.DataFrame, keys: pl.DataFrame, by: tuple[str, ...], name: 
     return joined["__v"].to_list()
 
 
+def _chosen(changes: list[MetricChange], names: str | Sequence[str] | None) -> list[MetricChange]:
+    """The changes of the metrics named (all when None); a name the folder does not change
+    is an error that lists those it does."""
+    if names is None:
+        return changes
+    if isinstance(names, str):
+        names = [n.strip() for n in names.split(",") if n.strip()]
+    by_name = {c.name: c for c in changes}
+    unknown = [n for n in names if n not in by_name]
+    if unknown or not names:
+        changed = ", ".join(by_name) or "none"
+        raise UnknownMetricError(
+            f"the metrics folder does not change {', '.join(map(repr, unknown)) or 'them'}; "
+            f"the metrics it changes or adds: {changed}"
+        )
+    return [by_name[n] for n in dict.fromkeys(names)]
+
+
 _ROW_SCHEMA = {
     "before": pl.Float64,
     "after": pl.Float64,
@@ -161,17 +179,21 @@ def rescore(
     against: MetricsSource = None,
     by: GroupBy = DEFAULT_RESCORE_BY,
     where: Filters = None,
+    metrics: str | Sequence[str] | None = None,
 ) -> Rescore:
     """What the metrics of `metrics_dir` (default `$VGE_METRICS_DIR`) change, per group of
     `by` (default per run), relative to the built-ins, or to the metrics of `against`
-    (another folder, or a `MetricSet`). See the module docstring."""
+    (another folder, or a `MetricSet`). `metrics`: only these of the changed metrics
+    (default: all of them). See the module docstring."""
     store = open_store(out)
     if metrics_dir is None and default_folder() is None:
         raise ConfigError("rescore needs a metrics folder: --metrics-dir DIR (or $VGE_METRICS_DIR)")
     after_set = metric_set(metrics_dir)
     before_set = MetricSet.builtin() if against is None else metric_set(against)
     by_cols = parse_by(by)
-    changes = metric_changes(after_set, before_set)
+    if not by_cols:
+        raise ConfigError("rescore ranks groups: --by needs at least one column (e.g. run_id)")
+    changes = _chosen(metric_changes(after_set, before_set), metrics)
     before = _values(
         store, by_cols, where, [c.name for c in changes if c.before is not None], before_set
     )

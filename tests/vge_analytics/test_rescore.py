@@ -257,3 +257,22 @@ def test_bad_folder_stops_rescore(capsys, hand_out: Path, tmp_path: Path) -> Non
         str(tmp_path / "nowhere"),
     )  # fmt: skip
     assert code == 1
+
+
+def test_some_metrics_and_step_groups(hand_out: Path, capsys) -> None:
+    from .metric_files import EXAMPLES
+
+    # A steps-only column groups a steps metric: pick it with --metrics.
+    result = va.rescore(hand_out, EXAMPLES, by="run_id,action_type", metrics="TIR-dashboard")
+    assert result.summary["metric"].to_list() == ["TIR-dashboard"]
+    ranked = result.rows.filter(pl.col("rank_after").is_not_null())
+    # oven: the dashboard interactions are presses (a 7, b 8, c 4, d 5, d 6, d 7: all on a
+    # target but d 5, 5 of 6) and one push (b 7, on a target).
+    assert ranked.select("action_type", "after", "rank_after").rows() == [
+        ("push", 100.0, 1),
+        ("press", pytest.approx(100 * 5 / 6), 2),
+    ]
+    with pytest.raises(va.UnknownMetricError, match="does not change 'SR'; .*: PSR, SR-multi"):
+        va.rescore(hand_out, EXAMPLES, metrics=["SR"])
+    code, _, err = run(capsys, "rescore", str(hand_out), "--metrics-dir", str(EXAMPLES), "--by", "")
+    assert code == 1 and "--by needs at least one column" in err

@@ -30,6 +30,11 @@ def rescore(
         "--by",
         help="Rank these groups (comma-separated columns, as vge metrics --by); default: runs.",
     ),
+    metric_names: str = typer.Option(
+        None,
+        "--metrics",
+        help="Only these of the metrics the folder changes or adds (comma-separated).",
+    ),
     where: list[str] = typer.Option(
         None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable)."
     ),
@@ -57,6 +62,7 @@ def rescore(
         against=against,
         by=parse_by(by),
         where=parse_where(where),
+        metrics=metric_names,
     )
     if not result.changes:
         typer.echo("The metrics folder changes no metric: nothing to report.", err=True)
