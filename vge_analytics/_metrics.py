@@ -14,8 +14,7 @@ from collections.abc import Sequence
 import duckdb
 import polars as pl
 
-from ._errors import QueryError, QueryLimitError, UnknownColumnError
-from ._limits import CLI_TIMEOUT
+from ._errors import QueryError, UnknownColumnError
 from ._metric_set import MetricSet, MetricsSource, metric_set
 from ._registry import Metric
 from ._scope import (
@@ -28,7 +27,7 @@ from ._scope import (
     parse_by,
     run_keys_scope,
 )
-from ._sql import Deadline, check_read_only
+from ._sql import check_read_only
 from ._store import Store, open_store, quote_ident
 
 MetricNames = str | Sequence[str] | None
@@ -138,26 +137,18 @@ def compose(
     return sql, params
 
 
-def run_query(
-    store: Store, sql: str, params: Sequence[object], *, timeout: float | None = CLI_TIMEOUT
-) -> pl.DataFrame:
-    """Run one of the analytics' queries: one read-only statement (checked, as `vge sql`
-    checks a user's: metric expressions come from files), stopped after `timeout` seconds."""
+def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
+    """Run one of the analytics' queries on the store's locked-down connection (files outside
+    OUT unreadable, settings final). It must be one read-only statement, checked as `vge
+    sql` checks a user's: the metric expressions in it may come from a user's files."""
     check_read_only(sql)
     cursor = store.cursor()
-    deadline = Deadline(cursor, timeout)
     try:
         return cursor.sql(sql, params=list(params)).pl()
     except duckdb.Error as exc:
-        if deadline.fired.is_set():
-            raise QueryLimitError(
-                f"{store.out}: the query ran past its time limit of {timeout:g} s and was stopped",
-                limit="time",
-            ) from None
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise QueryError(f"{store.out}: query failed: {first}") from None
     finally:
-        deadline.cancel()
         cursor.close()
 
 

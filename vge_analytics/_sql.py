@@ -74,7 +74,7 @@ def check_read_only(query: str) -> str:
     return query
 
 
-class Deadline:
+class _Deadline:
     """Interrupts a cursor's query after `seconds` (None: never); remembers that it did."""
 
     def __init__(self, cursor: duckdb.DuckDBPyConnection, seconds: float | None) -> None:
@@ -96,7 +96,7 @@ class Deadline:
 
 
 def _limit_error(
-    exc: BaseException, store: Store, limits: SqlLimits, deadline: Deadline
+    exc: BaseException, store: Store, limits: SqlLimits, deadline: _Deadline
 ) -> Exception:
     """The one-line error for a failure while a query ran or its result was read.
 
@@ -191,7 +191,7 @@ def stream(
     check_read_only(query)
     store = open_store(out, limits)
     cursor = store.cursor()
-    deadline = Deadline(cursor, limits.timeout)
+    deadline = _Deadline(cursor, limits.timeout)
 
     def fail(exc: BaseException) -> Exception:
         return _limit_error(exc, store, limits, deadline)
@@ -273,13 +273,4 @@ def sql_head(
         return SqlHead(frame=result.frame(kept), truncated=truncated)
 
 
-__all__ = [
-    "BATCH_ROWS",
-    "Batches",
-    "Deadline",
-    "SqlHead",
-    "check_read_only",
-    "sql",
-    "sql_head",
-    "stream",
-]
+__all__ = ["BATCH_ROWS", "Batches", "SqlHead", "check_read_only", "sql", "sql_head", "stream"]

@@ -86,7 +86,7 @@ def test_metrics_dir_is_checked_then_passed_on(tiny_out, metrics_folder, tmp_pat
     # A problem in a metric file stops `vge app` with its line, before any server starts.
     assert main(["app", str(tiny_out), "--metrics-dir", str(tmp_path)]) == 1
     err = capsys.readouterr().err
-    assert err == f"error: {tmp_path}/x.sql:5: unknown grain 'runs' (one of: episodes, steps, goals)\n"
+    assert err == f"error: {tmp_path}/x.sql:6: unknown grain 'runs' (one of: episodes, steps, goals)\n"
 
 
 def test_metrics_dir_precedence(monkeypatch):
