@@ -37,7 +37,8 @@ def _schema_connection() -> duckdb.DuckDBPyConnection:
     """An in-memory DuckDB with empty `steps`, `episodes`, `goals` tables (made once)."""
     with _lock:
         if not _connection:
-            con = duckdb.connect(":memory:")
+            # Binding needs no worker threads and no memory to speak of.
+            con = duckdb.connect(":memory:", config={"threads": 1, "memory_limit": "64MB"})
             for table in replay.TABLE_ROWS:  # steps, episodes, goals
                 empty = replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
                 _empty.append(empty)
@@ -85,15 +86,15 @@ def check_expression(metric: Metric, part: str) -> Problem | None:
         return Problem(metric.source, line, f"the {part} {message}")
 
     query = bind_query(metric.grain, expression)
-    try:
-        statements = duckdb.extract_statements(query)
-    except duckdb.Error as exc:
-        message, line = _first_lines(exc)
-        return problem(f"is not valid SQL: {message}", line)
-    if len(statements) != 1:
-        return problem("must be one SQL expression (it holds a ';')")
     cursor = _schema_connection()
     try:
+        try:
+            statements = cursor.extract_statements(query)
+        except duckdb.Error as exc:
+            message, line = _first_lines(exc)
+            return problem(f"is not valid SQL: {message}", line)
+        if len(statements) != 1:
+            return problem("must be one SQL expression (it holds a ';')")
         relation = cursor.sql(query)
         columns, types = relation.columns, [str(t) for t in relation.types]
     except duckdb.Error as exc:

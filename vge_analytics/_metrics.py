@@ -141,9 +141,9 @@ def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
     """Run one of the analytics' queries on the store's locked-down connection (files outside
     OUT unreadable, settings final). It must be one read-only statement, checked as `vge
     sql` checks a user's: the metric expressions in it may come from a user's files."""
-    check_read_only(sql)
     cursor = store.cursor()
     try:
+        check_read_only(sql, cursor)
         return cursor.sql(sql, params=list(params)).pl()
     except duckdb.Error as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__

@@ -74,7 +74,8 @@ def metrics(
     metric_names: str = typer.Option(
         None,
         "--metrics",
-        help="Metrics to show, comma-separated (default: all twelve, in the paper's order); "
+        help="Metrics to show, comma-separated (default: all twelve, in the paper's order, "
+        "then those --metrics-dir adds); "
         "'main' = the paper's Table 2 (SR SSR SPL State-F1 EIR TIR VSPS GVPE EER).",
     ),
     where: list[str] = typer.Option(
