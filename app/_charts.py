@@ -236,6 +236,23 @@ def sweep_lines(gain: pl.DataFrame, y_title: str):
     )
 
 
+def rank_slopes(slopes: pl.DataFrame, metric: str):
+    """A metric's ranks before and after a rescore, one line per group (columns: group,
+    ranking, rank, value); rank 1 at the top, tall enough for the legend of every group."""
+    height = max(240, 22 * slopes["group"].n_unique())
+    return (
+        alt.Chart(slopes.to_pandas(), title=f"{metric}: rank before → after")
+        .mark_line(point=True)
+        .encode(
+            x=alt.X("ranking:N", sort=["before", "after"], title=None),
+            y=alt.Y("rank:Q", scale=alt.Scale(reverse=True, zero=False), title="rank (1 = best)"),
+            color=alt.Color("group:N", title=None),
+            tooltip=["group", "ranking", "rank", alt.Tooltip("value:Q", format=".2f")],
+        )
+        .properties(height=height, width=360)
+    )
+
+
 def diff_forest(cmp: pl.DataFrame, label_a: str, label_b: str):
     """Per metric, B - A with its 95% bootstrap interval (columns: metric, direction, unit,
     diff, ci_low, ci_high); the dot is green where B is better (by the metric's direction),

@@ -2,7 +2,9 @@
 
 Every number a page shows comes from `call(name, ...)`: one function of the analytics API
 (`API` below), run through `st.cache_data` with the OUT path and `out_version(OUT)` (the hash
-of OUT's manifest) in the key, so a re-replay of OUT invalidates the cache.
+of OUT's manifest) in the key, so a re-replay of OUT invalidates the cache. The functions
+that compute metrics (`METRIC_API`) also get the app's metrics folder (`--metrics-dir`, else
+`$VGE_METRICS_DIR`), with the fingerprint of its definitions in the key.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import streamlit as st
 import vge_analytics as va
 from vge_analytics import dashboard as dash
 from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits
+from vge_analytics._metric_set import default_folder
 
 API: dict[str, Callable[..., Any]] = {
     "metrics": va.metrics,
@@ -45,8 +48,12 @@ API: dict[str, Callable[..., Any]] = {
     "table_columns": dash.table_columns_frame,
     "sweep_size": dash.sweep_size,
     "computed_sweep": dash.computed_sweep,
+    "rescore": va.rescore,
 }
 """The functions pages may call, by name: first argument OUT, the rest as given."""
+
+METRIC_API: frozenset[str] = frozenset({"metrics", "compare", "computed_sweep", "rescore"})
+"""The functions of `API` that take `metrics_dir` (given the app's folder by `call`)."""
 
 PAGES: dict[str, str] = {
     "leaderboard": "views/leaderboard.py",
@@ -55,6 +62,7 @@ PAGES: dict[str, str] = {
     "grounding": "views/grounding.py",
     "budgets": "views/budgets.py",
     "human_vs_vlm": "views/human_vs_vlm.py",
+    "rescore": "views/rescore.py",
     "episode_viewer": "views/episode_viewer.py",
     "sql": "views/sql.py",
 }
@@ -94,9 +102,26 @@ def _cached(name: str, out: str, version: str, args: tuple, kwargs: dict) -> Any
 
 
 def call(name: str, *args: Any, **kwargs: Any) -> Any:
-    """`API[name](OUT, *args, **kwargs)`, cached per (OUT, manifest hash, arguments)."""
+    """`API[name](OUT, *args, **kwargs)`, cached per (OUT, manifest hash, arguments); the
+    metric functions also get `metrics_dir` (the app's folder, see `metrics_dir`)."""
     out = out_dir()
-    return _cached(name, str(out), dash.out_version(out), args, kwargs)
+    version = dash.out_version(out)
+    if name in METRIC_API:
+        kwargs = {**kwargs, "metrics_dir": metrics_dir()}
+        version += "/" + metric_set().fingerprint
+    return _cached(name, str(out), version, args, kwargs)
+
+
+def metrics_dir(argv: Sequence[str] | None = None) -> str | None:
+    """The metrics folder: `--metrics-dir` among the script arguments (what `vge app
+    --metrics-dir` passes), else `$VGE_METRICS_DIR`, else None (the built-in metrics)."""
+    return script_option("metrics-dir", argv) or default_folder()
+
+
+def metric_set() -> va.MetricSet:
+    """The metrics every page shows: the built-ins with the app's folder (read once per
+    process, again when a file of the folder changes)."""
+    return va.load_metrics(metrics_dir())
 
 
 def show_error(exc: Exception) -> None:
@@ -141,6 +166,12 @@ def sidebar() -> bool:
         st.sidebar.error("No usable replay output")
         show_error(exc)
         return False
+    try:
+        metrics = metric_set()
+    except va.MetricFileError as exc:
+        st.sidebar.error("Unusable metrics folder")
+        show_error(exc)
+        return False
     with st.sidebar:
         st.caption(f"**OUT** `{out}`")
         st.caption(
@@ -148,6 +179,8 @@ def sidebar() -> bool:
             f"engine {summary.engine_version}"
             + (f" · {summary.quarantined} quarantined" if summary.quarantined else "")
         )
+        if metrics.folder is not None:
+            st.caption(f"**Metrics** built-in + `{metrics.folder}`")
         useful = {c: v for c, v in facets.items() if len(v) > 1}
         if useful:
             st.markdown("**Run facets** (filter every page)")
@@ -252,19 +285,21 @@ def table_height(df: pl.DataFrame) -> int:
 
 
 def metric_column_config(names: Sequence[str]) -> dict[str, Any]:
-    """Column formats for metric columns: 2 decimals, header with the paper's arrow."""
-    config: dict[str, Any] = {}
-    for name in names:
-        m = va.get_metric(name)
-        config[name] = st.column_config.NumberColumn(
-            f"{name} {m.arrow}", format="%.2f", help=f"{m.title}: {m.definition}"
+    """Column formats for metric columns: 2 decimals, header with the paper's arrow (and ✎
+    or ＋ for a metric the metrics folder overrides or adds), the definition on hover."""
+    metrics = metric_set()
+    headers = dash.metric_headers(names, metrics)
+    return {
+        name: st.column_config.NumberColumn(
+            headers[name], format="%.2f", help=dash.metric_help(name, metrics)
         )
-    return config
+        for name in names
+    }
 
 
 def best_styler(df: pl.DataFrame, metric_names: Sequence[str]) -> Any:
     """A pandas Styler of `df` with each metric's best value(s) in bold on green."""
-    best = dash.best_rows(df, metric_names)
+    best = dash.best_rows(df, metric_names, metric_set())
     pdf = df.to_pandas()
 
     def style(column: pd.Series) -> list[str]:
@@ -279,7 +314,8 @@ def best_styler(df: pl.DataFrame, metric_names: Sequence[str]) -> Any:
 
 
 def all_metrics() -> tuple[str, ...]:
-    return va.METRIC_NAMES
+    """Every metric the pages show: the built-ins, then those the metrics folder adds."""
+    return metric_set().names
 
 
 # ----------------------------------------------------------------------------- steps

@@ -9,6 +9,11 @@ Metrics (PROTOCOL §6, one registry, SQL in `vge_analytics/sql/`):
     polars_metrics(out, by=..., metrics=...)       the same numbers computed with polars
     metric_table(), registry(), get_metric(name), METRIC_NAMES, MAIN_TABLE
 
+Metrics that users define (a folder of `.sql` files in the format of the built-ins):
+    load_metrics(folder=None) -> MetricSet          default $VGE_METRICS_DIR, else built-ins
+    metrics(out, ..., metrics_dir=DIR)              also episode_terms, compare, sweep
+    rescore(out, DIR, against=None, by="run_id")    -> Rescore (values, ranks, Kendall tau-b)
+
 Error taxonomy and navigation (PROTOCOL §5):
     error_distribution(out, by, where), error_groups(out, by, where),
     switch_classes(out, by, where)
@@ -39,6 +44,7 @@ from ._errors import (
     AgentError,
     AnalyticsError,
     InfrastructureError,
+    MetricFileError,
     OutputDirError,
     QueryError,
     QueryLimitError,
@@ -51,9 +57,12 @@ from ._errors import (
     UnknownRunError,
 )
 from ._format import FORMATS, render, render_latex, render_markdown
+from ._metric_set import METRICS_DIR_ENV, MetricSet, load_metrics
 from ._metrics import episode_terms, metric_table, metrics
 from ._polars import polars_metrics
+from ._ranking import competition_ranks, kendall_tau_b
 from ._registry import MAIN_TABLE, METRIC_NAMES, Metric, get_metric, registry
+from ._rescore import Rescore, rescore
 from ._scope import DEFAULT_BY, groupable_columns
 from ._sql import sql
 from ._store import clear_cache, open_store, table_columns
@@ -77,17 +86,21 @@ __all__ = [
     "FORMATS",
     "MAIN_TABLE",
     "METRIC_NAMES",
+    "METRICS_DIR_ENV",
     "SWITCH_CLASSES",
     "AgentError",
     "AnalyticsError",
     "Comparison",
     "Metric",
     "InfrastructureError",
+    "MetricFileError",
+    "MetricSet",
     "OutputDirError",
     "QueryError",
     "QueryLimitError",
     "QueryRefused",
     "RunDirError",
+    "Rescore",
     "SweepInputError",
     "SweepRefused",
     "UnknownColumnError",
@@ -95,6 +108,7 @@ __all__ = [
     "UnknownRunError",
     "clear_cache",
     "compare",
+    "competition_ranks",
     "episode_steps",
     "episode_terms",
     "episodes",
@@ -104,6 +118,8 @@ __all__ = [
     "get_metric",
     "goals",
     "groupable_columns",
+    "kendall_tau_b",
+    "load_metrics",
     "mcnemar_exact",
     "metric_table",
     "metrics",
@@ -114,6 +130,7 @@ __all__ = [
     "render",
     "render_latex",
     "render_markdown",
+    "rescore",
     "runs",
     "sql",
     "steps",

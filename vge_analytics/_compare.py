@@ -24,8 +24,8 @@ import numpy as np
 import polars as pl
 
 from ._errors import AnalyticsError, UnknownRunError
+from ._metric_set import MetricsSource, metric_set
 from ._metrics import episode_terms, run_query
-from ._registry import resolve_metrics
 from ._store import open_store
 from ._taxonomy import ERROR_LABELS, error_distribution
 
@@ -113,8 +113,12 @@ def compare(
     metrics: str | list[str] | None = None,
     seed: int = DEFAULT_SEED,
     resamples: int = DEFAULT_RESAMPLES,
+    metrics_dir: MetricsSource = None,
 ) -> Comparison:
-    """Compare run B with run A on their common episodes (see the module docstring)."""
+    """Compare run B with run A on their common episodes (see the module docstring).
+
+    `metrics_dir`: a metrics folder (or `MetricSet`) whose metrics are compared; default
+    `$VGE_METRICS_DIR`, else the built-ins."""
     store = open_store(out)
     if resamples < 1:
         raise AnalyticsError(f"resamples must be at least 1, not {resamples}")
@@ -124,7 +128,8 @@ def compare(
             raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
     if run_a == run_b:
         raise AnalyticsError(f"compare needs two different runs, got {run_a!r} twice")
-    chosen = resolve_metrics(metrics)
+    available = metric_set(metrics_dir)
+    chosen = available.resolve(metrics)
 
     eps = run_query(
         store,
@@ -142,7 +147,9 @@ def compare(
     model_b = str(b_eps["model"][0])
 
     # ---- metrics with paired bootstrap CIs
-    terms = episode_terms(store, [m.name for m in chosen], where={"run_id": [run_a, run_b]})
+    terms = episode_terms(
+        store, [m.name for m in chosen], where={"run_id": [run_a, run_b]}, metrics_dir=available
+    )
     frame = pl.DataFrame({"episode_id": common})
     aligned = {}
     for run in (run_a, run_b):

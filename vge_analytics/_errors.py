@@ -20,6 +20,22 @@ class UnknownMetricError(ConfigError, AnalyticsError):
     """A metric name that is not in the registry."""
 
 
+class MetricFileError(ConfigError, AnalyticsError):
+    """A metrics folder (`--metrics-dir`) that cannot be used: every problem of every file,
+    each on one line naming the file and the line (`path:line: what is wrong`)."""
+
+    def __init__(self, problems: list[str], folder: str | None = None) -> None:
+        self.problems = list(problems)
+        """One line per problem, `path:line: message` (or `path: message` for the folder)."""
+        if len(self.problems) == 1:
+            message = self.problems[0]
+        else:
+            where = f" of {folder}" if folder else ""
+            lines = "\n".join(f"  {p}" for p in self.problems)
+            message = f"{len(self.problems)} problems in the metric files{where}:\n{lines}"
+        super().__init__(message)
+
+
 class UnknownColumnError(ConfigError, AnalyticsError):
     """A grouping or filter column that is not a (usable) column of the tables."""
 
@@ -71,6 +87,7 @@ __all__ = [
     "AgentError",
     "AnalyticsError",
     "InfrastructureError",
+    "MetricFileError",
     "OutputDirError",
     "QueryError",
     "QueryLimitError",

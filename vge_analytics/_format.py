@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import polars as pl
 
 from ._errors import AnalyticsError
-from ._registry import Metric, registry
+from ._metric_set import MetricSet
+from ._registry import Metric
 
 FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown", "latex")
 
@@ -75,14 +76,19 @@ def rank_marks(df: pl.DataFrame, metrics: Sequence[Metric]) -> Marks:
 _FIXED_COLUMNS = {"A", "B", "diff", "ci_low", "ci_high", "share", "share_a", "share_b", "diff_pp"}
 
 
-def _fixed(column: str) -> bool:
+def _fixed(column: str, reg: Mapping[str, Metric]) -> bool:
     """Columns shown with a fixed number of decimals (metric values and their relatives)."""
     return (
-        column in registry()
+        column in reg
         or column in _FIXED_COLUMNS
         or column.endswith(("_gain", "_rel_gain"))
-        or column.startswith(tuple(f"{m}_" for m in registry()))
+        or column.startswith(tuple(f"{m}_" for m in reg))
     )
+
+
+def _registry(metric_set: MetricSet | None) -> Mapping[str, Metric]:
+    """The metrics whose columns get arrows and marks (default: the built-ins)."""
+    return (metric_set or MetricSet.builtin()).metrics
 
 
 def _fmt_number(value: object, decimals: int | None = 2) -> str:
@@ -154,8 +160,7 @@ def stream_chunks(frames: Iterable[pl.DataFrame], fmt: str) -> Iterator[str]:
     yield "\n]\n" if rows else "[]\n"
 
 
-def _metric_lookup(df: pl.DataFrame) -> list[Metric]:
-    reg = registry()
+def _metric_lookup(df: pl.DataFrame, reg: Mapping[str, Metric]) -> list[Metric]:
     return [reg[c] for c in df.columns if c in reg]
 
 
@@ -168,19 +173,26 @@ def _header(col: str, reg: Mapping[str, Metric], arrows: str) -> str:
     return f"{col} {m.arrow}"
 
 
-def _cells(df: pl.DataFrame, decimals: int, fixed: bool = False) -> list[list[str]]:
-    places = [decimals if fixed or _fixed(c) else None for c in df.columns]
+def _cells(
+    df: pl.DataFrame, decimals: int, reg: Mapping[str, Metric], fixed: bool = False
+) -> list[list[str]]:
+    places = [decimals if fixed or _fixed(c, reg) else None for c in df.columns]
     return [[_fmt_number(v, p) for v, p in zip(row, places, strict=True)] for row in df.rows()]
 
 
 def render_markdown(
-    df: pl.DataFrame, *, decimals: int = 2, marks: bool = True, fixed: bool = False
+    df: pl.DataFrame,
+    *,
+    decimals: int = 2,
+    marks: bool = True,
+    fixed: bool = False,
+    metric_set: MetricSet | None = None,
 ) -> str:
-    reg = registry()
-    metrics = _metric_lookup(df)
+    reg = _registry(metric_set)
+    metrics = _metric_lookup(df, reg)
     mk = rank_marks(df, metrics) if marks else Marks({}, {})
     headers = [_header(c, reg, "unicode") for c in df.columns]
-    cells = _cells(df, decimals, fixed)
+    cells = _cells(df, decimals, reg, fixed)
     for j, col in enumerate(df.columns):
         for i in mk.best.get(col, ()):
             cells[i][j] = f"**{cells[i][j]}**"
@@ -225,14 +237,15 @@ def render_latex(
     caption: str | None = None,
     label: str | None = None,
     fixed: bool = False,
+    metric_set: MetricSet | None = None,
 ) -> str:
     """A booktabs table shaped like the paper's Table 2 (grouped metric headers)."""
-    reg = registry()
-    metrics = _metric_lookup(df)
+    reg = _registry(metric_set)
+    metrics = _metric_lookup(df, reg)
     metric_cols = [m.name for m in metrics]
     key_cols = [c for c in df.columns if c not in reg]
     mk = rank_marks(df, metrics) if marks else Marks({}, {})
-    cells = _cells(df, decimals, fixed)
+    cells = _cells(df, decimals, reg, fixed)
     for j, col in enumerate(df.columns):
         for i in range(len(cells)):
             if col not in reg:
@@ -291,18 +304,19 @@ def render_rich(
     decimals: int = 2,
     marks: bool = True,
     fixed: bool = False,
+    metric_set: MetricSet | None = None,
 ):
     """A rich Table (best bold, second underlined, arrows in metric headers)."""
     from rich.table import Table
 
-    reg = registry()
-    metrics = _metric_lookup(df)
+    reg = _registry(metric_set)
+    metrics = _metric_lookup(df, reg)
     mk = rank_marks(df, metrics) if marks else Marks({}, {})
     table = Table(title=title, title_justify="left", show_lines=False)
     for c in df.columns:
         numeric = df.schema[c].is_numeric()
         table.add_column(_header(c, reg, "unicode"), justify="right" if numeric else "left")
-    cells = _cells(df, decimals, fixed)
+    cells = _cells(df, decimals, reg, fixed)
     for i, row in enumerate(cells):
         styled = []
         for j, col in enumerate(df.columns):
@@ -329,22 +343,29 @@ def render(
     title: str | None = None,
     marks: bool = True,
     caption: str | None = None,
+    metric_set: MetricSet | None = None,
 ) -> str | object:
-    """One table in a format; `table` returns a rich renderable, the others a string."""
+    """One table in a format; `table` returns a rich renderable, the others a string.
+    `metric_set`: the metrics whose columns get arrows and marks (default: the built-ins)."""
     check_format(fmt)
     if fmt == "json":
         return render_json(df)
     if fmt == "csv":
         return render_csv(df)
     if fmt == "markdown":
-        return render_markdown(df, marks=marks)
+        return render_markdown(df, marks=marks, metric_set=metric_set)
     if fmt == "latex":
-        return render_latex(df, marks=marks, caption=caption)
-    return render_rich(df, title=title, marks=marks)
+        return render_latex(df, marks=marks, caption=caption, metric_set=metric_set)
+    return render_rich(df, title=title, marks=marks, metric_set=metric_set)
 
 
 def render_sections(
-    sections: Mapping[str, pl.DataFrame], fmt: str, *, marks: bool = False, fixed: bool = False
+    sections: Mapping[str, pl.DataFrame],
+    fmt: str,
+    *,
+    marks: bool = False,
+    fixed: bool = False,
+    metric_set: MetricSet | None = None,
 ) -> list[str | object]:
     """Several named tables in one format (see the module docstring)."""
     check_format(fmt)
@@ -352,15 +373,16 @@ def render_sections(
         doc = {name: to_records(df) for name, df in sections.items()}
         return [json.dumps(doc, indent=2, ensure_ascii=False, default=_json_default)]
     out: list[str | object] = []
+    options = {"marks": marks, "fixed": fixed, "metric_set": metric_set}
     for name, df in sections.items():
         if fmt == "csv":
             out.append(f"# {name}\n" + render_csv(df))
         elif fmt == "markdown":
-            out.append(f"### {name}\n\n" + render_markdown(df, marks=marks, fixed=fixed))
+            out.append(f"### {name}\n\n" + render_markdown(df, **options))
         elif fmt == "latex":
-            out.append(f"% {name}\n" + render_latex(df, marks=marks, fixed=fixed))
+            out.append(f"% {name}\n" + render_latex(df, **options))
         else:
-            out.append(render_rich(df, title=name, marks=marks, fixed=fixed))
+            out.append(render_rich(df, title=name, **options))
     return out
 
 

@@ -15,7 +15,8 @@ import duckdb
 import polars as pl
 
 from ._errors import QueryError, UnknownColumnError
-from ._registry import Metric, registry, resolve_metrics
+from ._metric_set import MetricSet, MetricsSource, metric_set
+from ._registry import Metric
 from ._scope import (
     Filters,
     GroupBy,
@@ -26,6 +27,7 @@ from ._scope import (
     parse_by,
     run_keys_scope,
 )
+from ._sql import check_read_only
 from ._store import Store, open_store, quote_ident
 
 MetricNames = str | Sequence[str] | None
@@ -36,14 +38,18 @@ def _term(metric: Metric, part: str) -> str:
 
 
 def _grain_query(store: Store, grain: str, metrics: list[Metric], by, where) -> tuple[str, list]:
+    # Each expression on lines of its own, as `_metric_check` binds it: a trailing `--`
+    # comment in a metric file ends with its line.
     terms = []
     for m in metrics:
-        terms.append((f"coalesce({m.numerator}, 0)", f"{m.name}:num"))
-        terms.append((f"coalesce({m.denominator}, 0)", f"{m.name}:den"))
+        terms.append((f"coalesce(\n{m.numerator}\n, 0)", f"{m.name}:num"))
+        terms.append((f"coalesce(\n{m.denominator}\n, 0)", f"{m.name}:den"))
     return grouped_aggregate(store, grain, by, where, terms)
 
 
-def _check_grains(store: Store, columns: Sequence[str], metrics: list[Metric]) -> None:
+def _check_grains(
+    store: Store, columns: Sequence[str], metrics: list[Metric], available: MetricSet
+) -> None:
     """A steps- or goals-only column can group only the metrics computed from that table."""
     for col in columns:
         if store.has_column("episodes", col) or store.has_column("runs", col):
@@ -53,7 +59,7 @@ def _check_grains(store: Store, columns: Sequence[str], metrics: list[Metric]) -
             continue  # unknown everywhere: check_columns says so
         blocked = [m.name for m in metrics if m.grain not in tables]
         if blocked:
-            usable = [m.name for m in registry().values() if m.grain in tables]
+            usable = [m.name for m in available if m.grain in tables]
             raise UnknownColumnError(
                 f"column {col!r} belongs to {' and '.join(tables)}, so it can only group or "
                 f"filter metrics computed from there ({', '.join(usable)}), not "
@@ -68,14 +74,21 @@ def compose(
     where: Filters = None,
     *,
     terms: bool = False,
+    available: MetricSet | None = None,
 ) -> tuple[str, list]:
     """The SQL text and bound parameters computing `metrics` per group of `by`.
 
     With `terms=True` the result holds each metric's numerator and denominator
-    (`"<name>:num"`, `"<name>:den"`) instead of its value.
+    (`"<name>:num"`, `"<name>:den"`) instead of its value. `available`: the set `metrics`
+    come from (named in messages; default the built-ins).
     """
     grains = [g for g in ("episodes", "steps", "goals") if any(m.grain == g for m in metrics)]
-    _check_grains(store, [*by, *(where or {})], metrics)
+    clash = [m.name for m in metrics if m.name in by]
+    if clash:
+        raise UnknownColumnError(
+            f"metric {clash[0]!r} has the name of a grouping column; group by other columns"
+        )
+    _check_grains(store, [*by, *(where or {})], metrics, available or MetricSet.builtin())
     check_columns(store, [*by, *(where or {})], grains, "grouping/filter")
     ctes: list[str] = []
     params: list[object] = []
@@ -125,11 +138,18 @@ def compose(
 
 
 def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
+    """Run one of the analytics' queries on the store's locked-down connection (files outside
+    OUT unreadable, settings final). It must be one read-only statement, checked as `vge
+    sql` checks a user's: the metric expressions in it may come from a user's files."""
+    cursor = store.cursor()
     try:
-        return store.cursor().sql(sql, params=list(params)).pl()
+        check_read_only(sql, cursor)
+        return cursor.sql(sql, params=list(params)).pl()
     except duckdb.Error as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise QueryError(f"{store.out}: query failed: {first}") from None
+    finally:
+        cursor.close()
 
 
 def metrics(
@@ -137,6 +157,8 @@ def metrics(
     by: GroupBy = None,
     metrics: MetricNames = None,
     where: Filters = None,
+    *,
+    metrics_dir: MetricsSource = None,
 ) -> pl.DataFrame:
     """PROTOCOL §6 metrics per group, as a polars DataFrame.
 
@@ -145,35 +167,49 @@ def metrics(
       category, device_id, n_goals, agent_kind, termination, `meta_<facet>`...); step columns
       (e.g. `action_type`) only with metrics computed from steps. Default: run_id, model.
       An empty list gives one row over everything.
-    - `metrics`: names as PROTOCOL §6 writes them (default: all twelve, in that order).
+    - `metrics`: names as PROTOCOL §6 writes them (default: all twelve, in that order, then
+      the metrics a metrics folder adds).
     - `where`: `{column: value or list of values}` filters (bound, never formatted).
+    - `metrics_dir`: a folder of metric files (overriding built-ins, adding metrics), or a
+      loaded `MetricSet`; default `$VGE_METRICS_DIR`, else the built-ins alone.
 
     Columns: the group columns, then one Float64 column per metric (null for an empty group).
     """
     store = open_store(out)
-    chosen = resolve_metrics(metrics if not isinstance(metrics, str) else metrics)
+    available = metric_set(metrics_dir)
+    chosen = available.resolve(metrics)
     by_cols = parse_by(by)
-    sql, params = compose(store, by_cols, chosen, where)
+    sql, params = compose(store, by_cols, chosen, where, available=available)
     df = run_query(store, sql, params)
     return df.with_columns(pl.col(m.name).cast(pl.Float64) for m in chosen)
 
 
-def episode_terms(out, metrics: MetricNames = None, where: Filters = None) -> pl.DataFrame:
+def episode_terms(
+    out,
+    metrics: MetricNames = None,
+    where: Filters = None,
+    *,
+    metrics_dir: MetricsSource = None,
+) -> pl.DataFrame:
     """Numerator and denominator of each metric per episode (run_id, episode_id).
 
     Adding the terms of any set of episodes and taking `scale * num / den` gives that set's
     pooled metric: this is what the paired bootstrap of `compare` resamples.
     """
     store = open_store(out)
-    chosen = resolve_metrics(metrics)
-    sql, params = compose(store, ("run_id", "episode_id"), chosen, where, terms=True)
+    available = metric_set(metrics_dir)
+    chosen = available.resolve(metrics)
+    sql, params = compose(
+        store, ("run_id", "episode_id"), chosen, where, terms=True, available=available
+    )
     return run_query(store, sql, params)
 
 
-def metric_table() -> pl.DataFrame:
-    """The registry as a table: name, title, direction, unit, level, grain, version, definition."""
-    from ._registry import registry
-
+def metric_table(metrics_dir: MetricsSource = None) -> pl.DataFrame:
+    """The metrics as a table: metric, title, direction, unit, level, grain, version,
+    definition, null_rule, source (the file defining it) and origin (`built-in`,
+    `override` or `added`)."""
+    available = metric_set(metrics_dir)
     rows = [
         {
             "metric": m.name,
@@ -186,8 +222,9 @@ def metric_table() -> pl.DataFrame:
             "definition": m.definition,
             "null_rule": m.null_rule,
             "source": m.source,
+            "origin": available.origin(m.name),
         }
-        for m in registry().values()
+        for m in available
     ]
     return pl.DataFrame(rows)
 

@@ -12,6 +12,7 @@ import typer
 from rich.console import Console
 
 from ._format import render, render_sections, stream_chunks
+from ._metric_set import MetricSet
 from ._sql import Batches
 
 FORMAT_HELP = "Output format: table (for people), json, csv, markdown or latex."
@@ -25,8 +26,15 @@ def _console() -> Console:
     return Console(highlight=False, soft_wrap=False, width=width)
 
 
-def emit(df: pl.DataFrame, fmt: str, *, title: str | None = None, marks: bool = True) -> None:
-    out = render(df, fmt, title=title, marks=marks)
+def emit(
+    df: pl.DataFrame,
+    fmt: str,
+    *,
+    title: str | None = None,
+    marks: bool = True,
+    metric_set: MetricSet | None = None,
+) -> None:
+    out = render(df, fmt, title=title, marks=marks, metric_set=metric_set)
     if isinstance(out, str):
         typer.echo(out, nl=not out.endswith("\n"))
     else:
@@ -56,11 +64,16 @@ def emit_stream(result: Batches, fmt: str) -> None:
 
 
 def emit_sections(
-    sections: Mapping[str, pl.DataFrame], fmt: str, *, marks: bool = False, fixed: bool = False
+    sections: Mapping[str, pl.DataFrame],
+    fmt: str,
+    *,
+    marks: bool = False,
+    fixed: bool = False,
+    metric_set: MetricSet | None = None,
 ) -> None:
     """Print named tables; `fixed`: every float with 2 decimals in the formats for people."""
     console = None
-    for item in render_sections(sections, fmt, marks=marks, fixed=fixed):
+    for item in render_sections(sections, fmt, marks=marks, fixed=fixed, metric_set=metric_set):
         if isinstance(item, str):
             typer.echo(item, nl=not item.endswith("\n"))
             if fmt in ("csv", "markdown", "latex"):

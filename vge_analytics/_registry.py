@@ -15,22 +15,18 @@ the pooled value of any set of episodes (add their per-episode terms). An episod
 is the special case numerator = sum of per-episode values, denominator = number of episodes.
 
 Unknown names raise `UnknownMetricError`; nothing returns None silently.
+
+This module holds the built-in metrics; the files of a user's metrics folder use the same
+format (`_metric_file`) and join them in a `MetricSet` (`_metric_set`).
 """
 
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass
 from functools import cache
 from importlib import resources
-from typing import Literal
 
 from ._errors import UnknownMetricError
-
-Direction = Literal["higher", "lower"]
-Unit = Literal["percent", "ratio", "distance"]
-Level = Literal["episode-mean", "step-ratio", "run-level ratio", "goal-ratio"]
-Grain = Literal["episodes", "steps", "goals"]
+from ._metric_file import Direction, Grain, Level, Metric, Unit, parse_metric_file
 
 METRIC_NAMES: tuple[str, ...] = (
     "SR",
@@ -66,95 +62,15 @@ _FILES = {
     "AvgWDist": "avg_wdist.sql",
 }
 
-_SCALES = {"percent": 100.0, "ratio": 1.0, "distance": 1.0}
-_HEADER = re.compile(r"^--\s*([a-z_]+):\s?(.*)$")
-_CONTINUATION = re.compile(r"^--\s{2,}(.*)$")
-_SECTION = re.compile(r"^--\s*(numerator|denominator)\s*$")
-
-
-@dataclass(frozen=True, slots=True)
-class Metric:
-    """One registered metric; `numerator`/`denominator` are SQL aggregates over `grain` rows."""
-
-    name: str
-    title: str
-    direction: Direction
-    unit: Unit
-    level: Level
-    grain: Grain
-    version: int
-    definition: str
-    null_rule: str
-    numerator: str
-    denominator: str
-    source: str
-
-    @property
-    def scale(self) -> float:
-        """100 for percentages, 1 for ratios and distances."""
-        return _SCALES[self.unit]
-
-    @property
-    def higher_is_better(self) -> bool:
-        return self.direction == "higher"
-
-    @property
-    def arrow(self) -> str:
-        """The paper's header arrow: up when higher is better."""
-        return "\u2191" if self.higher_is_better else "\u2193"
-
 
 def _parse(name: str, filename: str, text: str) -> Metric:
-    header: dict[str, str] = {}
-    sections: dict[str, list[str]] = {}
-    current_key: str | None = None
-    current_section: str | None = None
-    for raw in text.splitlines():
-        line = raw.rstrip()
-        sec = _SECTION.match(line)
-        if sec:
-            current_section = sec.group(1)
-            sections[current_section] = []
-            current_key = None
-            continue
-        if current_section is not None:
-            if line and not line.lstrip().startswith("--"):
-                sections[current_section].append(line)
-            continue
-        cont = _CONTINUATION.match(line)
-        if cont and current_key is not None:
-            header[current_key] += " " + cont.group(1).strip()
-            continue
-        head = _HEADER.match(line)
-        if head:
-            current_key = head.group(1)
-            header[current_key] = head.group(2).strip()
-            continue
-        current_key = None
     where = f"vge_analytics/sql/{filename}"
-    missing = [
-        k
-        for k in ("metric", "title", "direction", "unit", "level", "grain", "version", "definition")
-        if k not in header
-    ]
-    if missing or set(sections) != {"numerator", "denominator"}:
-        raise ValueError(f"{where}: malformed metric file (missing {missing or sections})")
-    if header["metric"] != name:
-        raise ValueError(f"{where}: declares metric {header['metric']!r}, expected {name!r}")
-    return Metric(
-        name=name,
-        title=header["title"],
-        direction=header["direction"],  # type: ignore[arg-type]
-        unit=header["unit"],  # type: ignore[arg-type]
-        level=header["level"],  # type: ignore[arg-type]
-        grain=header["grain"],  # type: ignore[arg-type]
-        version=int(header["version"]),
-        definition=header["definition"],
-        null_rule=header.get("null", ""),
-        numerator="\n".join(sections["numerator"]).strip(),
-        denominator="\n".join(sections["denominator"]).strip(),
-        source=where,
-    )
+    metric, problems = parse_metric_file(text, where)
+    if metric is None:
+        raise ValueError("; ".join(map(str, problems)))
+    if metric.name != name:
+        raise ValueError(f"{where}: declares metric {metric.name!r}, expected {name!r}")
+    return metric
 
 
 @cache
@@ -199,7 +115,11 @@ def resolve_metrics(names: str | list[str] | tuple[str, ...] | None) -> list[Met
 __all__ = [
     "MAIN_TABLE",
     "METRIC_NAMES",
+    "Direction",
+    "Grain",
+    "Level",
     "Metric",
+    "Unit",
     "get_metric",
     "registry",
     "resolve_metrics",

@@ -46,10 +46,15 @@ def _kind(statement) -> str:
     return str(statement.type).rsplit(".", 1)[-1]
 
 
-def check_read_only(query: str) -> str:
-    """The query if it is one read-only statement, else `QueryRefused` (one line)."""
+def check_read_only(query: str, con: duckdb.DuckDBPyConnection | None = None) -> str:
+    """The query if it is one read-only statement, else `QueryRefused` (one line).
+
+    `con`: the connection whose parser to use; without one, DuckDB's module-level default
+    connection is opened (a database of its own, with its threads: a long-lived process
+    that has a connection passes it)."""
+    parser = con if con is not None else duckdb
     try:
-        statements = duckdb.extract_statements(query)
+        statements = parser.extract_statements(query)
     except duckdb.Error as exc:
         raise QueryError(f"cannot parse the query: {str(exc).splitlines()[0]}") from None
     if not statements:
@@ -60,7 +65,7 @@ def check_read_only(query: str) -> str:
     if statement.type == duckdb.StatementType.EXPLAIN:
         inner = _EXPLAIN.sub("", query, count=1)
         try:
-            inner_statements = duckdb.extract_statements(inner)
+            inner_statements = parser.extract_statements(inner)
         except duckdb.Error:
             inner_statements = []
         if len(inner_statements) != 1 or inner_statements[0].type not in _ALLOWED:

@@ -39,8 +39,7 @@ PARTITIONED: tuple[str, ...] = ("steps", "episodes", "goals")
 RUN_COLUMNS_FIXED: tuple[str, ...] = ("run_id", "model", "agent_kind", "lambda")
 """Columns every runs table has (meta facets add `meta_<key>` columns and `meta`)."""
 
-_SCALAR_TYPES = (
-    "BOOLEAN",
+NUMERIC_TYPES: tuple[str, ...] = (
     "TINYINT",
     "SMALLINT",
     "INTEGER",
@@ -50,12 +49,12 @@ _SCALAR_TYPES = (
     "USMALLINT",
     "UINTEGER",
     "UBIGINT",
+    "UHUGEINT",
     "FLOAT",
     "DOUBLE",
-    "VARCHAR",
-    "DATE",
-    "TIMESTAMP",
 )
+"""DuckDB's number types (and DECIMAL(p, s))."""
+_SCALAR_TYPES = ("BOOLEAN", *NUMERIC_TYPES, "VARCHAR", "DATE", "TIMESTAMP")
 
 
 def quote_ident(name: str) -> str:
@@ -266,6 +265,7 @@ def table_columns(out: str | Path | Store) -> Mapping[str, list[str]]:
 
 
 __all__ = [
+    "NUMERIC_TYPES",
     "PARTITIONED",
     "RUN_COLUMNS_FIXED",
     "resolve_input",

@@ -47,8 +47,9 @@ import pyarrow as pa
 import replay
 
 from ._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
+from ._metric_set import MetricsSource, metric_set
 from ._metrics import compose, run_query
-from ._registry import resolve_metrics
+from ._registry import Metric
 from ._store import Store, open_store, resolve_input
 
 DEFAULT_SWEEP_METRICS: tuple[str, ...] = ("SR", "SSR")
@@ -210,7 +211,7 @@ def _replay(jobs: list[_RunJob], executor) -> pa.Table:
     return pa.concat_tables(tables) if tables else schema.empty_table()
 
 
-def _metrics_of(episodes: pa.Table, metric_names: list[str]) -> pl.DataFrame:
+def _metrics_of(episodes: pa.Table, chosen: list[Metric]) -> pl.DataFrame:
     """Registry metrics per (run_id, model, lambda) over in-memory episode rows."""
     con = duckdb.connect(":memory:")
     try:
@@ -226,7 +227,7 @@ def _metrics_of(episodes: pa.Table, metric_names: list[str]) -> pl.DataFrame:
             for t in ("steps", "episodes", "goals", "runs")
         }
         store = Store(out=Path("<sweep>"), con=con, columns=columns, manifest={})
-        sql, params = compose(store, ("run_id", "model", "lambda"), resolve_metrics(metric_names))
+        sql, params = compose(store, ("run_id", "model", "lambda"), chosen)
         return run_query(store, sql, params)
     finally:
         con.close()
@@ -240,6 +241,7 @@ def sweep(
     metrics: str | Sequence[str] | None = None,
     workers: int = 1,
     ray: str | None = None,
+    metrics_dir: MetricsSource = None,
 ) -> pl.DataFrame:
     """SR and SSR (or other episode metrics) per run and lambda, by re-replaying the logs.
 
@@ -249,15 +251,19 @@ def sweep(
     Rows sorted by run_id, lambda. Raises `SweepRefused` when a lambda is above what a run's
     logs support (see the module docstring). `workers` processes replay the batches, or the
     Ray cluster at `ray` (as `vge replay --ray`); the result does not depend on them.
+    `metrics_dir`: the metrics folder whose definitions are used (default
+    `$VGE_METRICS_DIR`, else the built-ins).
     """
     store = open_store(out)
     lams = parse_lambdas(lambdas)
-    chosen = resolve_metrics(list(metrics) if metrics else list(DEFAULT_SWEEP_METRICS))
+    available = metric_set(metrics_dir)
+    chosen = available.resolve(list(metrics) if metrics else list(DEFAULT_SWEEP_METRICS))
     not_episode = [m.name for m in chosen if m.grain != "episodes"]
     if not_episode:
+        usable = ", ".join(m.name for m in available if m.grain == "episodes")
         raise ConfigError(
             f"the sweep computes metrics from episode rows only; {', '.join(not_episode)} "
-            "need steps or goals (episode metrics: SR, SSR, SPL, State-F1, VSPS, GVPE)"
+            f"need steps or goals (episode metrics: {usable})"
         )
     jobs = _jobs(store, runs, lams)
     executor = replay.make_executor(workers, ray)
@@ -266,7 +272,7 @@ def sweep(
     finally:
         executor.close()
     names = [m.name for m in chosen]
-    df = _metrics_of(episodes, names)
+    df = _metrics_of(episodes, chosen)
     base = df.sort("lambda").group_by("run_id", maintain_order=True).first()
     base = base.select("run_id", *[pl.col(n).alias(f"__base_{n}") for n in names])
     df = df.join(base, on="run_id", how="left")

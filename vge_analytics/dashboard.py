@@ -27,7 +27,9 @@ import replay
 from ._errors import OutputDirError, UnknownRunError
 from ._isolated import IsolatedResult, run_isolated
 from ._limits import SqlLimits, format_size
-from ._registry import get_metric
+from ._metric_set import MetricSet, MetricsSource, fingerprint, metric_set
+from ._registry import Metric
+from ._rescore import Rescore, group_label
 from ._scope import Filters, build_scope, check_columns
 from ._store import open_store, quote_ident, resolve_input
 
@@ -185,8 +187,15 @@ def group_labels(df: pl.DataFrame, by: Sequence[str]) -> pl.Series:
     return df.select(label.alias("group")).to_series()
 
 
-def best_rows(df: pl.DataFrame, metric_names: Sequence[str]) -> dict[str, list[int]]:
-    """{metric: row positions holding its best value}, by the metric's direction.
+def _metric(name: str, metrics: MetricSet | None) -> Metric:
+    return (metrics or MetricSet.builtin()).get(name)
+
+
+def best_rows(
+    df: pl.DataFrame, metric_names: Sequence[str], metrics: MetricSet | None = None
+) -> dict[str, list[int]]:
+    """{metric: row positions holding its best value}, by the metric's direction (the
+    metrics of `metrics`, default the built-ins).
 
     Ties are all best; a column with no value has no best row.
     """
@@ -199,22 +208,65 @@ def best_rows(df: pl.DataFrame, metric_names: Sequence[str]) -> dict[str, list[i
         if not present:
             best[name] = []
             continue
-        target = max(present) if get_metric(name).higher_is_better else min(present)
+        target = max(present) if _metric(name, metrics).higher_is_better else min(present)
         best[name] = [i for i, v in enumerate(values) if v is not None and math.isclose(v, target)]
     return best
 
 
-def metric_headers(metric_names: Sequence[str]) -> dict[str, str]:
-    """{metric: header with the paper's arrow}, e.g. `SR ↑`, `VSPS ↓`."""
-    return {n: f"{n} {get_metric(n).arrow}" for n in metric_names}
+ORIGIN_MARKS: dict[str, str] = {"built-in": "", "override": " ✎", "added": " ＋"}
+"""What a leaderboard header carries after its arrow: a metric a metrics folder overrides
+(✎) or adds (＋)."""
 
 
-def metrics_long(df: pl.DataFrame, metric_names: Sequence[str]) -> pl.DataFrame:
+def metric_headers(
+    metric_names: Sequence[str], metrics: MetricSet | None = None
+) -> dict[str, str]:
+    """{metric: header with the paper's arrow and its origin mark}, e.g. `SR ↑`, `VSPS ↓`,
+    `SR ↑ ✎` (overridden by a metrics folder), `SR-multi ↑ ＋` (added by one)."""
+    chosen = metrics or MetricSet.builtin()
+    return {
+        n: f"{n} {chosen.get(n).arrow}{ORIGIN_MARKS[chosen.origin(n)]}" for n in metric_names
+    }
+
+
+def metric_help(name: str, metrics: MetricSet | None = None) -> str:
+    """The hover text of a metric's header: title, definition, and which file overrides or
+    adds it."""
+    chosen = metrics or MetricSet.builtin()
+    m = chosen.get(name)
+    origin = chosen.origin(name)
+    text = f"{m.title}: {m.definition}"
+    if origin == "override":
+        text += f" (overrides the built-in {name}: {m.source}, version {m.version})"
+    elif origin == "added":
+        text += f" (added: {m.source}, version {m.version})"
+    return text
+
+
+def metrics_note(metrics: MetricSet | None) -> str | None:
+    """What the pages say about a metrics folder (None without one): which metrics it
+    overrides and adds, and how their headers are marked."""
+    if metrics is None or metrics.folder is None:
+        return None
+    overridden = [m.name for m in metrics if metrics.origin(m.name) == "override"]
+    added = [m.name for m in metrics if metrics.origin(m.name) == "added"]
+    parts = []
+    if overridden:
+        parts.append(f"✎ overridden: {', '.join(overridden)}")
+    if added:
+        parts.append(f"＋ added: {', '.join(added)}")
+    what = "; ".join(parts) if parts else "no metric changed"
+    return f"Metrics of `{metrics.folder}`: {what}. Hover a header for its definition."
+
+
+def metrics_long(
+    df: pl.DataFrame, metric_names: Sequence[str], metrics: MetricSet | None = None
+) -> pl.DataFrame:
     """A metrics table with a `group` column to long form (group, metric, value, direction),
     for one bar chart per metric; rows without a value are dropped."""
     present = [m for m in metric_names if m in df.columns]
     long = df.unpivot(index="group", on=present, variable_name="metric", value_name="value")
-    directions = {m: get_metric(m).direction for m in present}
+    directions = {m: _metric(m, metrics).direction for m in present}
     return long.drop_nulls("value").with_columns(
         direction=pl.col("metric").replace_strict(directions, return_dtype=pl.String)
     )
@@ -703,11 +755,13 @@ def run_choices(runs: pl.DataFrame) -> tuple[list[str], list[str]]:
     return (human + other if human else everything), (other or everything)
 
 
-def comparison_rows(metrics: pl.DataFrame, label_a: str, label_b: str) -> pl.DataFrame:
+def comparison_rows(
+    metrics: pl.DataFrame, label_a: str, label_b: str, metric_set: MetricSet | None = None
+) -> pl.DataFrame:
     """A `Comparison.metrics` table for people: metric (with its arrow), both values under
     the runs' names, the difference B - A, its 95% interval, and whether the interval
     excludes 0."""
-    arrows = {m: get_metric(m).arrow for m in metrics["metric"].to_list()}
+    arrows = {m: _metric(m, metric_set).arrow for m in metrics["metric"].to_list()}
     return metrics.select(
         pl.col("metric").map_elements(lambda m: f"{m} {arrows[m]}", return_dtype=pl.String),
         pl.col("A").alias(label_a),
@@ -995,9 +1049,13 @@ def sweep_size(out: str | Path, runs: Sequence[str], lambdas: Sequence[float]) -
     return int(n) * len(lambdas)
 
 
-def _sweep_cache_file(out: str | Path, runs: Sequence[str], lambdas: Sequence[float]) -> Path:
+def _sweep_cache_file(
+    out: str | Path, runs: Sequence[str], lambdas: Sequence[float], metrics_dir: MetricsSource
+) -> Path:
     from ._images import cache_dir
+    from ._sweep import DEFAULT_SWEEP_METRICS
 
+    chosen = metric_set(metrics_dir).resolve(list(DEFAULT_SWEEP_METRICS))
     key = json.dumps(
         {
             "out": str(Path(out).resolve()),
@@ -1005,6 +1063,7 @@ def _sweep_cache_file(out: str | Path, runs: Sequence[str], lambdas: Sequence[fl
             "runs": sorted(runs),
             "lambdas": sorted(float(v) for v in lambdas),
             "engine": replay.ENGINE_VERSION,
+            "metrics": fingerprint(chosen),
         },
         sort_keys=True,
     )
@@ -1013,11 +1072,15 @@ def _sweep_cache_file(out: str | Path, runs: Sequence[str], lambdas: Sequence[fl
 
 
 def stored_sweep(
-    out: str | Path, runs: Sequence[str], lambdas: Sequence[float]
+    out: str | Path,
+    runs: Sequence[str],
+    lambdas: Sequence[float],
+    *,
+    metrics_dir: MetricsSource = None,
 ) -> pl.DataFrame | None:
     """A sweep computed earlier for exactly these runs and lambdas on this OUT (same
-    manifest), from the on-disk cache, or None."""
-    path = _sweep_cache_file(out, runs, lambdas)
+    manifest, same definitions of SR and SSR), from the on-disk cache, or None."""
+    path = _sweep_cache_file(out, runs, lambdas, metrics_dir)
     try:
         return pl.read_parquet(path)
     except (OSError, pl.exceptions.PolarsError):
@@ -1025,15 +1088,22 @@ def stored_sweep(
 
 
 def computed_sweep(
-    out: str | Path, runs: Sequence[str], lambdas: Sequence[float], *, workers: int = 1
+    out: str | Path,
+    runs: Sequence[str],
+    lambdas: Sequence[float],
+    *,
+    workers: int = 1,
+    metrics_dir: MetricsSource = None,
 ) -> pl.DataFrame:
     """`sweep(out, lambdas, runs=runs)`, kept in the on-disk cache (keyed by OUT, its
-    manifest hash, the runs and the lambdas) so the budgets page shows it at once next time,
-    across restarts of the app."""
+    manifest hash, the runs, the lambdas and the metrics' definitions) so the budgets page
+    shows it at once next time, across restarts of the app."""
     from ._sweep import sweep
 
-    table = sweep(out, sorted(lambdas), runs=sorted(runs), workers=workers)
-    path = _sweep_cache_file(out, runs, lambdas)
+    table = sweep(
+        out, sorted(lambdas), runs=sorted(runs), workers=workers, metrics_dir=metrics_dir
+    )
+    path = _sweep_cache_file(out, runs, lambdas, metrics_dir)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
@@ -1042,3 +1112,55 @@ def computed_sweep(
     except OSError:
         pass  # a read-only cache only costs the recomputation
     return table
+
+
+# --------------------------------------------------------------------------- rescore
+
+
+def rescore_changes(result: Rescore) -> pl.DataFrame:
+    """The rows of a `rescore` result for people: metric, group (the group values as one
+    label), before, after, difference, rank before, rank after and the move (`▲ 2`...)."""
+    table = result.tables()["changes"]
+    labels = [group_label(row, result.by) for row in table.iter_rows(named=True)]
+    return table.select(
+        "metric",
+        pl.Series("group", labels, dtype=pl.String),
+        "before",
+        "after",
+        pl.col("delta").alias("after − before"),
+        pl.col("rank_before").alias("rank before"),
+        pl.col("rank_after").alias("rank after"),
+        "move",
+    )
+
+
+def rescore_rankings(result: Rescore) -> pl.DataFrame:
+    """One row per metric of a `rescore` result: change, defining file, groups ranked both
+    times, Kendall's tau-b between the rankings, the groups whose rank moved."""
+    return result.tables()["rankings"].select(
+        "metric",
+        "change",
+        pl.col("source").alias("file"),
+        pl.col("groups").alias("groups ranked"),
+        pl.col("kendall_tau_b").alias("Kendall τ-b"),
+        pl.col("moved").alias("rank moved"),
+    )
+
+
+def rank_slopes(result: Rescore, metric: str) -> pl.DataFrame:
+    """A metric's ranks before and after, in long form for a slope chart: group, ranking
+    (`before`, `after`), rank, value; groups without a rank are left out."""
+    rows = result.rows.filter(pl.col("metric") == metric)
+    labels = pl.Series(
+        "group", [group_label(r, result.by) for r in rows.iter_rows(named=True)], pl.String
+    )
+    parts = [
+        rows.select(
+            labels,
+            pl.lit(when).alias("ranking"),
+            pl.col(f"rank_{when}").alias("rank"),
+            pl.col(when).alias("value"),
+        )
+        for when in ("before", "after")
+    ]
+    return pl.concat(parts).drop_nulls("rank")

@@ -25,7 +25,7 @@ if len(lambdas) < 2 or not facet_runs:
     ui.stop()
 
 selected = sorted(chosen or facet_runs)
-table = dash.stored_sweep(ui.out_dir(), selected, lambdas)
+table = dash.stored_sweep(ui.out_dir(), selected, lambdas, metrics_dir=ui.metrics_dir())
 if table is None:
     size = ui.call("sweep_size", selected, lambdas)
     if size > dash.SWEEP_AUTO_LIMIT and not st.button(

@@ -33,7 +33,7 @@ st.markdown(
     f"{human}). Solved by both {mc['both']}, only {model} {mc['a_only']}, only {human} "
     f"{mc['b_only']}, neither {mc['neither']}; McNemar exact p = {mc['p_value']:.3g}."
 )
-table = dash.comparison_rows(cmp.metrics, model, human)
+table = dash.comparison_rows(cmp.metrics, model, human, ui.metric_set())
 st.dataframe(
     table,
     hide_index=True,

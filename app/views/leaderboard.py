@@ -11,6 +11,9 @@ st.caption(
     "The paper's twelve metrics per group, computed from the replayed steps. Best value per column "
     "in bold green (↑ higher is better, ↓ lower). Click a header to sort."
 )
+note = dash.metrics_note(ui.metric_set())
+if note:
+    st.caption(note)
 
 runs = ui.call("runs")
 c1, c2, c3, c4 = st.columns([3, 2, 2, 2])
@@ -36,5 +39,5 @@ st.dataframe(
 st.download_button("Download CSV", table.write_csv(), file_name="leaderboard.csv", mime="text/csv")
 
 st.subheader("Per metric")
-long = dash.metrics_long(table, names)
+long = dash.metrics_long(table, names, ui.metric_set())
 st.altair_chart(charts.metric_bars(long, names, table["group"].to_list()))

@@ -28,6 +28,7 @@ import vge_analytics as va
 from vge_analytics.commands.replay import image_source
 from vge_analytics.synth import generate
 
+from ..vge_analytics.metric_files import SR_AS_SSR, SR_MULTI, write_folder
 from .streamlit_browser import CHROMIUM, LAUNCH_ARGS, AppPage, AppServer
 
 APP = Path(__file__).resolve().parents[2] / "app" / "streamlit_app.py"
@@ -92,6 +93,22 @@ def app_env(tiny_out, monkeypatch) -> Path:
     """The app reads OUT from $VGE_APP_OUT (as `vge app` sets it)."""
     monkeypatch.setenv("VGE_APP_OUT", str(tiny_out))
     return tiny_out
+
+
+@pytest.fixture(scope="session")
+def metrics_folder(tmp_path_factory) -> Path:
+    """A metrics folder: SR overridden (partial credit per goal, SSR's definition) and
+    SR-multi (SR over the episodes with more than one goal) added."""
+    root = tmp_path_factory.mktemp("metrics") / "mine"
+    return write_folder(root, {"sr.sql": SR_AS_SSR, "multi.sql": SR_MULTI})
+
+
+@pytest.fixture
+def metrics_env(metrics_folder, monkeypatch) -> Path:
+    """The app runs with `metrics_folder` (through $VGE_METRICS_DIR, as `vge app` passes
+    --metrics-dir)."""
+    monkeypatch.setenv("VGE_METRICS_DIR", str(metrics_folder))
+    return metrics_folder
 
 
 # ---------------------------------------------------------------------------- browser

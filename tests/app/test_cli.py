@@ -9,6 +9,8 @@ from vge_analytics._limits import SqlLimits
 from vge_analytics.cli import main
 from vge_analytics.commands.app import is_loopback, streamlit_command
 
+from ..vge_analytics.metric_files import SR_MULTI
+
 
 def test_default_out_missing_says_run_vge_demo(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
@@ -72,3 +74,26 @@ def test_out_argument_precedence(monkeypatch):
     assert _ui.out_argument([]) == "/from/env"
     monkeypatch.delenv("VGE_APP_OUT")
     assert _ui.out_argument([]) == dash.DEFAULT_OUT
+
+
+def test_metrics_dir_is_checked_then_passed_on(tiny_out, metrics_folder, tmp_path, capsys):
+    cmd = streamlit_command(tiny_out, port=1, headless=True, metrics_dir=metrics_folder)
+    assert cmd[-2:] == ["--metrics-dir", str(metrics_folder)]
+    from app import _ui
+
+    assert _ui.metrics_dir(cmd[cmd.index("--") + 1 :]) == str(metrics_folder)
+    (tmp_path / "x.sql").write_text(SR_MULTI.replace("-- grain: episodes", "-- grain: runs"))
+    # A problem in a metric file stops `vge app` with its line, before any server starts.
+    assert main(["app", str(tiny_out), "--metrics-dir", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert err == f"error: {tmp_path}/x.sql:6: unknown grain 'runs' (one of: episodes, steps, goals)\n"
+
+
+def test_metrics_dir_precedence(monkeypatch):
+    from app import _ui
+
+    monkeypatch.setenv("VGE_METRICS_DIR", "/from/env")
+    assert _ui.metrics_dir(["--metrics-dir", "/from/args"]) == "/from/args"
+    assert _ui.metrics_dir([]) == "/from/env"
+    monkeypatch.setenv("VGE_METRICS_DIR", "")
+    assert _ui.metrics_dir([]) is None

@@ -18,6 +18,8 @@ from vge_analytics import OutputDirError, compare, error_distribution, sql, swit
 from vge_analytics import dashboard as dash
 from vge_analytics._limits import SqlLimits
 
+from ..vge_analytics.metric_files import SR_MULTI, write_folder
+
 # ------------------------------------------------------------------------------ OUT
 
 
@@ -394,3 +396,66 @@ def test_episode_labels(tiny_out):
         f"{row['episode_id']} · {row['device_id']} · {dash.termination_label(row['termination'])}"
         f" · {row['goals_completed']}/{row['n_goals']} goals"
     )
+
+
+# ----------------------------------------------------------------- metrics folders
+
+
+def test_metric_headers_mark_overrides_and_additions(metrics_folder):
+    chosen = va.load_metrics(metrics_folder)
+    headers = dash.metric_headers(["SR", "SSR", "SR-multi", "VSPS"], chosen)
+    assert headers == {"SR": "SR ↑ ✎", "SSR": "SSR ↑", "SR-multi": "SR-multi ↑ ＋", "VSPS": "VSPS ↓"}
+    assert dash.metric_headers(["SR"]) == {"SR": "SR ↑"}  # the built-ins alone
+    assert dash.metric_help("SR", chosen) == (
+        "Success Rate with partial credit: SR that credits each completed goal: the mean of "
+        f"goals_completed / n_goals. (overrides the built-in SR: {metrics_folder}/sr.sql, "
+        "version 2)"
+    )
+    assert dash.metric_help("SR-multi", chosen).endswith(
+        f"(added: {metrics_folder}/multi.sql, version 1)"
+    )
+    assert dash.metric_help("SSR", chosen).startswith("Sub-task Success Rate: Mean over")
+    assert dash.metrics_note(chosen) == (
+        f"Metrics of `{metrics_folder}`: ✎ overridden: SR; ＋ added: SR-multi. Hover a header "
+        "for its definition."
+    )
+    assert dash.metrics_note(va.MetricSet.builtin()) is None
+
+
+def test_best_rows_of_an_added_metric(metrics_folder):
+    chosen = va.load_metrics(metrics_folder)
+    df = pl.DataFrame({"SR-multi": [50.0, 75.0, None]})
+    assert dash.best_rows(df, ["SR-multi"], chosen) == {"SR-multi": [1]}
+    with pytest.raises(va.UnknownMetricError):
+        dash.best_rows(df, ["SR-multi"])  # not a built-in
+
+
+def test_rescore_tables(tiny_out, metrics_folder):
+    result = va.rescore(tiny_out, metrics_folder, by=("run_id", "model"))
+    changes = dash.rescore_changes(result)
+    assert changes.columns == [
+        "metric", "group", "before", "after", "after − before", "rank before", "rank after",
+        "move",
+    ]  # fmt: skip
+    assert changes["group"].to_list() == result.rows["run_id"].to_list()  # model left out
+    assert changes["after − before"].to_list() == result.rows["delta"].to_list()
+    rankings = dash.rescore_rankings(result)
+    assert rankings["metric"].to_list() == ["SR", "SR-multi"]
+    assert rankings["Kendall τ-b"][0] == result.summary["kendall_tau_b"][0]
+    assert rankings["rank moved"][0] == ", ".join(result.summary["moved"][0])
+    slopes = dash.rank_slopes(result, "SR")
+    sr = result.rows.filter(pl.col("metric") == "SR")
+    assert slopes.height == 2 * sr.height
+    after = slopes.filter(pl.col("ranking") == "after")
+    assert after["rank"].to_list() == sr["rank_after"].to_list()
+    new = dash.rank_slopes(result, "SR-multi")  # no rank before: only the after points
+    assert set(new["ranking"]) == {"after"}
+
+
+def test_stored_sweeps_are_kept_per_metric_definitions(tiny_out, metrics_folder, tmp_path):
+    runs = ["sim-human"]
+    builtin = dash._sweep_cache_file(tiny_out, runs, [2, 3], None)
+    overridden = dash._sweep_cache_file(tiny_out, runs, [2, 3], metrics_folder)
+    assert builtin != overridden  # SR is defined differently: another stored sweep
+    only_added = write_folder(tmp_path / "added", {"multi.sql": SR_MULTI})
+    assert dash._sweep_cache_file(tiny_out, runs, [2, 3], only_added) == builtin

@@ -296,3 +296,71 @@ def test_sql_page_runs_queries_and_refuses_writes(app_env):
     rerun(at)
     assert at.text_area(key="sql_query").value == dash.EXAMPLE_QUERIES[name]
     assert len(at.dataframe[1].value) == 9
+
+
+# ------------------------------------------------------------------- metrics folder
+
+
+def column_labels(element) -> dict[str, str]:
+    """{column: header label} of a dataframe element's column configuration."""
+    import json
+
+    config = json.loads(element.proto.columns)
+    return {c: v["label"] for c, v in config.items() if "label" in v}
+
+
+def test_leaderboard_shows_the_folders_metrics(app_env, metrics_env):
+    at = open_page()
+    shown = at.dataframe[0].value
+    expected = va.metrics(app_env, metrics_dir=metrics_env)
+    assert list(shown.columns[-2:]) == ["AvgWDist", "SR-multi"]
+    for name in ("SR", "SSR", "SR-multi"):
+        assert nums(shown[name]) == pytest.approx(nums(expected[name]), nan_ok=True)
+    assert nums(shown["SR"]) == pytest.approx(nums(expected["SSR"]), nan_ok=True)  # override
+    labels = column_labels(at.dataframe[0])
+    assert (labels["SR"], labels["SSR"], labels["SR-multi"]) == ("SR ↑ ✎", "SSR ↑", "SR-multi ↑ ＋")
+    assert any("✎ overridden: SR; ＋ added: SR-multi" in c.value for c in at.main.caption)
+    assert f"built-in + `{metrics_env}`" in at.sidebar.caption[-1].value
+
+
+def test_rescore_page(app_env, metrics_env):
+    at = open_page("rescore")
+    assert at.title[0].value == "Rescore"
+    result = va.rescore(app_env, metrics_env, by=("run_id", "model"))
+    rankings = at.dataframe[0].value
+    assert list(rankings["metric"]) == ["SR", "SR-multi"]
+    assert rankings["Kendall τ-b"][0] == pytest.approx(result.summary["kendall_tau_b"][0])
+    changes = at.dataframe[1].value
+    sr = result.rows.filter(pl.col("metric") == "SR")
+    assert list(changes["group"]) == sr["run_id"].to_list()
+    assert nums(changes["after"]) == pytest.approx(nums(sr["after"]))
+    assert list(changes["rank after"]) == sr["rank_after"].to_list()
+    assert len(charts(at)) == 1  # ranks before -> after
+    slope = chart_data(charts(at)[0])[0]
+    assert slope.height == 2 * sr.height
+
+    at.selectbox(key="rescore_metric").select("SR-multi")
+    at.selectbox(key="rescore_by").select("model")
+    rerun(at)
+    by_model = va.rescore(app_env, metrics_env, by=("model",))
+    multi = by_model.rows.filter(pl.col("metric") == "SR-multi")
+    changes = at.dataframe[1].value
+    assert list(changes["group"]) == multi["model"].to_list()
+    assert list(changes["move"]) == ["new"] * multi.height
+
+
+def test_rescore_page_without_a_folder(app_env, monkeypatch):
+    monkeypatch.delenv("VGE_METRICS_DIR", raising=False)
+    at = open_page("rescore")
+    assert "--metrics-dir DIR" in at.info[0].value
+    assert not at.dataframe
+
+
+def test_a_bad_metrics_folder_is_explained(app_env, tmp_path, monkeypatch):
+    (tmp_path / "x.sql").write_text("-- metric: X\n")
+    monkeypatch.setenv("VGE_METRICS_DIR", str(tmp_path))
+    at = AppTest.from_file(str(APP), default_timeout=60).run()
+    assert not at.exception
+    assert at.sidebar.error[0].value == "Unusable metrics folder"
+    assert f"{tmp_path}/x.sql:1: missing header keys" in at.main.error[0].value
+    assert not at.dataframe

@@ -3,7 +3,9 @@
 Runs `streamlit run app/streamlit_app.py -- --out OUT` with the same Python (through
 `vge_analytics._serve`, which warms the libraries and OUT up first). The app reads
 OUT from `--out` (and from the `VGE_APP_OUT` environment variable, which this command also
-sets), so it can be started by hand with either.
+sets), so it can be started by hand with either. `--metrics-dir DIR` is checked here (a
+problem in a metric file stops the command with its line) and passed on as `--metrics-dir`:
+every page then shows the folder's metrics.
 
 The server listens on 127.0.0.1 (this machine only) unless `--host` says otherwise: the
 dashboard shows the logs and the model outputs, and its SQL page runs queries, so opening it
@@ -21,7 +23,10 @@ from pathlib import Path
 import typer
 
 from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits, format_size
+from vge_analytics._metric_set import load_metrics
 from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
+
+from ._options import metrics_dir_option
 
 LOOPBACK = "127.0.0.1"
 
@@ -43,10 +48,12 @@ def streamlit_command(
     headless: bool,
     host: str = LOOPBACK,
     sql: tuple[SqlLimits, int] | None = None,
+    metrics_dir: Path | None = None,
 ) -> list[str]:
     """The argument list that serves the dashboard for OUT on `host:port`: `streamlit run
     ...` through `vge_analytics._serve`, which warms the libraries and OUT up before the
-    server listens. `sql`: the SQL page's limits and row cap, passed on to the app."""
+    server listens. `sql`: the SQL page's limits and row cap, `metrics_dir`: the metrics
+    folder, both passed on to the app."""
     cmd = [
         sys.executable,
         "-m",
@@ -79,6 +86,8 @@ def streamlit_command(
             "--sql-max-rows",
             str(rows),
         ]
+    if metrics_dir is not None:
+        cmd += ["--metrics-dir", str(metrics_dir)]
     return cmd
 
 
@@ -110,13 +119,26 @@ def app(
     sql_max_rows: int = typer.Option(
         APP_MAX_ROWS, "--sql-max-rows", min=1, help="Rows the SQL page shows and downloads."
     ),
+    metrics_dir: str = metrics_dir_option(
+        "A folder of metric files whose metrics every page shows (overriding or adding to the "
+        "built-in ones); the Rescore page shows what they change."
+    ),
 ) -> None:
     """Open the dashboard: leaderboard, errors, navigation, grounding, budgets, human vs VLM,
-    episode viewer and SQL over a replay output directory."""
+    rescore, episode viewer and SQL over a replay output directory."""
     resolved = check_out(out)
+    folder = None
+    if metrics_dir:
+        load_metrics(metrics_dir)  # every problem of its files, before the server starts
+        folder = Path(metrics_dir).resolve()
     limits = SqlLimits.make(memory=sql_memory_limit, timeout=sql_timeout)
     cmd = streamlit_command(
-        resolved, port=port, headless=headless, host=host, sql=(limits, sql_max_rows)
+        resolved,
+        port=port,
+        headless=headless,
+        host=host,
+        sql=(limits, sql_max_rows),
+        metrics_dir=folder,
     )
     env = {**os.environ, OUT_ENV: str(resolved)}
     shown = "localhost" if is_loopback(host) else host

@@ -10,6 +10,7 @@ from .._compare import DEFAULT_RESAMPLES, DEFAULT_SEED
 from .._compare import compare as compute_compare
 from .._format import check_format
 from .._output import FORMAT_HELP, emit_sections
+from ._options import metrics_dir_option
 
 
 def compare(
@@ -19,6 +20,7 @@ def compare(
     metric_names: str = typer.Option(None, "--metrics", help="Metrics (default: all)."),
     seed: int = typer.Option(DEFAULT_SEED, "--seed", help="Bootstrap seed."),
     resamples: int = typer.Option(DEFAULT_RESAMPLES, "--resamples", help="Bootstrap resamples."),
+    metrics_dir: str = metrics_dir_option(),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
     """Paired comparison of two runs on the episodes both have.
@@ -28,7 +30,13 @@ def compare(
     """
     check_format(fmt)
     result = compute_compare(
-        out, run_a, run_b, metrics=metric_names, seed=seed, resamples=resamples
+        out,
+        run_a,
+        run_b,
+        metrics=metric_names,
+        seed=seed,
+        resamples=resamples,
+        metrics_dir=metrics_dir,
     )
     emit_sections(result.sections(), fmt)
 

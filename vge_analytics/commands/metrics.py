@@ -1,18 +1,35 @@
-"""`vge metrics OUT`: the paper's main table (PROTOCOL §6), plus PSR and the distance metrics."""
+"""`vge metrics OUT`: the paper's main table (PROTOCOL §6), plus PSR and the distance metrics;
+`vge metrics --list`: the metrics themselves (built-in, overridden, added)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import click
 import polars as pl
 import typer
 
 from .._errors import UnknownColumnError
 from .._format import check_format
+from .._metric_set import MetricSet, load_metrics
+from .._metrics import metric_table
 from .._metrics import metrics as compute_metrics
 from .._output import FORMAT_HELP, emit
 from .._registry import MAIN_TABLE
 from .._scope import DEFAULT_BY, parse_by
+from ._options import metrics_dir_option
+
+LIST_COLUMNS: tuple[str, ...] = (
+    "metric",
+    "title",
+    "version",
+    "direction",
+    "unit",
+    "grain",
+    "source",
+    "definition",
+)
+"""What `vge metrics --list` shows of each metric."""
 
 
 def parse_where(items: list[str] | None) -> dict[str, list[str]]:
@@ -33,8 +50,21 @@ def for_people(df: pl.DataFrame, by: tuple[str, ...]) -> pl.DataFrame:
     return df
 
 
+def list_table(available: MetricSet) -> pl.DataFrame:
+    """The metrics of a set as `--list` shows them: source is `built-in`, or the file that
+    defines (adds or overrides) the metric."""
+    table = metric_table(available).with_columns(
+        source=pl.when(pl.col("origin") == "built-in")
+        .then(pl.lit("built-in"))
+        .otherwise(pl.col("source"))
+    )
+    return table.select(LIST_COLUMNS)
+
+
 def metrics(
-    out: Path = typer.Argument(..., help="Replay output directory (vge replay --out)."),
+    out: Path = typer.Argument(
+        None, help="Replay output directory (vge replay --out); not needed with --list."
+    ),
     by: str = typer.Option(
         ",".join(DEFAULT_BY),
         "--by",
@@ -44,26 +74,49 @@ def metrics(
     metric_names: str = typer.Option(
         None,
         "--metrics",
-        help="Metrics to show, comma-separated (default: all twelve, in the paper's order); "
+        help="Metrics to show, comma-separated (default: all twelve, in the paper's order, "
+        "then those --metrics-dir adds); "
         "'main' = the paper's Table 2 (SR SSR SPL State-F1 EIR TIR VSPS GVPE EER).",
     ),
     where: list[str] = typer.Option(
         None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable)."
     ),
+    metrics_dir: str = metrics_dir_option(),
+    list_metrics: bool = typer.Option(
+        False,
+        "--list",
+        help="List the metrics instead: name, title, version, direction, unit, grain, source "
+        "(built-in, or the file that defines or overrides it) and definition.",
+    ),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
     """The paper's main table: its twelve metrics per run or per any grouping.
 
-    SR SSR SPL State-F1 EIR TIR VSPS GVPE EER PSR AvgDist AvgWDist; in table, markdown and
-    latex the best value of each metric is bold and the second best underlined.
+    SR SSR SPL State-F1 EIR TIR VSPS GVPE EER PSR AvgDist AvgWDist (and the metrics of
+    --metrics-dir); in table, markdown and latex the best value of each metric is bold and
+    the second best underlined.
     """
     check_format(fmt)
+    available = load_metrics(metrics_dir)
+    if list_metrics:
+        title = "Metrics" + (f" (built-in and {available.folder})" if available.folder else "")
+        emit(list_table(available), fmt, title=title, marks=False)
+        return
+    if out is None:
+        raise click.UsageError("Missing argument 'OUT' (or --list to list the metrics).")
     by_cols = parse_by(by)
     chosen = list(MAIN_TABLE) if metric_names == "main" else metric_names
-    df = compute_metrics(out, by=by_cols, metrics=chosen, where=parse_where(where))
+    df = compute_metrics(
+        out, by=by_cols, metrics=chosen, where=parse_where(where), metrics_dir=available
+    )
     if fmt in ("table", "markdown", "latex"):
         df = for_people(df, by_cols)
-    emit(df, fmt, title="The paper's metrics: \u2191 higher is better, \u2193 lower is better")
+    emit(
+        df,
+        fmt,
+        title="The paper's metrics: \u2191 higher is better, \u2193 lower is better",
+        metric_set=available,
+    )
 
 
 def register(app: typer.Typer) -> None:

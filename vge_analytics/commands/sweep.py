@@ -10,6 +10,7 @@ from .._format import check_format
 from .._output import FORMAT_HELP, emit
 from .._sweep import DEFAULT_SWEEP_METRICS
 from .._sweep import sweep as compute_sweep
+from ._options import metrics_dir_option
 
 
 def sweep(
@@ -28,6 +29,7 @@ def sweep(
         metavar="[ADDRESS]",
         help="Replay on a Ray cluster instead of local workers (as vge replay --ray).",
     ),
+    metrics_dir: str = metrics_dir_option(),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
 ) -> None:
     """SR and SSR per run at each lambda, by re-replaying the logs.
@@ -38,7 +40,13 @@ def sweep(
     check_format(fmt)
     run_ids = [r.strip() for r in runs.split(",") if r.strip()] if runs else None
     df = compute_sweep(
-        out, lambdas, runs=run_ids, metrics=metric_names.split(","), workers=workers, ray=ray
+        out,
+        lambdas,
+        runs=run_ids,
+        metrics=metric_names.split(","),
+        workers=workers,
+        ray=ray,
+        metrics_dir=metrics_dir,
     )
     emit(df, fmt, title="Budget sweep (gain over the smallest lambda)", marks=False)
 

@@ -1,0 +1,64 @@
+"""Rescore: what the metrics folder the app runs with changes, group by group."""
+
+import streamlit as st
+
+from app import _charts as charts
+from app import _ui as ui
+from vge_analytics import AnalyticsError
+from vge_analytics import dashboard as dash
+
+st.title("Rescore")
+st.caption(
+    "Each metric the metrics folder changes or adds, before (built-in) and after (the folder's "
+    "file): the value and the rank of every group (1 = best in the metric's direction; equal "
+    "values share a rank), and Kendall's τ-b between the two rankings (1: same order, −1: "
+    "reversed)."
+)
+
+folder = ui.metrics_dir()
+if folder is None:
+    st.info(
+        "The app runs with the built-in metrics only. Start it with "
+        "`vge app OUT --metrics-dir DIR` (or set VGE_METRICS_DIR) to see what the metric "
+        "files of DIR change."
+    )
+    ui.stop()
+
+c1, c2 = st.columns([2, 3])
+with c1:
+    by = ui.group_by_picker("rescore_by")
+try:
+    result = ui.call("rescore", by=list(by), where=ui.where())
+except AnalyticsError as exc:
+    ui.show_error(exc)
+    ui.stop()
+if not result.changes:
+    st.info(f"The metric files of `{folder}` change no metric (same SQL as the built-ins).")
+    ui.stop()
+
+rankings = dash.rescore_rankings(result)
+st.dataframe(
+    rankings,
+    hide_index=True,
+    column_config=ui.number_config(rankings),
+    height=ui.table_height(rankings),
+    key="rescore_rankings",
+)
+
+names = rankings["metric"].to_list()
+metric = c2.selectbox("Metric", names, key="rescore_metric")
+slopes = dash.rank_slopes(result, metric)
+if slopes.height:
+    st.altair_chart(charts.rank_slopes(slopes, metric), width="content")
+
+changes = dash.rescore_changes(result)
+shown = changes.filter(changes["metric"] == metric)
+st.dataframe(
+    shown, hide_index=True, column_config=ui.number_config(shown), key="rescore_changes"
+)
+st.download_button(
+    "Download CSV (every metric)",
+    result.rows.write_csv(),
+    file_name="rescore.csv",
+    mime="text/csv",
+)

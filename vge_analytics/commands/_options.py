@@ -1,0 +1,20 @@
+"""Options several commands share."""
+
+from __future__ import annotations
+
+import typer
+
+from .._metric_set import METRICS_DIR_ENV
+
+METRICS_DIR_HELP = (
+    "A folder of metric files (.sql, in the format of the built-in metrics; see "
+    "docs/METRICS.md): a file with a built-in's name overrides it, a new name adds a metric."
+)
+
+
+def metrics_dir_option(help: str = METRICS_DIR_HELP) -> str | None:
+    """`--metrics-dir DIR`, defaulting to $VGE_METRICS_DIR (a typer option default)."""
+    return typer.Option(None, "--metrics-dir", envvar=METRICS_DIR_ENV, show_envvar=True, help=help)
+
+
+__all__ = ["METRICS_DIR_HELP", "metrics_dir_option"]

@@ -1,0 +1,80 @@
+"""`vge rescore OUT --metrics-dir DIR`: what a metrics folder changes, run by run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from .._format import check_format
+from .._output import FORMAT_HELP, emit, emit_sections
+from .._rescore import DEFAULT_RESCORE_BY
+from .._rescore import rescore as compute_rescore
+from .._scope import parse_by
+from ._options import metrics_dir_option
+from .metrics import parse_where
+
+
+def rescore(
+    out: Path = typer.Argument(..., help="Replay output directory."),
+    metrics_dir: str = metrics_dir_option(
+        "The folder of metric files whose changes are reported (required, or $VGE_METRICS_DIR)."
+    ),
+    against: str = typer.Option(
+        None,
+        "--against",
+        help="Compare with the metrics of this folder instead of the built-in metrics.",
+    ),
+    by: str = typer.Option(
+        ",".join(DEFAULT_RESCORE_BY),
+        "--by",
+        help="Rank these groups (comma-separated columns, as vge metrics --by); default: runs.",
+    ),
+    metric_names: str = typer.Option(
+        None,
+        "--metrics",
+        help="Only these of the metrics the folder changes or adds (comma-separated).",
+    ),
+    where: list[str] = typer.Option(
+        None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable)."
+    ),
+    summary: bool = typer.Option(
+        False,
+        "--summary",
+        help="Print one row per metric instead (change, Kendall's tau-b between the rankings, "
+        "the groups whose rank moved); in json a list of such objects.",
+    ),
+    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+) -> None:
+    """What the metrics of a folder change: per run, each changed or added metric before and
+    after, the difference, the rank before and after; per metric, Kendall's tau-b between the
+    two rankings and the runs whose rank moved.
+
+    Rank 1 is the best value in the metric's direction; tied values share a rank. json and csv
+    print the rows (a list of objects with metric, the group columns, before, after, delta,
+    rank_before, rank_after), or with --summary the rankings; table, markdown and latex print
+    both.
+    """
+    check_format(fmt)
+    result = compute_rescore(
+        out,
+        metrics_dir,
+        against=against,
+        by=parse_by(by),
+        where=parse_where(where),
+        metrics=metric_names,
+    )
+    if not result.changes:
+        typer.echo("The metrics folder changes no metric: nothing to report.", err=True)
+    if fmt in ("json", "csv"):
+        table = result.summary if summary else result.rows
+        emit(table, fmt, marks=False)
+        return
+    sections = result.tables()
+    if summary:
+        sections = {"rankings": sections["rankings"]}
+    emit_sections(sections, fmt, fixed=True)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("rescore")(rescore)
