@@ -12,6 +12,7 @@ here is private.
 from ._errors import ConfigError, InputError, Problem, SSMError, TaskError, VGEError, WorkerError
 from ._version import ENGINE_VERSION
 from .io._executor import Executor, in_order, make_executor
+from .io._fs import Location, location
 from .io._lambdas import LambdaBatch, LambdaTask, replay_lambdas
 
 # Input and output: loading and validating, the runner (`vge replay`), manifest, quarantine, MCAP,
@@ -147,6 +148,8 @@ __all__ = [
     "LambdaTask",
     "load_machine",
     "load_ssm",
+    "location",
+    "Location",
     "LogStep",
     "Machine",
     "make_executor",
