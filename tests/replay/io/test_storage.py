@@ -8,7 +8,6 @@ reader trusts (the runs the manifest lists) complete."""
 from __future__ import annotations
 
 import hashlib
-import os
 import re
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
@@ -207,38 +206,20 @@ def test_commit_dir_moves_files_in_and_deletes_the_rest(no_rename, tmp_path: Pat
 # ------------------------------------------------------------- S3 (moto over real HTTP)
 
 
-@pytest.fixture(scope="module")
-def s3_server():
-    """A moto S3 server on 127.0.0.1 (an ephemeral port), with test credentials in the
-    environment (inherited by worker processes), stopped at the end."""
-    from moto.server import ThreadedMotoServer
-
-    env = {
-        "AWS_ACCESS_KEY_ID": "testing",
-        "AWS_SECRET_ACCESS_KEY": "testing",
-        "AWS_DEFAULT_REGION": "us-east-1",
-        "AWS_EC2_METADATA_DISABLED": "true",
-    }
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
-    server.start()
-    host, port = server.get_host_and_port()
-    query = f"endpoint_override=http://{host}:{port}&scheme=http&region=us-east-1"
-    fs, _ = pafs.FileSystem.from_uri(f"s3://vge?{query}&allow_bucket_creation=true")
-    fs.create_dir("vge")
-    yield fs, query
-    del fs
-    server.stop()
-    for k, v in saved.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
-
-
 def _download(fs: pafs.FileSystem, prefix: str, target: Path) -> None:
     pafs.copy_files(prefix, str(target), source_filesystem=fs)
+
+
+def test_cli_replays_into_s3(
+    s3_server, vge, sample: Sample, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    fs, query = s3_server
+    out = f"s3://vge/out-cli?{query}"
+    argv = ["replay", str(sample.human), "--bench", str(sample.bench), "--out", out]
+    assert vge([*argv, "--no-progress"]) == 0
+    assert f"wrote {out}" in capsys.readouterr().out.replace("\n", "")
+    manifest = replay.read_manifest(out)
+    assert manifest is not None and [r.run_id for r in manifest.runs] == ["human-1"]
 
 
 def test_s3_output_is_byte_identical_and_incremental(
