@@ -1,4 +1,4 @@
-"""Fixtures of the input/output tests: an S3-compatible server on 127.0.0.1."""
+"""Fixtures of the input/output tests: an S3-compatible server on 127.0.0.1; a crash on\ndemand."""
 
 from __future__ import annotations
 
@@ -40,3 +40,17 @@ def s3_server():
             os.environ.pop(k, None)
         else:
             os.environ[k] = v
+
+
+def fail_after(monkeypatch: pytest.MonkeyPatch, target: object, name: str, n: int) -> None:
+    """`target.name` works `n` times, then raises `OSError("simulated crash")`."""
+    real = getattr(target, name)
+    calls = {"n": 0}
+
+    def failing(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] > n:
+            raise OSError("simulated crash")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(target, name, failing)

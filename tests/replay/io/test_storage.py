@@ -19,6 +19,7 @@ import replay
 from replay.io import _files, _fs, _worker
 
 from ..conftest import Sample
+from .conftest import fail_after
 
 
 def _digests(out: Path) -> dict[str, str]:
@@ -139,19 +140,6 @@ def test_object_store_protocol_writes_the_same_files(
     assert _digests(out) == _digests(local)
 
 
-def _fail_after(monkeypatch: pytest.MonkeyPatch, target: object, name: str, n: int) -> None:
-    real = getattr(target, name)
-    calls = {"n": 0}
-
-    def failing(*args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] > n:
-            raise OSError("simulated crash")
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(target, name, failing)
-
-
 def test_object_store_interrupted_mid_run_keeps_the_previous_output(
     no_rename, small_batches, copy_sample: Sample, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -159,7 +147,7 @@ def test_object_store_interrupted_mid_run_keeps_the_previous_output(
     _replay(s.runs, s.bench, no_rename(out))
     before = _digests(out)
     with monkeypatch.context() as patch:
-        _fail_after(patch, _worker, "write_part", 5)
+        fail_after(patch, _worker, "write_part", 5)
         with pytest.raises(replay.InputError, match="simulated crash"):
             _replay(s.runs, s.bench, no_rename(out), force=True)
     assert _digests(out) == before  # nothing a reader sees has changed
@@ -178,7 +166,7 @@ def test_object_store_interrupted_mid_commit_withdraws_the_run(
     s, out, local = copy_sample, tmp_path / "remote", tmp_path / "local"
     _replay(s.runs, s.bench, no_rename(out))
     with monkeypatch.context() as patch:
-        _fail_after(patch, _fs.Location, "replace", 3)
+        fail_after(patch, _fs.Location, "replace", 3)
         with pytest.raises(OSError, match="simulated crash"):
             replay.replay_runs(s.runs, s.bench, no_rename(out), force=True, progress=False)
     listed = replay.read_manifest(no_rename(out))
