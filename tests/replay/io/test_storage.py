@@ -16,6 +16,7 @@ import pyarrow.fs as pafs
 import pytest
 
 import replay
+import vge_analytics as va
 from replay.io import _files, _fs, _worker
 
 from ..conftest import Sample
@@ -247,3 +248,19 @@ def test_s3_inputs(s3_server, sample: Sample, tmp_path: Path) -> None:
         assert a.inputs.episodes.sha256 == b.inputs.episodes.sha256
         assert re.match(r"^s3://vge/inputs/runs/\w+/episodes\.jsonl(\.gz)?\?", a.inputs.episodes.path)
         assert a.counts == b.counts and a.outputs == b.outputs
+
+
+def test_sweep_rereads_s3_inputs(s3_server, sample: Sample, tmp_path: Path) -> None:
+    """`vge sweep` replays again from the inputs the manifest records: here URIs."""
+    fs, query = s3_server
+    pafs.copy_files(str(sample.root), "vge/sweep-inputs", destination_filesystem=fs)
+
+    def uri(path: Path) -> str:
+        return f"s3://vge/sweep-inputs/{path.relative_to(sample.root).as_posix()}?{query}"
+
+    replay.replay_runs(sample.runs, sample.bench, tmp_path / "local", progress=False)
+    replay.replay_runs(
+        [uri(p) for p in sample.runs], uri(sample.bench), tmp_path / "uris", progress=False
+    )
+    want = va.sweep(tmp_path / "local", [2, 5], metrics=["SR", "SSR"])
+    assert va.sweep(tmp_path / "uris", [2, 5], metrics=["SR", "SSR"]).equals(want)
