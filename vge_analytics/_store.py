@@ -239,6 +239,12 @@ def open_store(out: str | Path | Store, limits: SqlLimits | None = None) -> Stor
     a quarter of the machine's memory)."""
     if isinstance(out, Store):
         return out
+    if "://" in str(out):
+        raise OutputDirError(
+            f"{out}: the analytics read OUT on the local disk or a shared filesystem; query "
+            "object storage with DuckDB (httpfs), Spark or Trino, or copy OUT down first "
+            "(docs/SCALE.md)"
+        )
     limits = limits or SqlLimits.make()
     path = Path(out).resolve()
     sig = _signature(path)

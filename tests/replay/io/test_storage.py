@@ -86,6 +86,11 @@ def test_a_bad_uri_is_one_line(sample: Sample, tmp_path: Path) -> None:
         replay.replay_runs([f"file://{tmp_path}/none"], sample.bench, tmp_path, progress=False)
 
 
+def test_analytics_name_what_to_do_with_an_object_store_out() -> None:
+    with pytest.raises(va.OutputDirError, match=r"^s3://lab/out: .*docs/SCALE\.md"):
+        va.metrics("s3://lab/out")
+
+
 def test_locations_print_as_given_and_round_trip() -> None:
     root = replay.location("file:///tmp/a%20b/out?x=1")
     child = root / "mcap" / "run" / "id %2F#odd.mcap"
