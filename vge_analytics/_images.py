@@ -47,7 +47,7 @@ def cache_dir() -> Path:
     return base / "vge-analytics"
 
 
-def _from_file(path: Path) -> ViewImage | None:
+def _from_file(path: Path | replay.Location) -> ViewImage | None:
     try:
         data = path.read_bytes()
     except OSError:
@@ -62,10 +62,13 @@ def _from_file(path: Path) -> ViewImage | None:
     return ViewImage(data, fmt, width, height)
 
 
-def view_image(bench_root: Path, machine: replay.Machine, view: str) -> ViewImage | None:
-    """The image of `view` for this device, or None when there is none."""
+def view_image(
+    bench_root: str | Path | replay.Location, machine: replay.Machine, view: str
+) -> ViewImage | None:
+    """The image of `view` for this device (the benchmark a path or a URI), or None when
+    there is none."""
     view = view.lower()
-    root = Path(bench_root)
+    root = replay.location(bench_root)
     folder = root / "images" / machine.device_id
     for ext in (".png", ".jpg", ".jpeg"):
         path = folder / f"{view}{ext}"

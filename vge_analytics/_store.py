@@ -178,11 +178,14 @@ def _secure(con: duckdb.DuckDBPyConnection, out: Path, limits: SqlLimits) -> Non
     con.execute("SET lock_configuration = true")
 
 
-def resolve_input(out: str | Path, recorded: str) -> Path:
-    """An input path as the manifest records it (as given to `vge replay`): absolute, or
-    relative to the directory the replay ran in, which is not recorded: the current
-    directory is tried first, then OUT's parent (`vge replay ... --out OUT` run next to OUT).
-    Returns the path as recorded when neither exists (the caller reports it)."""
+def resolve_input(out: str | Path, recorded: str) -> Path | replay.Location:
+    """An input path as the manifest records it (as given to `vge replay`): a URI
+    (`s3://...`, opened as it is), absolute, or relative to the directory the replay ran in,
+    which is not recorded: the current directory is tried first, then OUT's parent
+    (`vge replay ... --out OUT` run next to OUT). Returns the path as recorded when neither
+    exists (the caller reports it)."""
+    if "://" in recorded:
+        return replay.location(recorded)
     path = Path(recorded)
     if path.is_absolute() or path.exists():
         return path
@@ -235,6 +238,12 @@ def open_store(out: str | Path | Store, limits: SqlLimits | None = None) -> Stor
     a quarter of the machine's memory)."""
     if isinstance(out, Store):
         return out
+    if "://" in str(out):
+        raise OutputDirError(
+            f"{out}: the analytics read OUT on the local disk or a shared filesystem; query "
+            "object storage with DuckDB (httpfs), Spark or Trino, or copy OUT down first "
+            "(docs/SCALE.md)"
+        )
     limits = limits or SqlLimits.make()
     path = Path(out).resolve()
     sig = _signature(path)

@@ -114,7 +114,7 @@ BATCH_LINES = 1024
 """Episode lines per sweep task."""
 
 
-def _resolve(out: Path, path: str, what: str, run_id: str) -> Path:
+def _resolve(out: Path, path: str, what: str, run_id: str) -> Path | replay.Location:
     p = resolve_input(out, path)
     if p.exists():
         return p
@@ -125,9 +125,9 @@ def _resolve(out: Path, path: str, what: str, run_id: str) -> Path:
     )
 
 
-def _sha256(path: Path) -> str:
+def _sha256(path: Path | replay.Location) -> str:
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
+    with replay.location(path).open_read() as fh:
         while chunk := fh.read(1 << 20):
             h.update(chunk)
     return h.hexdigest()

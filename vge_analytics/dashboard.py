@@ -138,7 +138,7 @@ def _run_entry(out: str | Path, run_id: str) -> dict:
     raise UnknownRunError(f"run {run_id!r} is not in {out}/manifest.json")
 
 
-def bench_dir(out: str | Path, run_id: str | None = None) -> Path:
+def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Location:
     """The benchmark directory a run (default: the first run) was replayed against."""
     runs = _manifest(out).get("runs", [])
     if not runs:
@@ -378,7 +378,7 @@ def _as_tuple(got: object) -> ImageTuple | None:
     return bytes(data), str(fmt), int(width), int(height)
 
 
-def _image_source(bench: Path):
+def _image_source(bench: Path | replay.Location):
     """`source(machine, view) -> ImageTuple | None`: the benchmark's images, or the rendered
     synthetic views (`vge_analytics._images`) when that module is there."""
     try:
@@ -508,7 +508,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     )
     source = _image_source(bench_root)
     try:
-        ssm_bytes = Path(machine.source).read_bytes()
+        ssm_bytes = replay.location(machine.source).read_bytes()
     except OSError:
         ssm_bytes = msgspec.json.encode(machine.ssm)
     buf = io.BytesIO()

@@ -1,5 +1,6 @@
 """Reading inputs (PROTOCOL §1): SSM/UCSM files, tasks, run headers, episode logs; and the
-validator behind `vge validate`. Every error names the file (and line)."""
+validator behind `vge validate`. Every error names the file (and line). Inputs are local
+paths or URIs (`_fs.location`)."""
 
 from __future__ import annotations
 
@@ -8,12 +9,14 @@ import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import msgspec
 
 from .._errors import InputError, Problem, SSMError, TaskError, VGEError, decode_error_message
 from ..semantics._machine import Machine, compile_machine, validate_machine
 from ..semantics._records import EpisodeLog, RunHeader, StateMachine, Task
+from ._fs import Location, location
 
 _BYTE = re.compile(r"byte (\d+)")
 _ssm_decoder = msgspec.json.Decoder(StateMachine)
@@ -29,7 +32,7 @@ def _line_of(data: bytes, message: str) -> int | None:
     return data.count(b"\n", 0, int(m.group(1))) + 1
 
 
-def _read(path: Path) -> bytes:
+def _read(path: Location) -> bytes:
     try:
         data = path.read_bytes()
     except FileNotFoundError:
@@ -44,9 +47,9 @@ def _read(path: Path) -> bytes:
     return data
 
 
-def decode_state_machine(path: str | Path) -> StateMachine:
+def decode_state_machine(path: str | Path | Location) -> StateMachine:
     """Decode an SSM/UCSM JSON file (no semantic validation)."""
-    path = Path(path)
+    path = location(path)
     data = _read(path)
     try:
         return _ssm_decoder.decode(data)
@@ -55,7 +58,7 @@ def decode_state_machine(path: str | Path) -> StateMachine:
         raise InputError(str(path), msg, _line_of(data, msg)) from None
 
 
-def load_ssm(path: str | Path) -> StateMachine:
+def load_ssm(path: str | Path | Location) -> StateMachine:
     """Decode and validate an SSM; raises `SSMError` listing every error, `InputError` on bad JSON."""
     ssm = decode_state_machine(path)
     errors = [p for p in validate_machine(ssm, str(path)) if p.severity == "error"]
@@ -64,14 +67,14 @@ def load_ssm(path: str | Path) -> StateMachine:
     return ssm
 
 
-def load_machine(path: str | Path, device_id: str | None = None) -> Machine:
+def load_machine(path: str | Path | Location, device_id: str | None = None) -> Machine:
     """Decode, validate and compile an SSM file; the device id defaults to the file stem."""
-    path = Path(path)
+    path = location(path)
     ssm = decode_state_machine(path)
     return compile_machine(ssm, device_id=device_id or path.stem, source=str(path))
 
 
-def iter_lines(path: str | Path) -> Iterator[tuple[int, bytes]]:
+def iter_lines(path: str | Path | Location) -> Iterator[tuple[int, bytes]]:
     """(line number from 1, raw line) of a .jsonl or .jsonl.gz file, blank lines skipped.
 
     A truncated gzip stream raises `InputError` after yielding what could be read (every
@@ -79,11 +82,10 @@ def iter_lines(path: str | Path) -> Iterator[tuple[int, bytes]]:
     failing read loses nothing already decompressed) and split in bulk, several times
     faster than line by line through `gzip`.
     """
-    path = Path(path)
-    opener = gzip.open if path.suffix == ".gz" else open
+    path = location(path)
     number = 0
     try:
-        with opener(path, "rb") as fh:
+        with path.open_read() as raw, _gunzip(raw) if path.suffix == ".gz" else raw as fh:
             rest = b""
             while True:
                 block = fh.read1(_BLOCK)
@@ -109,8 +111,12 @@ def iter_lines(path: str | Path) -> Iterator[tuple[int, bytes]]:
 _BLOCK = 1 << 20
 
 
-def read_run_header(run_dir: str | Path) -> RunHeader:
-    path = Path(run_dir) / "run.json"
+def _gunzip(raw: BinaryIO) -> BinaryIO:
+    return gzip.GzipFile(fileobj=raw, mode="rb")  # type: ignore[return-value]
+
+
+def read_run_header(run_dir: str | Path | Location) -> RunHeader:
+    path = location(run_dir) / "run.json"
     data = _read(path)
     try:
         header = _run_decoder.decode(data)
@@ -122,9 +128,9 @@ def read_run_header(run_dir: str | Path) -> RunHeader:
     return header
 
 
-def episodes_file(run_dir: str | Path) -> Path:
+def episodes_file(run_dir: str | Path | Location) -> Location:
     """`episodes.jsonl` or `episodes.jsonl.gz` of a run directory."""
-    run_dir = Path(run_dir)
+    run_dir = location(run_dir)
     for name in ("episodes.jsonl", "episodes.jsonl.gz"):
         candidate = run_dir / name
         if candidate.exists():
@@ -142,22 +148,24 @@ class TaskEntry:
 class Benchmark:
     """A benchmark directory (PROTOCOL §1.1), loaded lazily: machines compile on first use."""
 
-    root: Path
+    root: Location
     tasks: dict[str, TaskEntry] = field(default_factory=dict)
     task_problems: list[Problem] = field(default_factory=list)
-    ssm_paths: dict[str, Path] = field(default_factory=dict)
+    ssm_paths: dict[str, Location] = field(default_factory=dict)
     _machines: dict[str, Machine | VGEError] = field(default_factory=dict, repr=False)
 
     @classmethod
-    def open(cls, root: str | Path) -> Benchmark:
-        root = Path(root)
+    def open(cls, root: str | Path | Location) -> Benchmark:
+        root = location(root)
         if not root.is_dir():
             raise InputError(str(root), "benchmark directory not found")
         ssm_dir = root / "ssm"
         if not ssm_dir.is_dir():
             raise InputError(str(ssm_dir), "benchmark has no ssm/ directory")
         bench = cls(root=root)
-        bench.ssm_paths = {p.stem: p for p in sorted(ssm_dir.glob("*.json"))}
+        bench.ssm_paths = {
+            Path(n).stem: ssm_dir / n for n in ssm_dir.names() if n.endswith(".json")
+        }
         tasks_path = root / "tasks.jsonl"
         if not tasks_path.exists():
             raise InputError(str(tasks_path), "file not found")
@@ -183,7 +191,7 @@ class Benchmark:
         return bench
 
     @property
-    def tasks_path(self) -> Path:
+    def tasks_path(self) -> Location:
         return self.root / "tasks.jsonl"
 
     def machine(self, device_id: str) -> Machine:
@@ -206,11 +214,11 @@ class Benchmark:
         return got
 
 
-def validate_benchmark(root: str | Path) -> list[Problem]:
+def validate_benchmark(root: str | Path | Location) -> list[Problem]:
     """Every problem of a benchmark: SSMs, UCSMs, tasks (PROTOCOL §1.1-1.3, 4)."""
     from ..semantics._episode import setup_episode
 
-    root = Path(root)
+    root = location(root)
     bench = Benchmark.open(root)
     problems: list[Problem] = []
     for device_id, path in bench.ssm_paths.items():
@@ -240,7 +248,7 @@ def validate_benchmark(root: str | Path) -> list[Problem]:
                 )
     ucsm_dir = root / "ucsm"
     if ucsm_dir.is_dir():
-        for path in sorted(ucsm_dir.glob("*.json")):
+        for path in [ucsm_dir / n for n in ucsm_dir.names() if n.endswith(".json")]:
             try:
                 ucsm = decode_state_machine(path)
             except InputError as exc:
@@ -299,10 +307,10 @@ def validate_benchmark(root: str | Path) -> list[Problem]:
     return problems
 
 
-def validate_run(run_dir: str | Path, bench: Benchmark) -> list[Problem]:
+def validate_run(run_dir: str | Path | Location, bench: Benchmark) -> list[Problem]:
     """Problems of a run directory: header, episode lines, unknown or duplicate episodes."""
     problems: list[Problem] = []
-    run_dir = Path(run_dir)
+    run_dir = location(run_dir)
     try:
         read_run_header(run_dir)
     except InputError as exc:

@@ -20,6 +20,7 @@ import pyarrow as pa
 from msgspec import Meta
 
 from .._errors import InputError, decode_error_message
+from ._fs import Location, location
 
 MANIFEST_FORMAT = "vge-replay-manifest"
 MANIFEST_VERSION = 1
@@ -140,13 +141,17 @@ def encode_manifest(manifest: ManifestFile) -> bytes:
     return msgspec.json.format(_encoder.encode(manifest), indent=2) + b"\n"
 
 
-def read_manifest(out_dir: str | Path) -> ManifestFile | None:
-    """The manifest of an output directory, or None if there is none yet."""
-    path = Path(out_dir) / "manifest.json"
-    if not path.exists():
-        return None
+def read_manifest(out_dir: str | Path | Location) -> ManifestFile | None:
+    """The manifest of an output directory (a path or a URI), or None if there is none yet."""
+    path = location(out_dir) / "manifest.json"
     try:
-        manifest = _decoder.decode(path.read_bytes())
+        data = path.read_bytes()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise InputError(str(path), f"cannot read: {exc.strerror or exc}") from None
+    try:
+        manifest = _decoder.decode(data)
     except msgspec.DecodeError as exc:
         raise InputError(
             str(path),
@@ -162,7 +167,8 @@ def read_manifest(out_dir: str | Path) -> ManifestFile | None:
 class Manifest:
     """What `replay_runs` returns: the manifest written, and what this call did."""
 
-    path: Path
+    path: Path | str
+    """`OUT/manifest.json`: a path on the local disk, else its URI."""
     content: ManifestFile
     requested: list[str] = field(default_factory=list)
     replayed: list[str] = field(default_factory=list)
@@ -200,20 +206,20 @@ class Hasher:
     def __init__(self) -> None:
         self._cache: dict[str, str | None] = {}
 
-    def __call__(self, path: str | Path) -> str | None:
+    def __call__(self, path: str | Path | Location) -> str | None:
         key = str(path)
         if key not in self._cache:
-            self._cache[key] = _sha256(Path(path))
+            self._cache[key] = _sha256(location(path))
         return self._cache[key]
 
-    def ref(self, path: str | Path) -> FileRef:
+    def ref(self, path: str | Path | Location) -> FileRef:
         return FileRef(str(path), self(path))
 
 
-def _sha256(path: Path) -> str | None:
+def _sha256(path: Location) -> str | None:
     h = hashlib.sha256()
     try:
-        with open(path, "rb") as fh:
+        with path.open_read() as fh:
             while chunk := fh.read(1 << 20):
                 h.update(chunk)
     except FileNotFoundError:

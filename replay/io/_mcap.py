@@ -20,7 +20,6 @@ import io
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
-from pathlib import Path
 from typing import TYPE_CHECKING, BinaryIO
 
 import msgspec
@@ -40,6 +39,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 from ..semantics._machine import Machine, Rect
 from ..semantics._plan import target_rects
 from ..semantics._rows import StepRow
+from ._fs import location
 
 if TYPE_CHECKING:
     from ..semantics._episode import EpisodeResult
@@ -87,13 +87,13 @@ _FORMATS = {"png": "png", "jpg": "jpeg", "jpeg": "jpeg", "webp": "webp"}
 
 @dataclass(frozen=True)
 class BenchImages:
-    """Image source reading a benchmark directory (PROTOCOL §1.1): the SSM's `images` extension
-    if it names the view, else `BENCH/images/<device_id>/<view>.png|jpg|jpeg`."""
+    """Image source reading a benchmark directory (a path or a URI; PROTOCOL §1.1): the SSM's
+    `images` extension if it names the view, else `BENCH/images/<device_id>/<view>.png|jpg|jpeg`."""
 
     root: str
 
     def __call__(self, machine: Machine, view: str) -> ImageTuple | None:
-        root = Path(self.root)
+        root = location(self.root)
         ref = machine.images.get(view)
         candidates = [root / ref[0]] if ref else []
         base = root / "images" / machine.device_id

@@ -1,13 +1,14 @@
 """The output directory as a whole: the up-to-date check of a run (its inputs' sha256, the
 options, the engine version), the files rebuilt from every run the manifest holds
-(`quarantine.jsonl`, `runs/runs.parquet`, `manifest.json`), and the writer lock."""
+(`quarantine.jsonl`, `runs/runs.parquet`, `manifest.json`), and the writer lock (on the
+local disk only: object stores have no lock, docs/SCALE.md)."""
 
 from __future__ import annotations
 
 import fcntl
 import shutil
+from collections import defaultdict
 from collections.abc import Iterable
-from pathlib import Path
 from typing import BinaryIO
 
 import pyarrow.parquet as pq
@@ -17,6 +18,7 @@ from .._version import ENGINE_VERSION
 from ..semantics._records import SCHEMA_VERSION
 from ..semantics._vocab import DEFAULT_LAMBDA
 from ._files import STATE_DIR, atomic_write, atomic_write_bytes
+from ._fs import Location, location
 from ._manifest import (
     Hasher,
     ManifestFile,
@@ -31,19 +33,24 @@ from ._reading import RunInput
 
 
 def run_inputs(run: RunInput, bench_dir: str, hasher: Hasher, devices: Iterable[str]) -> RunInputs:
-    ssm_dir = Path(bench_dir) / "ssm"
+    ssm_dir = location(bench_dir) / "ssm"
     return RunInputs(
         run_dir=run.run_dir,
-        run_json=hasher.ref(Path(run.run_dir) / "run.json"),
+        run_json=hasher.ref(location(run.run_dir) / "run.json"),
         episodes=hasher.ref(run.episodes),
         bench=bench_dir,
-        tasks=hasher.ref(Path(bench_dir) / "tasks.jsonl"),
+        tasks=hasher.ref(location(bench_dir) / "tasks.jsonl"),
         ssm={d: hasher.ref(ssm_dir / f"{d}.json") for d in sorted(devices)},
     )
 
 
 def up_to_date(
-    prev: RunEntry, run: RunInput, bench_dir: str, options: RunOptions, hasher: Hasher, out: Path
+    prev: RunEntry,
+    run: RunInput,
+    bench_dir: str,
+    options: RunOptions,
+    hasher: Hasher,
+    out: Location,
 ) -> RunInputs | None:
     """The run's current inputs if `prev` replayed exactly them (and its outputs exist)."""
     if prev.engine_version != ENGINE_VERSION or prev.options != options:
@@ -59,31 +66,42 @@ def up_to_date(
         return None
     outputs = prev.outputs
     expected = [*outputs.steps, *outputs.episodes, *outputs.goals]
-    if outputs.mcap is not None:
-        expected.append(outputs.mcap)
     expected.append(f"{STATE_DIR}/quarantine/{prev.run_id}.jsonl")
-    if not all((out / p).exists() for p in expected):
+    if not _all_present(out, expected):
+        return None
+    if outputs.mcap is not None and prev.counts.mcap_files and not (out / outputs.mcap).names():
         return None
     return now
+
+
+def _all_present(out: Location, paths: list[str]) -> bool:
+    """Whether every file exists: one listing per directory (not one request per file)."""
+    by_dir: dict[str, set[str]] = defaultdict(set)
+    for path in paths:
+        parent, _, name = path.rpartition("/")
+        by_dir[parent].add(name)
+    return all(names <= set((out / d).names()) for d, names in sorted(by_dir.items()))
 
 
 # ------------------------------------------------------------------------- publishing
 
 
-def publish(out: Path, entries: dict[str, RunEntry]) -> ManifestFile:
-    """Rewrite quarantine.jsonl, runs/runs.parquet and manifest.json from the run entries."""
+def publish(out: Location, entries: dict[str, RunEntry]) -> ManifestFile:
+    """Rewrite quarantine.jsonl, runs/runs.parquet and manifest.json (last: the commit
+    marker) from the run entries."""
     runs = [entries[k] for k in sorted(entries)]
     qdir = out / STATE_DIR / "quarantine"
+    present = set(qdir.names())
 
     def write_quarantine(fh: BinaryIO) -> None:
         for r in runs:
-            path = qdir / f"{r.run_id}.jsonl"
-            if path.exists():
-                with open(path, "rb") as src:
+            name = f"{r.run_id}.jsonl"
+            if name in present:
+                with (qdir / name).open_read() as src:
                     shutil.copyfileobj(src, fh)
 
     atomic_write(out / "quarantine.jsonl", write_quarantine)
-    (out / "runs").mkdir(exist_ok=True)
+    (out / "runs").mkdir()
     table = runs_table(runs, DEFAULT_LAMBDA)
     atomic_write(out / "runs" / "runs.parquet", lambda fh: pq.write_table(table, fh))
     manifest = ManifestFile(
@@ -97,13 +115,17 @@ def publish(out: Path, entries: dict[str, RunEntry]) -> ManifestFile:
 
 
 class OutputLock:
-    """One `vge replay` at a time per output directory (released if the process dies)."""
+    """One `vge replay` at a time per output directory on the local disk (released if the
+    process dies). An object store has no lock: nothing is held there."""
 
-    def __init__(self, state_dir: Path) -> None:
-        state_dir.mkdir(parents=True, exist_ok=True)
-        self.path = state_dir / "lock"
+    def __init__(self, state_dir: Location) -> None:
+        state_dir.mkdir()
+        self.path = None if state_dir.local is None else state_dir.local / "lock"
+        self._fh: BinaryIO | None = None
 
     def __enter__(self) -> OutputLock:
+        if self.path is None:
+            return self
         self._fh = open(self.path, "wb")  # noqa: SIM115
         try:
             fcntl.flock(self._fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -115,5 +137,7 @@ class OutputLock:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        fcntl.flock(self._fh, fcntl.LOCK_UN)
-        self._fh.close()
+        if self._fh is not None:
+            fcntl.flock(self._fh, fcntl.LOCK_UN)
+            self._fh.close()
+            self._fh = None

@@ -6,11 +6,11 @@ import os
 import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from queue import Full, Queue
 
 from .._errors import ConfigError, InputError
 from ..semantics._records import RunHeader
+from ._fs import Location, location
 from ._load import episodes_file, iter_lines, read_run_header
 
 
@@ -20,10 +20,10 @@ class RunInput:
 
     run_dir: str  # as given
     header: RunHeader
-    episodes: Path
+    episodes: Location
 
 
-def check_run_id(run_id: str, path: Path) -> None:
+def check_run_id(run_id: str, path: Location) -> None:
     """A run id names directories (`run_id=<id>`, `mcap/<id>`): refuse what would break them."""
     bad = (
         run_id.startswith(".")
@@ -42,10 +42,10 @@ def read_runs(run_dirs: Sequence[str | os.PathLike[str]]) -> list[RunInput]:
     runs: dict[str, RunInput] = {}
     for given in run_dirs:
         run_dir = str(given)
-        if not Path(run_dir).is_dir():
+        if not location(run_dir).is_dir():
             raise InputError(run_dir, "run directory not found")
         header = read_run_header(run_dir)
-        check_run_id(header.run_id, Path(run_dir) / "run.json")
+        check_run_id(header.run_id, location(run_dir) / "run.json")
         other = runs.get(header.run_id)
         if other is not None:
             raise ConfigError(
@@ -67,7 +67,7 @@ class LineReader:
     A thread reads ahead (`READ_AHEAD` batches): inflating gzip releases the GIL, so the
     reading overlaps the replay of the batches already read."""
 
-    def __init__(self, path: Path, batch_lines: int) -> None:
+    def __init__(self, path: Location, batch_lines: int) -> None:
         self.path = path
         self.batch_lines = batch_lines
         self.last_line = 0

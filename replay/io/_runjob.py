@@ -1,20 +1,19 @@
 """One run, as the main process sees it: batch reports taken in line order (duplicates
 decided here, where every line of the run is seen in order), quarantine records written,
-counts added up; then the staged parts are swapped into OUT (`OUT/.replay/staging/<run_id>/`
--> `OUT/<table>/run_id=<run_id>/`)."""
+counts added up; then the staged parts are committed into OUT (`OUT/.replay/staging/<run_id>/`
+-> `OUT/<table>/run_id=<run_id>/`, `_files.commit_dir`)."""
 
 from __future__ import annotations
 
-import os
 import shutil
+import tempfile
 from collections.abc import Callable
-from pathlib import Path
-from typing import BinaryIO
 
 from .._errors import InputError
 from .._version import ENGINE_VERSION
 from ..semantics._tables import TABLE_ROWS, arrow_schema
-from ._files import STATE_DIR, remove_dir, swap_in, write_part
+from ._files import STATE_DIR, commit_dir, remove_dir, write_part
+from ._fs import Location
 from ._load import Benchmark
 from ._manifest import (
     Divergence,
@@ -40,6 +39,8 @@ from ._task import (
 )
 
 DIVERGENCE_FIELDS = ("feedback", "state", "view")
+QUARANTINE_SPOOL = 8 << 20
+"""Bytes of a run's quarantine records kept in memory before they spill to a temporary file."""
 
 
 class RunJob:
@@ -50,7 +51,7 @@ class RunJob:
         run: RunInput,
         bench: Benchmark,
         bench_given: str,
-        out: Path,
+        out: Location,
         options: RunOptions,
         image_source: ImageSource | None,
         library: str,
@@ -63,10 +64,9 @@ class RunJob:
         self.options = options
         self.state_dir = out / STATE_DIR
         self.staging = self.state_dir / "staging" / run.header.run_id
-        if self.staging.exists():
-            shutil.rmtree(self.staging)
+        self.staging.rmtree()
         for name in TABLE_ROWS:
-            (self.staging / name).mkdir(parents=True)
+            (self.staging / name).mkdir()
         if options.mcap:
             (self.staging / "mcap").mkdir()
         h = run.header
@@ -93,8 +93,8 @@ class RunJob:
         self.replayed = 0
         self.counts = BatchCounts()
         self.by_kind: dict[str, int] = {}
-        self._quarantine_path = self.staging / "quarantine.jsonl"
-        self._quarantine: BinaryIO = open(self._quarantine_path, "wb")  # noqa: SIM115
+        # the run's records, moved to OUT/.replay/quarantine/<run_id>.jsonl at the commit
+        self._quarantine = tempfile.SpooledTemporaryFile(QUARANTINE_SPOOL)  # noqa: SIM115
 
     def task(self, index: int, lines: list[tuple[int, bytes]]) -> BatchTask:
         return BatchTask(self.ctx, self.bench_given, index, tuple(lines))
@@ -160,9 +160,8 @@ class RunJob:
                 self.replayed += 1
                 if o.mcap_tmp is not None:
                     self.counts.mcap_files += 1
-                    os.replace(
-                        self.staging / "mcap" / o.mcap_tmp,
-                        self.staging / "mcap" / f"{safe_file_name(o.episode_id or '')}.mcap",
+                    (self.staging / "mcap" / o.mcap_tmp).replace(
+                        self.staging / "mcap" / f"{safe_file_name(o.episode_id or '')}.mcap"
                     )
             else:
                 self.quarantine(o.line, o.episode_id, o.kind, o.reason or "")
@@ -193,11 +192,10 @@ class RunJob:
 
     def abort(self) -> None:
         self._quarantine.close()
-        shutil.rmtree(self.staging, ignore_errors=True)
+        self.staging.rmtree()
 
     def commit(self, inputs: RunInputs) -> RunEntry:
-        """Close the staged files and swap the run's partitions into OUT."""
-        self._quarantine.close()
+        """Commit the run's partitions and quarantine records into OUT."""
         run_id = self.ctx.run_id
         for name, row_type in TABLE_ROWS.items():
             if not self.parts[name]:  # every run has at least one (empty) part per table
@@ -206,15 +204,18 @@ class RunJob:
                 self.parts[name].append(part_name(0))
         trash = self.state_dir / "trash"
         for name in TABLE_ROWS:
-            swap_in(self.staging / name, self.out / name / f"run_id={run_id}", trash)
+            commit_dir(self.staging / name, self.out / name / f"run_id={run_id}", trash)
         if self.options.mcap:
-            swap_in(self.staging / "mcap", self.out / "mcap" / run_id, trash)
+            commit_dir(self.staging / "mcap", self.out / "mcap" / run_id, trash)
         else:
             remove_dir(self.out / "mcap" / run_id, trash)
         qdir = self.state_dir / "quarantine"
-        qdir.mkdir(parents=True, exist_ok=True)
-        os.replace(self._quarantine_path, qdir / f"{run_id}.jsonl")
-        shutil.rmtree(self.staging, ignore_errors=True)
+        qdir.mkdir()
+        self._quarantine.seek(0)
+        with (qdir / f"{run_id}.jsonl").writer() as fh:
+            shutil.copyfileobj(self._quarantine, fh)
+        self._quarantine.close()
+        self.staging.rmtree()
         c = self.counts
         h = self.run.header
         return RunEntry(

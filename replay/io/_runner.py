@@ -13,9 +13,7 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
-from collections.abc import Iterable, Iterator, Sequence
-from pathlib import Path
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import TYPE_CHECKING
 
 import msgspec
@@ -25,6 +23,7 @@ from .._version import ENGINE_VERSION
 from . import _files
 from ._executor import Executor, InProcess, in_order, make_executor
 from ._files import STATE_DIR
+from ._fs import Location, location
 from ._load import Benchmark
 from ._manifest import Hasher, Manifest, RunEntry, RunOptions, read_manifest
 from ._mcap import ImageSource
@@ -121,6 +120,9 @@ def replay_runs(
     `ray` replays the batches as Ray tasks instead of local workers (`auto`: the cluster this
     host belongs to or `RAY_ADDRESS`; `local`: one started in this process; or an address);
     every node must reach `bench_dir`, `out_dir` and the image source (docs/SCALE.md).
+    Run directories, `bench_dir` and `out_dir` are local paths or URIs of pyarrow's
+    filesystems (`s3://bucket/out`, `gs://...`, `file:///...`); in an object store the
+    manifest is the commit marker and there is no writer lock (docs/SCALE.md).
     Raises `VGEError` subclasses on fatal problems; bad records are quarantined instead.
     """
     options = _options(lam, mcap, mcap_episodes, workers)
@@ -129,17 +131,17 @@ def replay_runs(
     bench_given = str(bench_dir)
     bench = Benchmark.open(bench_given)
     runs = read_runs(run_dirs)
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
+    out = location(out_dir)
+    if out.is_file():
         raise InputError(str(out), "output path exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir()
     state_dir = out / STATE_DIR
     replayed: list[str] = []
     skipped: list[str] = []
 
     with OutputLock(state_dir):
         for leftover in ("staging", "trash"):
-            shutil.rmtree(state_dir / leftover, ignore_errors=True)
+            (state_dir / leftover).rmtree()
         previous = read_manifest(out)
         entries = {e.run_id: e for e in previous.runs} if previous else {}
         hasher = Hasher()
@@ -154,6 +156,14 @@ def replay_runs(
                     continue
             todo.append(run)
         adopt(WorkerState(bench), bench_given)  # the main process replays with this one
+
+        def withdraw(run_id: str) -> None:
+            """Without renames a run's files are replaced one by one: take the run out of
+            the manifest (the commit marker) first, so no reader trusts a half-replaced run
+            and an interruption leaves it to be replayed."""
+            if out.local is None and entries.pop(run_id, None) is not None:
+                publish(out, entries)
+
         executor: Executor = make_executor(workers, ray) if todo else InProcess()
         bar = _make_progress(progress, cluster=ray is not None)
         try:
@@ -162,8 +172,9 @@ def replay_runs(
                 for run_id in skipped:
                     bar.console.print(f"{run_id}: up to date, skipped (use --force)")
             for job in _replay_all(
-                todo, bench, bench_given, out, options, image_source, hasher, executor, bar
-            ):
+                todo, bench, bench_given, out, options, image_source, hasher, executor, bar,
+                withdraw,
+            ):  # fmt: skip
                 entries[job.ctx.run_id] = job.entry
                 replayed.append(job.ctx.run_id)
                 publish(out, entries)
@@ -172,9 +183,10 @@ def replay_runs(
             if bar is not None:
                 bar.stop()
             executor.close()
-            shutil.rmtree(state_dir / "staging", ignore_errors=True)
+            (state_dir / "staging").rmtree()
+    manifest_file = out / "manifest.json"
     return Manifest(
-        path=out / "manifest.json",
+        path=manifest_file.local if manifest_file.local is not None else str(manifest_file),
         content=content,
         requested=[r.header.run_id for r in runs],
         replayed=replayed,
@@ -194,14 +206,16 @@ def _replay_all(
     runs: list[RunInput],
     bench: Benchmark,
     bench_given: str,
-    out: Path,
+    out: Location,
     options: RunOptions,
     image_source: ImageSource | None,
     hasher: Hasher,
     executor: Executor,
     bar: Progress | None,
+    withdraw: Callable[[str], None],
 ) -> Iterator[_Job]:
-    """Replay the runs, yielding each run's job once it is committed (in order)."""
+    """Replay the runs, yielding each run's job once it is committed (in order);
+    `withdraw(run_id)` is called just before a run's commit."""
     library = f"vge-analytics replay {ENGINE_VERSION}"
     open_jobs: list[_Job] = []
     bars: dict[str, TaskID] = {}
@@ -232,7 +246,9 @@ def _replay_all(
                     bar.update(task_id, rate=_rate(bar, task_id), nodes=len(executor.nodes))
                 continue
             job.finish_reading(job.reader.last_line, job.reader.error)
-            job.entry = job.commit(run_inputs(job.run, bench_given, hasher, job.devices))
+            inputs = run_inputs(job.run, bench_given, hasher, job.devices)
+            withdraw(job.ctx.run_id)
+            job.entry = job.commit(inputs)
             open_jobs.remove(job)
             if bar is not None:
                 task_id = bars[job.ctx.run_id]

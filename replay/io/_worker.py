@@ -13,7 +13,6 @@ import os
 import socket
 import traceback
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import msgspec
 import pyarrow.compute as pc
@@ -27,6 +26,7 @@ from ..semantics._rows import EpisodeRow, GoalRow, StepRow
 from ..semantics._tables import TABLE_ROWS, rows_to_table
 from ..semantics._vocab import DEFAULT_LAMBDA
 from ._files import write_part
+from ._fs import location
 from ._load import Benchmark, episode_decoder
 from ._mcap import ImageSource, ImageTuple, write_episode_mcap
 from ._quarantine import classify_decode_error, one_line
@@ -91,7 +91,7 @@ class WorkerState:
         got = self.ssm_bytes.get(machine.device_id)
         if got is None:
             try:
-                got = Path(machine.source).read_bytes()
+                got = location(machine.source).read_bytes()
             except OSError:
                 got = msgspec.json.encode(machine.ssm)
             _remember(self.ssm_bytes, machine.device_id, got, _SSM_CACHE_SIZE)
@@ -202,7 +202,7 @@ def _replay(state: WorkerState, task: BatchTask) -> BatchReport:
         parts = {}
         for name, table in zip(TABLE_ROWS, tables[:3], strict=True):
             parts[name] = table.num_rows
-            path = Path(ctx.staging) / name / part_name(task.index)
+            path = location(ctx.staging) / name / part_name(task.index)
             if table.num_rows:
                 write_part(table, path, ctx.row_group_rows)
             else:
@@ -270,7 +270,7 @@ def _write_mcap(
     def image(view: str, m: Machine = machine) -> ImageTuple | None:
         return None if source is None else state.image(source, m, view)
 
-    with open(Path(ctx.staging) / "mcap" / mcap_tmp, "wb") as fh:
+    with (location(ctx.staging) / "mcap" / mcap_tmp).writer(sync=False) as fh:
         write_episode_mcap(
             fh, machine, result, ssm_bytes=state.ssm(machine), image=image, library=ctx.library
         )

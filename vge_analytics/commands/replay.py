@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import functools
 import inspect
-from pathlib import Path
 
 import typer
 from rich import box
@@ -16,19 +15,19 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from replay import BenchImages, ConfigError, ImageSource, Manifest, replay_runs
+from replay import BenchImages, ConfigError, ImageSource, Manifest, location, replay_runs
 
 
-def image_source(bench: Path) -> ImageSource:
+def image_source(bench: str) -> ImageSource:
     """`vge_analytics._images.view_image` bound to the benchmark when available, else the
     plain file lookup `BENCH/images/<device_id>/<view>.png|jpg` (PROTOCOL §1.1)."""
     try:
         from vge_analytics._images import view_image  # type: ignore[import-not-found]
     except ImportError:
-        return BenchImages(str(bench))
+        return BenchImages(bench)
     if len(inspect.signature(view_image).parameters) == 3:
         return functools.partial(view_image, bench)
-    return BenchImages(str(bench))
+    return BenchImages(bench)
 
 
 def _episode_list(text: str | None) -> list[str] | None:
@@ -61,11 +60,20 @@ def _summary(manifest: Manifest) -> Table:
 
 
 def replay_command(
-    runs: list[Path] = typer.Argument(
-        ..., help="Run directories (run.json + episodes.jsonl[.gz])."
+    runs: list[str] = typer.Argument(
+        ...,
+        help="Run directories (run.json + episodes.jsonl[.gz]): paths or URIs (s3://, gs://, "
+        "file://).",
     ),
-    bench: Path = typer.Option(..., "--bench", help="Benchmark directory (ssm/, tasks.jsonl)."),
-    out: Path = typer.Option(..., "--out", help="Output directory (tables, manifest, MCAP)."),
+    bench: str = typer.Option(
+        ..., "--bench", help="Benchmark directory (ssm/, tasks.jsonl): a path or a URI."
+    ),
+    out: str = typer.Option(
+        ...,
+        "--out",
+        help="Output directory (tables, manifest, MCAP): a path or a URI such as "
+        "s3://bucket/prefix (see docs/SCALE.md).",
+    ),
     lam: float | None = typer.Option(
         None, "--lambda", help="Budget factor; overrides task and run.json lambda."
     ),
@@ -115,7 +123,7 @@ def replay_command(
     if manifest.quarantined:
         console.print(
             f"[yellow]{manifest.quarantined:,} record(s) quarantined[/]: "
-            f"see {escape(str(out / 'quarantine.jsonl'))}",
+            f"see {escape(str(location(out) / 'quarantine.jsonl'))}",
             soft_wrap=True,
         )
         raise typer.Exit(2)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import typer
 from rich.console import Console
 from rich.markup import escape
@@ -25,8 +23,10 @@ def _report(console: Console, problems: list[Problem]) -> tuple[int, int]:
 
 
 def validate(
-    bench: Path = typer.Argument(..., help="Benchmark directory (ssm/, tasks.jsonl, ...)."),
-    runs: list[Path] = typer.Argument(None, help="Run directories to check against it."),
+    bench: str = typer.Argument(
+        ..., help="Benchmark directory (ssm/, tasks.jsonl, ...): a path or a URI (s3://...)."
+    ),
+    runs: list[str] = typer.Argument(None, help="Run directories to check against it."),
 ) -> None:
     """Check SSMs, UCSMs, tasks and run logs; exit 1 with a report if anything is wrong."""
     console = Console(highlight=False)

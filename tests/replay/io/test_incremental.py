@@ -13,6 +13,7 @@ import replay
 from replay.io import _worker
 
 from ..conftest import Sample
+from .conftest import fail_after
 
 
 def _state(out: Path) -> dict[str, tuple[str, int]]:
@@ -94,19 +95,6 @@ def test_other_runs_stay_complete(copy_sample: Sample, tmp_path: Path) -> None:
     assert m.skipped == ["vlm-a"] and m.exit_code == 2  # skipped runs still report
 
 
-def _fail_after(monkeypatch: pytest.MonkeyPatch, target: object, name: str, n: int) -> None:
-    real = getattr(target, name)
-    calls = {"n": 0}
-
-    def failing(*args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] > n:
-            raise OSError("simulated crash")
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(target, name, failing)
-
-
 @pytest.mark.parametrize(
     ("target", "name", "n"),
     [
@@ -132,7 +120,7 @@ def test_interrupted_replay_leaves_previous_output_intact(
     before = _state(out)
     rows = _visible_rows(out)
     with monkeypatch.context() as patch:
-        _fail_after(patch, target, name, n)
+        fail_after(patch, target, name, n)
         with pytest.raises(Exception, match="simulated crash"):
             replay.replay_runs([s.vlm, s.human], s.bench, out, force=True, progress=False)
     after = _state(out)

@@ -15,6 +15,7 @@ from pathlib import Path
 # Keep every node on loopback: without this Ray advertises the host's network address.
 os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
 
+import pyarrow.fs as pafs  # noqa: E402
 import pytest  # noqa: E402
 import ray  # noqa: E402
 from ray.cluster_utils import Cluster  # noqa: E402
@@ -23,6 +24,8 @@ import replay  # noqa: E402
 import vge_analytics as va  # noqa: E402
 from replay.io._ray import FAULT_ENV, RayCluster  # noqa: E402
 from vge_analytics.cli import _fill_optional_values  # noqa: E402
+
+from .conftest import S3_TEST_ENV  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[3]
 LOGS = ROOT / "logs"
@@ -41,6 +44,7 @@ def cluster(crash_marker: Path):
     """Two nodes of one CPU each on 127.0.0.1; the first batch task kills its own worker
     process once (FAULT_ENV), which Ray must survive by running the task again."""
     os.environ[FAULT_ENV] = str(crash_marker)  # inherited by the raylets and their workers
+    os.environ.update(S3_TEST_ENV)  # object storage credentials, as a real cluster's nodes have
     head = {"num_cpus": 1, "node_ip_address": "127.0.0.1", "include_dashboard": False}
     c = Cluster(initialize_head=True, head_node_args=head)
     c.add_node(num_cpus=1, node_ip_address="127.0.0.1")
@@ -83,6 +87,21 @@ def test_replay_on_two_nodes_is_byte_identical(
     batches = sum(-(-r.counts.lines_read // 64) for r in manifest.runs)  # 64 lines each
     assert sum(manifest.nodes.values()) == batches
     assert crash_marker.exists()  # a worker process was killed mid-run and its task retried
+
+
+def test_replay_on_two_nodes_into_object_storage(
+    cluster, s3_server, local_out: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """OUT in an S3 bucket (moto on 127.0.0.1): every node writes its parts there; the
+    bucket then holds the same files as the local replay."""
+    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 64)
+    fs, query = s3_server
+    manifest = replay.replay_runs(
+        RUNS, LOGS / "bench", f"s3://vge/ray-out?{query}", ray="auto", progress=False
+    )
+    assert len(manifest.nodes) == 2
+    pafs.copy_files("vge/ray-out", str(tmp_path / "got"), source_filesystem=fs)
+    assert _digests(tmp_path / "got") == _digests(local_out)
 
 
 def test_sweep_on_the_cluster_equals_the_local_sweep(cluster, local_out: Path) -> None:

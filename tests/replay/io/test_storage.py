@@ -1,0 +1,271 @@
+"""Inputs and outputs named by URIs (`replay.io._fs`, docs/SCALE.md): `file://` URIs, a
+filesystem without renames (the object-store commit protocol, run on the local disk), and a
+real S3-compatible server (moto, over HTTP on 127.0.0.1) read and written by pyarrow's
+S3FileSystem. Whatever the storage, the files are byte-identical to a plain local replay,
+incremental skipping and `force` behave the same, and an interrupted replay leaves what a
+reader trusts (the runs the manifest lists) complete."""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from pathlib import Path
+from urllib.parse import unquote, urlsplit
+
+import pyarrow.fs as pafs
+import pytest
+
+import replay
+import vge_analytics as va
+from replay.io import _files, _fs, _worker
+
+from ..conftest import Sample
+from .conftest import fail_after
+
+
+def _digests(out: Path) -> dict[str, str]:
+    """sha256 of every file but the private state."""
+    return {
+        p.relative_to(out).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(out.rglob("*"))
+        if p.is_file() and ".replay" not in p.relative_to(out).parts
+    }
+
+
+def _inodes(out: Path) -> dict[str, int]:
+    return {k: (out / k).stat().st_ino for k in _digests(out)}
+
+
+def _replay(runs, bench, out, **options) -> replay.Manifest:
+    return replay.replay_runs(
+        runs,
+        bench,
+        out,
+        mcap=True,
+        image_source=replay.BenchImages(str(bench)),
+        progress=False,
+        **options,
+    )
+
+
+@pytest.fixture
+def small_batches(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Many parts per run, so that commits move and delete several files."""
+    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 4)
+
+
+# --------------------------------------------------------------------------- file://
+
+
+def test_file_uris_write_the_same_files(sample: Sample, tmp_path: Path) -> None:
+    local = tmp_path / "local"
+    _replay(sample.runs, sample.bench, local)
+    # OUT as a URI: every file identical, the manifest's path on the local disk
+    m = _replay(sample.runs, sample.bench, f"file://{tmp_path / 'uri-out'}")
+    assert _digests(tmp_path / "uri-out") == _digests(local)
+    assert m.path == tmp_path / "uri-out" / "manifest.json"
+    # inputs as URIs too: the same tables and MCAP files (images read through the URI);
+    # the manifest and the quarantine name the inputs as given
+    runs = [f"file://{p}" for p in sample.runs]
+    m = _replay(runs, f"file://{sample.bench}", f"file://{tmp_path / 'uris'}")
+    assert m.run("vlm-a").inputs.episodes.path == f"file://{sample.vlm}/episodes.jsonl"
+    got, want = _digests(tmp_path / "uris"), _digests(local)
+    assert got.keys() == want.keys()
+    for name in ("manifest.json", "quarantine.jsonl"):
+        text = (tmp_path / "uris" / name).read_bytes().replace(b"file://", b"")
+        assert text == (local / name).read_bytes(), name
+        del got[name], want[name]
+    assert got == want
+    assert any(k.endswith(".mcap") for k in got)
+
+
+def test_a_bad_uri_is_one_line(sample: Sample, tmp_path: Path) -> None:
+    with pytest.raises(replay.InputError, match=r"^nosuch://x/out: cannot open: .*nosuch"):
+        replay.replay_runs(sample.runs, sample.bench, "nosuch://x/out", progress=False)
+    with pytest.raises(replay.InputError, match="run directory not found"):
+        replay.replay_runs([f"file://{tmp_path}/none"], sample.bench, tmp_path, progress=False)
+
+
+def test_analytics_name_what_to_do_with_an_object_store_out() -> None:
+    with pytest.raises(va.OutputDirError, match=r"^s3://lab/out: .*docs/SCALE\.md"):
+        va.metrics("s3://lab/out")
+
+
+def test_locations_print_as_given_and_round_trip() -> None:
+    root = replay.location("file:///tmp/a%20b/out?x=1")
+    child = root / "mcap" / "run" / "id %2F#odd.mcap"
+    assert str(child) == "file:///tmp/a%20b/out/mcap/run/id%20%252F%23odd.mcap?x=1"
+    assert child.local == Path("/tmp/a b/out/mcap/run/id %2F#odd.mcap")
+    again = replay.location(str(child))  # how a worker reopens it
+    assert again.local == child.local and again == child
+    plain = replay.location("rel/dir") / "run.json"
+    assert str(plain) == "rel/dir/run.json" and plain.local == Path("rel/dir/run.json")
+
+
+# ----------------------------------------------------- the object-store protocol, on disk
+
+
+@pytest.fixture
+def no_rename(monkeypatch: pytest.MonkeyPatch):
+    """`norename:///abs/path`: the local disk through pyarrow's SubTreeFileSystem, which the
+    writer treats like an object store (no rename, no lock, files moved by copy and
+    delete). Returns a function naming a local path that way."""
+    fs = pafs.SubTreeFileSystem("/", pafs.LocalFileSystem())
+    monkeypatch.setattr(_fs, "_OPENED", {})
+    monkeypatch.setitem(_fs._FACTORIES, "norename", lambda uri: (fs, unquote(urlsplit(uri).path)))
+    return lambda path: f"norename://{path}"
+
+
+def test_object_store_protocol_writes_the_same_files(
+    no_rename, small_batches, copy_sample: Sample, tmp_path: Path
+) -> None:
+    s = copy_sample
+    local, out = tmp_path / "local", tmp_path / "remote"
+    _replay(s.runs, s.bench, local)
+    first = _replay(s.runs, s.bench, no_rename(out))
+    assert _digests(out) == _digests(local)
+    assert first.path == f"norename://{out}/manifest.json"
+    assert not (out / ".replay" / "lock").exists()  # no lock where nothing can hold one
+    assert not (out / ".replay" / "staging").exists()
+    # up to date: skipped, nothing rewritten
+    before = _inodes(out)
+    again = _replay(s.runs, s.bench, no_rename(out))
+    assert again.skipped == ["human-1", "vlm-a"] and again.replayed == []
+    parts = [k for k in before if "run_id=" in k or k.startswith("mcap/")]
+    assert parts and all(_inodes(out)[k] == before[k] for k in parts)
+    # forced: replayed, the same bytes
+    forced = _replay(s.runs, s.bench, no_rename(out), force=True)
+    assert forced.replayed == ["human-1", "vlm-a"]
+    assert _digests(out) == _digests(local)
+    # a shorter log: fewer parts; the old version's extra parts and MCAP files are deleted
+    lines = (s.vlm / "episodes.jsonl").read_bytes().splitlines(keepends=True)
+    (s.vlm / "episodes.jsonl").write_bytes(b"".join(lines[:9]))
+    shorter = _replay(s.runs, s.bench, no_rename(out))
+    assert shorter.replayed == ["vlm-a"] and shorter.skipped == ["human-1"]
+    _replay(s.runs, s.bench, local)
+    assert _digests(out) == _digests(local)
+
+
+def test_object_store_interrupted_mid_run_keeps_the_previous_output(
+    no_rename, small_batches, copy_sample: Sample, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    s, out, local = copy_sample, tmp_path / "remote", tmp_path / "local"
+    _replay(s.runs, s.bench, no_rename(out))
+    before = _digests(out)
+    with monkeypatch.context() as patch:
+        fail_after(patch, _worker, "write_part", 5)
+        with pytest.raises(replay.InputError, match="simulated crash"):
+            _replay(s.runs, s.bench, no_rename(out), force=True)
+    assert _digests(out) == before  # nothing a reader sees has changed
+    assert not (out / ".replay" / "staging").exists()
+    _replay(s.runs, s.bench, local)
+    m = _replay(s.runs, s.bench, no_rename(out), force=True)
+    assert m.replayed == ["human-1", "vlm-a"] and _digests(out) == _digests(local)
+
+
+def test_object_store_interrupted_mid_commit_withdraws_the_run(
+    no_rename, small_batches, copy_sample: Sample, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A commit replaces a run's files one by one; the run is out of the manifest meanwhile,
+    so a reader trusting the manifest never sees it half replaced, and the next replay
+    replays it again (the other runs stay as they were)."""
+    s, out, local = copy_sample, tmp_path / "remote", tmp_path / "local"
+    _replay(s.runs, s.bench, no_rename(out))
+    with monkeypatch.context() as patch:
+        fail_after(patch, _fs.Location, "replace", 3)
+        with pytest.raises(OSError, match="simulated crash"):
+            replay.replay_runs(s.runs, s.bench, no_rename(out), force=True, progress=False)
+    listed = replay.read_manifest(no_rename(out))
+    assert listed is not None and [r.run_id for r in listed.runs] == ["vlm-a"]
+    for path in listed.runs[0].outputs.steps:  # what the manifest lists is there
+        assert (out / path).is_file()
+    again = _replay(s.runs, s.bench, no_rename(out))
+    assert again.replayed == ["human-1"] and again.skipped == ["vlm-a"]
+    _replay(s.runs, s.bench, local)
+    assert _digests(out) == _digests(local)
+
+
+def test_commit_dir_moves_files_in_and_deletes_the_rest(no_rename, tmp_path: Path) -> None:
+    root = replay.location(no_rename(tmp_path))
+    for rel, data in (("staged/a", b"new a"), ("staged/sub/b", b"new b")):
+        (root / rel).write_bytes(data)
+    for rel, data in (("final/a", b"old a"), ("final/stale", b"old")):
+        (root / rel).write_bytes(data)
+    _files.commit_dir(root / "staged", root / "final", root / "trash")
+    assert (root / "final").files() == ["a", "sub/b"]
+    assert (root / "final" / "a").read_bytes() == b"new a"
+    assert not (root / "staged").exists() and not (root / "trash").exists()
+
+
+# ------------------------------------------------------------- S3 (moto over real HTTP)
+
+
+def _download(fs: pafs.FileSystem, prefix: str, target: Path) -> None:
+    pafs.copy_files(prefix, str(target), source_filesystem=fs)
+
+
+def test_cli_replays_into_s3(
+    s3_server, vge, sample: Sample, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    fs, query = s3_server
+    out = f"s3://vge/out-cli?{query}"
+    argv = ["replay", str(sample.human), "--bench", str(sample.bench), "--out", out]
+    assert vge([*argv, "--no-progress"]) == 0
+    assert f"wrote {out}" in capsys.readouterr().out.replace("\n", "")
+    manifest = replay.read_manifest(out)
+    assert manifest is not None and [r.run_id for r in manifest.runs] == ["human-1"]
+
+
+def test_s3_output_is_byte_identical_and_incremental(
+    s3_server, small_batches, sample: Sample, tmp_path: Path
+) -> None:
+    fs, query = s3_server
+    local = tmp_path / "local"
+    _replay(sample.runs, sample.bench, local)
+    out = f"s3://vge/out-a?{query}"
+    first = _replay(sample.runs, sample.bench, out, workers=2)
+    assert first.path == f"s3://vge/out-a/manifest.json?{query}"
+    _download(fs, "vge/out-a", tmp_path / "got")
+    assert _digests(tmp_path / "got") == _digests(local)
+    assert not [i for i in fs.get_file_info(pafs.FileSelector("vge/out-a/.replay/staging",
+                                                               allow_not_found=True))]  # fmt: skip
+    again = _replay(sample.runs, sample.bench, out)
+    assert again.skipped == ["human-1", "vlm-a"] and again.content == first.content
+    assert replay.read_manifest(out) == first.content
+
+
+def test_s3_inputs(s3_server, sample: Sample, tmp_path: Path) -> None:
+    """Run directories and the benchmark (SSMs, tasks, view images) read from the bucket."""
+    fs, query = s3_server
+    pafs.copy_files(str(sample.root), "vge/inputs", destination_filesystem=fs)
+    local = tmp_path / "local"
+    want = _replay(sample.runs, sample.bench, local)
+
+    def uri(path: Path) -> str:
+        return f"s3://vge/inputs/{path.relative_to(sample.root).as_posix()}?{query}"
+
+    got = _replay([uri(p) for p in sample.runs], uri(sample.bench), f"s3://vge/out-b?{query}")
+    _download(fs, "vge/out-b", tmp_path / "got")
+    digests, expected = _digests(tmp_path / "got"), _digests(local)
+    tables = [k for k in expected if k.endswith((".parquet", ".mcap"))]
+    assert tables and all(digests[k] == expected[k] for k in tables)
+    for a, b in zip(got.runs, want.runs, strict=True):  # the same inputs, named by URIs
+        assert a.inputs.episodes.sha256 == b.inputs.episodes.sha256
+        assert re.match(r"^s3://vge/inputs/runs/\w+/episodes\.jsonl(\.gz)?\?", a.inputs.episodes.path)
+        assert a.counts == b.counts and a.outputs == b.outputs
+
+
+def test_sweep_rereads_s3_inputs(s3_server, sample: Sample, tmp_path: Path) -> None:
+    """`vge sweep` replays again from the inputs the manifest records: here URIs."""
+    fs, query = s3_server
+    pafs.copy_files(str(sample.root), "vge/sweep-inputs", destination_filesystem=fs)
+
+    def uri(path: Path) -> str:
+        return f"s3://vge/sweep-inputs/{path.relative_to(sample.root).as_posix()}?{query}"
+
+    replay.replay_runs(sample.runs, sample.bench, tmp_path / "local", progress=False)
+    replay.replay_runs(
+        [uri(p) for p in sample.runs], uri(sample.bench), tmp_path / "uris", progress=False
+    )
+    want = va.sweep(tmp_path / "local", [2, 5], metrics=["SR", "SSR"])
+    assert va.sweep(tmp_path / "uris", [2, 5], metrics=["SR", "SSR"]).equals(want)
