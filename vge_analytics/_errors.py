@@ -45,6 +45,14 @@ class QueryLimitError(QueryError):
         super().__init__(message)
 
 
+class PlayError(AnalyticsError):
+    """A human run cannot be written as asked (`vge play`, the Play page)."""
+
+
+class PlayConflictError(PlayError):
+    """Another window changed the episode being played (played on, ended or discarded it)."""
+
+
 class SweepRefused(AnalyticsError):
     """A lambda sweep cannot be computed from the logs that exist."""
 
@@ -56,6 +64,8 @@ class SweepInputError(AnalyticsError):
 __all__ = [
     "AnalyticsError",
     "OutputDirError",
+    "PlayConflictError",
+    "PlayError",
     "QueryError",
     "QueryLimitError",
     "QueryRefused",
