@@ -38,7 +38,7 @@ import math
 import os
 import re
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, MutableMapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from fractions import Fraction
@@ -51,7 +51,6 @@ import orjson
 
 import replay
 from replay.env import DeviceEnv, episode_lambda
-from replay.io._files import atomic_write_bytes
 
 from ._errors import PlayConflictError, PlayError
 
@@ -64,15 +63,14 @@ DEFAULT_RUN_DIR = "human-run"
 IMAGE_SIZE = 768
 """Side of the square image the environment renders each view at (the scale is relative to
 width and height, so resizing keeps it exact)."""
-DISPLAY_WIDTH = 600
-"""Width, in CSS pixels, the Play page shows the view at (the click mapping reads the width
-the browser reports, so any width works)."""
 
 EPISODES_FILE = "episodes.jsonl"
 JOURNAL_DIR = "playing"
 DISCARDED_DIR = "discarded"
 LOCK_FILE = ".lock"
 
+DASHBOARD = "dashboard"
+"""The view a large device's control panel is zoomed in on, locked at first (PROTOCOL §3.1)."""
 INTERACTIONS = ("Press", "Rotate", "Push", "Pull", "Grasp")
 CLICK_ACTIONS = (*INTERACTIONS, "Switch_view")
 """What a click on the image can do (a `Switch_view` with a point unlocks the dashboard
@@ -114,8 +112,10 @@ def scale_coordinate(offset: float, displayed: float) -> int:
     up. A whole number keeps the log readable and loses at most half a unit, less than one
     displayed pixel whenever the image is shown at most 1000 pixels wide.
     """
-    if not displayed > 0:
+    if not displayed > 0 or not math.isfinite(displayed):
         raise PlayError(f"the image's displayed size must be positive, not {displayed!r}")
+    if not math.isfinite(offset):
+        raise PlayError(f"a click's offset must be a number, not {offset!r}")
     value = Fraction(offset) * SCALE / Fraction(displayed)
     return min(max(math.floor(value + Fraction(1, 2)), 0), SCALE)
 
@@ -132,7 +132,7 @@ def click_point(click: Mapping[str, Any]) -> tuple[int, int]:
 
 def click_id(click: Mapping[str, Any] | None) -> tuple | None:
     """What tells one click from the next (the component reports its last click again on
-    every rerun of the page; acting on it once is the page's job)."""
+    every rerun of the page; `PlayState.click` acts on each one once)."""
     if not click:
         return None
     return (click.get("unix_time"), click.get("x"), click.get("y"))
@@ -286,7 +286,7 @@ class HumanRun:
             if lam is not None:
                 document["lambda"] = float(lam)
             document["meta"] = {"interface": "vge play"}
-            atomic_write_bytes(header_path, orjson.dumps(document, option=orjson.OPT_INDENT_2))
+            _write_new(header_path, orjson.dumps(document, option=orjson.OPT_INDENT_2) + b"\n")
             header = replay.read_run_header(root)
         (root / EPISODES_FILE).touch()
         (root / JOURNAL_DIR).mkdir(exist_ok=True)
@@ -531,6 +531,12 @@ class EpisodePlay:
         return self.observation["image"]
 
     @property
+    def broken(self) -> bool:
+        """A step was taken but could not be written: the episode must be resumed from its
+        journal."""
+        return self._failed
+
+    @property
     def last(self) -> StepRecord | None:
         return self.records[-1] if self.records else None
 
@@ -663,6 +669,205 @@ class EpisodePlay:
         self.result = session.finish().episode
 
 
+# ------------------------------------------------------------------------ the page
+
+
+class PlayState:
+    """What the Play page does, over its session state (any mutable mapping: Streamlit's
+    `st.session_state`, a dict in tests). The page draws; every decision is here.
+
+    Keys: `play_episode` (the picked episode, the picker's key), `play_game` (the episode
+    being played, an `EpisodePlay`), `play_seen` (the last click acted on),
+    `play_message` (a message for the next drawing of the page, shown once), and the keys of
+    the page's widgets: the image's last click (`click_key`), the action a click does, its
+    parameters (per action) and the view a `Switch_view` click goes to.
+    """
+
+    EPISODE = "play_episode"
+    GAME = "play_game"
+    SEEN = "play_seen"
+    MESSAGE = "play_message"
+    ACTION = "play_action"
+    CLICK_VIEW = "play_click_view"
+    VIEW = "play_view"
+
+    def __init__(self, run: HumanRun, state: MutableMapping[str, Any], **env_options: Any) -> None:
+        self.run = run
+        self.state = state
+        self.env_options = env_options
+
+    # ------------------------------------------------------------------ reading
+
+    def episode_id(self) -> str:
+        """The picked episode; at first (or when it is not a task), the next one to play."""
+        picked = self.state.get(self.EPISODE)
+        if picked not in self.run.bench.tasks:
+            picked = self.run.next_episode() or next(iter(self.run.bench.tasks), None)
+            if picked is None:
+                raise PlayError(f"{self.run.bench.tasks_path} has no episode")
+            self.state[self.EPISODE] = picked
+        return picked
+
+    def game(self) -> EpisodePlay | None:
+        """The episode being played, started when the picked one is new; None when it was
+        played already or has unfinished steps (the page offers to resume or discard)."""
+        episode_id = self.episode_id()
+        game = self.state.get(self.GAME)
+        if game is not None and game.episode_id == episode_id:
+            return game
+        self.state[self.GAME] = None  # another episode was picked: its journal stays
+        if self.run.status(episode_id).state != "new":
+            return None
+        try:
+            game = self.run.start(episode_id, **self.env_options)
+        except replay.VGEError as exc:
+            self.say("error", str(exc))
+            return None
+        self.state[self.GAME] = game
+        return game
+
+    def message(self) -> tuple[str, str] | None:
+        """(tone, text) to show once, then forgotten."""
+        return self.state.pop(self.MESSAGE, None)
+
+    def say(self, tone: str, text: str) -> None:
+        self.state[self.MESSAGE] = (tone, text)
+
+    # ------------------------------------------------------------------ acting
+
+    def click_key(self) -> str:
+        """Key of the image component: one per episode, so a new episode starts unclicked."""
+        return f"play_click:{self.episode_id()}"
+
+    @staticmethod
+    def params_key(type_: str) -> str:
+        return f"play_params:{type_}"
+
+    def chosen_action(self) -> str:
+        chosen = self.state.get(self.ACTION)
+        return chosen if chosen in CLICK_ACTIONS else CLICK_ACTIONS[0]
+
+    def click(self) -> None:
+        """Carry out the chosen action at the image's last click, once per click (the image
+        reports its last click again on every rerun of the page)."""
+        click = self.state.get(self.click_key())
+        seen = click_id(click)
+        if seen is None or seen == self.state.get(self.SEEN):
+            return
+        self.state[self.SEEN] = seen
+        type_ = self.chosen_action()
+        params = self.state.get(self.params_key(type_), PARAM_HINTS.get(type_, ("",))[0])
+        try:
+            chosen = click_action(type_, click_point(click), params, self.click_view())
+        except PlayError as exc:
+            self.say("error", str(exc))
+            return
+        self.act(chosen)
+
+    def click_view(self) -> str:
+        """The view a `Switch_view` click goes to: as chosen, else the dashboard (what a
+        click is needed for), else the first view."""
+        game = self.state.get(self.GAME)
+        views = list(game.observation["views"]) if game is not None else []
+        chosen = self.state.get(self.CLICK_VIEW)
+        if chosen in views or not views:
+            return chosen or ""
+        return DASHBOARD if DASHBOARD in views else views[0]
+
+    def switch_view(self, view: str) -> None:
+        self.act(action("Switch_view", None, [view]))
+
+    def wait(self) -> None:
+        self.act(action("Timed_wait"))
+
+    def act(self, chosen: Mapping[str, Any]) -> None:
+        game = self.game()
+        if game is None:
+            return
+        try:
+            game.act(chosen)
+        except replay.VGEError as exc:
+            self.say("error", str(exc))
+            if isinstance(exc, PlayConflictError) or game.broken:
+                self.state[self.GAME] = None
+
+    def give_up(self) -> None:
+        """End the episode here (`log_ended`)."""
+        game = self.game()
+        if game is None:
+            return
+        try:
+            if game.end() is None:
+                self.say("info", "Nothing was played in this episode, so nothing was written.")
+                self.state[self.GAME] = None
+        except replay.VGEError as exc:
+            self.say("error", str(exc))
+            self.state[self.GAME] = None
+
+    def resume(self) -> None:
+        try:
+            self.state[self.GAME] = self.run.resume(self.episode_id(), **self.env_options)
+        except replay.VGEError as exc:
+            self.say("error", str(exc))
+
+    def discard(self) -> None:
+        try:
+            target = self.run.discard(self.episode_id())
+        except replay.VGEError as exc:
+            self.say("error", str(exc))
+            return
+        self.say("info", f"The unfinished steps were moved to {target}.")
+
+    def pick_next(self) -> None:
+        """Pick the next episode not played yet (after the picked one)."""
+        following = self.run.next_episode(after=self.state.get(self.EPISODE))
+        if following is None:
+            self.say("info", "Every episode of the benchmark has been played in this run.")
+            return
+        self.state[self.EPISODE] = following
+
+
+def click_hint(type_: str, view: str) -> str:
+    """What a click on the image will do, in words."""
+    if type_ == "Switch_view":
+        return f"Click on it to switch to the {view} view with that point."
+    return f"Click on it to {type_.lower()} there."
+
+
+def goal_text(observation: Mapping[str, Any]) -> str:
+    """`Goal 2 of 3: <instruction>` (the instruction of the current goal)."""
+    index, total = int(observation["goal_index"]), int(observation["n_goals"])
+    if index >= total:
+        return f"All {total} goals completed."
+    return f"Goal {index + 1} of {total}: {observation['instruction']}"
+
+
+def budget_left(value: Any) -> str:
+    """A budget as the page shows it (budgets are floats: λ may be fractional)."""
+    return f"{float(value):g}"
+
+
+def result_text(row: replay.EpisodeRow) -> str:
+    """How an ended episode reads."""
+    how = {
+        "success": "Success",
+        "budget_global": "Ended: the episode's step budget ran out",
+        "budget_local": "Ended: the step budget of the current goal ran out",
+        "log_ended": "Ended by the player",
+    }.get(row.termination, row.termination)
+    return (
+        f"**{how}.** {row.goals_completed} of {_count(row.n_goals, 'goal')} completed in "
+        f"{_count(row.L_act, 'step')} (the shortest way takes {row.L_opt}); SPL {row.spl:.2f}."
+    )
+
+
+def history(records: Sequence[StepRecord]) -> list[dict[str, Any]]:
+    """The steps of the episode so far, newest first, for a table."""
+    return [
+        {"step": r.index, "action": r.action, "feedback": r.feedback} for r in reversed(records)
+    ]
+
+
 # ------------------------------------------------------------------------ file helpers
 
 
@@ -681,6 +886,18 @@ def _write_all(fd: int, data: bytes, path: Path) -> None:
     if written != len(data):  # a full disk; the torn line is cut off when next opened
         raise PlayError(f"{path}: only {written} of {len(data)} bytes could be written")
     os.fsync(fd)
+
+
+def _write_new(path: Path, data: bytes) -> None:
+    """Create `path` whole or not at all: written under a temporary name, then renamed."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    try:
+        _write_all(fd, data, tmp)
+    finally:
+        os.close(fd)
+    os.replace(tmp, path)
+    _fsync_dir(path.parent)
 
 
 def _truncate(path: Path, size: int) -> None:
@@ -737,7 +954,6 @@ __all__ = [
     "CLICK_ACTIONS",
     "DEFAULT_MODEL",
     "DEFAULT_RUN_DIR",
-    "DISPLAY_WIDTH",
     "FEEDBACK_TONES",
     "IMAGE_SIZE",
     "INTERACTIONS",
@@ -746,12 +962,18 @@ __all__ = [
     "EpisodePlay",
     "EpisodeStatus",
     "HumanRun",
+    "PlayState",
     "StepRecord",
     "action",
     "action_text",
+    "budget_left",
     "click_action",
+    "click_hint",
     "click_id",
     "click_point",
+    "goal_text",
+    "history",
     "parse_params",
+    "result_text",
     "scale_coordinate",
 ]

@@ -26,6 +26,7 @@ COMMAND_MODULES = (
     "sweep",
     "sql",
     "app",
+    "play",
 )
 
 app = typer.Typer(
