@@ -12,14 +12,12 @@ warns about.
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import typer
 
 from vge_analytics import _play as play
-from vge_analytics.commands.app import LOOPBACK, is_loopback, streamlit_command
+from vge_analytics.commands.app import LOOPBACK, is_loopback, serve, streamlit_command
 from vge_analytics.dashboard import OUT_ENV
 
 
@@ -92,17 +90,7 @@ def play_cmd(
         f"http://{shown}:{port} (Ctrl-C stops it)",
         err=True,
     )
-    if not is_loopback(host):
-        typer.echo(
-            f"warning: listening on {host}: anyone who can reach this machine on port {port} "
-            f"can play and write steps into {run_dir}",
-            err=True,
-        )
-    sys.stderr.flush()
-    if os.name == "posix":
-        # Replace this process: signals (Ctrl-C, kill) go straight to Streamlit.
-        os.execve(sys.executable, cmd, env)
-    raise typer.Exit(subprocess.call(cmd, env=env))  # pragma: no cover - not POSIX
+    serve(cmd, env, host=host, port=port, exposes=f"can play and write steps into {run_dir}")
 
 
 def register(typer_app: typer.Typer) -> None:
