@@ -26,8 +26,9 @@ def journal_steps(run) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines()[1:]]
 
 
-def click_image(browser: AppPage, x: int, y: int, expect: str) -> None:
-    """Click the view at pixel (x, y) from its top-left corner; wait for the step."""
+def click_image(browser: AppPage, x: int, y: int, expect: str) -> float:
+    """Click the view at pixel (x, y) from its top-left corner; wait for the step. Returns
+    the seconds from the click to the page showing it."""
     image = browser.page.frame_locator(IMAGE).locator("#image")
     image.wait_for()
     shown = image.evaluate("i => [i.complete && i.naturalWidth, i.width, i.height]")
@@ -35,7 +36,7 @@ def click_image(browser: AppPage, x: int, y: int, expect: str) -> None:
     before = browser.run_number()
     started = time.monotonic()
     image.click(position={"x": x, "y": y})
-    browser.wait_rendered(expect, started, after=before)
+    return browser.wait_rendered(expect, started, after=before)
 
 
 def choose(browser: AppPage, option: str, expect: str) -> None:
@@ -48,7 +49,7 @@ def choose(browser: AppPage, option: str, expect: str) -> None:
 
 def test_two_clicks_become_two_steps_and_the_run_replays(play_server, page, tmp_path):
     browser = AppPage(page, play_server.server.url)
-    browser.open("", "Goal 1 of 1")
+    timings = {"open": browser.open("", "Goal 1 of 1")}
     text = browser.text()
     # The next episode not played: the first task, shown from its initial view.
     picked = browser.page.get_by_role("combobox", name="Episode").input_value()
@@ -59,12 +60,12 @@ def test_two_clicks_become_two_steps_and_the_run_replays(play_server, page, tmp_
     # Click 1: switch to the front view, at pixel (120, 360) of the 480-pixel image:
     # 1000 * 120 / 480 = 250, 1000 * 360 / 480 = 750.
     choose(browser, "Switch_view", "View to switch to")
-    click_image(browser, 120, 360, "Step 0:")
+    timings["click 1"] = click_image(browser, 120, 360, "Step 0:")
     assert "The front view" in browser.text()
     # Click 2: press at pixel (301, 7): 1000 * 301 / 480 = 627.08 -> 627,
     # 1000 * 7 / 480 = 14.58 -> 15.
     choose(browser, "Press", "Click on it to press there")
-    click_image(browser, 301, 7, "Step 1:")
+    timings["click 2"] = click_image(browser, 301, 7, "Step 1:")
     browser.screenshot(ARTIFACTS / "app-play.png")
     assert not browser.errors(), browser.errors()
     expected = [
@@ -96,3 +97,4 @@ def test_two_clicks_become_two_steps_and_the_run_replays(play_server, page, tmp_
     assert (row["agent_kind"], row["diverged_steps"], row["n_steps"]) == ("human", 0, 2)
     assert row["termination"] == "log_ended"
     assert not browser.page_errors, browser.page_errors
+    print("seconds to rendered:", {k: round(v, 2) for k, v in timings.items()})
