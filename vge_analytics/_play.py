@@ -10,7 +10,8 @@ The run directory is one `vge replay` reads (PROTOCOL §1.4):
     RUN/run.json                  agent_kind "human", written when the run is created
     RUN/episodes.jsonl            one line per finished episode, structured actions
     RUN/playing/<episode>.jsonl   the journal of an episode being played (not read by replay)
-    RUN/playing/discarded/        journals a person chose to throw away (kept, not read)
+    RUN/playing/discarded/        journals a person chose to throw away, torn lines cut off
+                                  the episodes file (kept, never read)
 
 Crash safety. Each step is appended to the episode's journal (one `write`, then `fsync`)
 before the page shows its feedback, so a step a person has seen is on disk. When the episode
@@ -22,8 +23,8 @@ journal removed. If the app dies:
   played again through the environment, which must give the feedback, state and view the
   journal recorded) or to discard it (the journal is moved to `playing/discarded/`);
 - while ending an episode: a torn last line of `episodes.jsonl` is cut off when the run is
-  opened (the journal, still there, holds the same steps), and a journal whose episode line
-  is complete is removed.
+  opened (the journal, still there, holds the same steps; the torn bytes are kept in
+  `playing/discarded/`), and a journal whose episode line is complete is removed.
 
 Several browser tabs may play the same run: writes take a lock on the run, and a journal
 that changed since a tab last wrote to it (another tab played on) is refused with a message
@@ -316,6 +317,7 @@ class HumanRun:
                 tail = b"\n"  # a complete line that only lacks its newline (hand-written)
             except msgspec.DecodeError:
                 tail = None  # torn by a crash: its journal still holds these steps
+                self._set_aside(data[start:], "episodes-tail")
             with open(path, "r+b") as fh:
                 if tail is None:
                     fh.truncate(start)
@@ -331,6 +333,16 @@ class HumanRun:
                 path.unlink()  # the first write was torn: no step of it was ever shown
             elif episode_id in finished:
                 path.unlink()  # ended, but the app died before removing it
+
+    def _set_aside(self, data: bytes, stem: str) -> Path:
+        """Keep `data` in `playing/discarded/<stem>.<n>.jsonl` (never read again)."""
+        folder = self.root / JOURNAL_DIR / DISCARDED_DIR
+        folder.mkdir(exist_ok=True)
+        n = 1
+        while (target := folder / f"{stem}.{n}.jsonl").exists():
+            n += 1
+        _write_new(target, data)
+        return target
 
     # ------------------------------------------------------------------ reading
 
@@ -467,12 +479,8 @@ class HumanRun:
             path = self._journals().get(episode_id)
             if path is None:
                 raise PlayError(f"episode {episode_id!r} has no unfinished steps to discard")
-            folder = self.root / JOURNAL_DIR / DISCARDED_DIR
-            folder.mkdir(exist_ok=True)
-            n = 1
-            while (target := folder / f"{path.stem}.{n}.jsonl").exists():
-                n += 1
-            os.replace(path, target)
+            target = self._set_aside(path.read_bytes(), path.stem)
+            path.unlink()
             _fsync_dir(path.parent)
             return target
 

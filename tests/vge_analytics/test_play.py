@@ -274,6 +274,8 @@ def test_a_torn_episode_line_is_cut_off_and_the_episode_finished_from_its_journa
 
     run = open_run(tmp_path / "run", bench)
     assert (run.root / "episodes.jsonl").read_bytes() == before
+    (torn,) = (run.root / "playing" / "discarded").iterdir()  # kept aside, not lost
+    assert torn.name == "episodes-tail.1.jsonl" and torn.read_bytes().startswith(b'{"episode_id"')
     assert run.status(KETTLE).state == "unfinished"
     episode = run.resume(KETTLE, **ENV)
     assert episode.done and episode.result.success  # finished at once
