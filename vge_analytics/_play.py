@@ -195,13 +195,17 @@ class EpisodeStatus:
     """Steps played so far (unfinished) or in all (finished)."""
 
     def label(self) -> str:
-        """How the episode picker shows it."""
-        state = {
-            "new": "not played",
-            "unfinished": f"unfinished, {_count(self.steps, 'step')}",
-            "finished": f"played, {_count(self.steps, 'step')}",
+        """How the episode picker shows it. Only what never changes: the picker does not
+        redraw the label of the chosen episode while it is played."""
+        return f"{self.episode_id} · {self.device_id} · {_count(self.n_goals, 'goal')}"
+
+    def summary(self) -> str:
+        """Where the episode stands, in words."""
+        return {
+            "new": "Not played in this run yet.",
+            "unfinished": f"Unfinished: {_count(self.steps, 'step')} played so far.",
+            "finished": f"Played to its end in {_count(self.steps, 'step')}.",
         }[self.state]
-        return f"{self.episode_id} · {self.device_id} · {_count(self.n_goals, 'goal')} · {state}"
 
 
 def _count(n: int, noun: str) -> str:

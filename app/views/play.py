@@ -32,6 +32,7 @@ with st.sidebar:
 c1, c2 = st.columns([5, 1], vertical_alignment="bottom")
 c1.selectbox("Episode", list(statuses), format_func=lambda e: statuses[e].label(), key=desk.EPISODE)
 c2.button("Next not played", on_click=desk.pick_next, icon=":material/skip_next:")
+st.caption(statuses[episode_id].summary())
 
 message = desk.message()
 if message is not None:

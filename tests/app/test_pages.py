@@ -353,6 +353,7 @@ def test_play_page_writes_each_step_of_a_human_run(tiny_out, tmp_path, monkeypat
         {"type": "Rotate", "coord": [100, 900], "params": ["1", "2"]},
     ]
     assert [m.value for m in at.metric][:2] == ["3", "7"]
+    assert "Unfinished: 3 steps played so far." in [c.value for c in at.caption]
     assert at.dataframe[0].value["step"].to_list() == [2, 1, 0]  # newest first
 
     button(at, "Give up").click()

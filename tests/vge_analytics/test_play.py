@@ -385,8 +385,10 @@ def test_next_episode_skips_finished_and_unplayable_tasks(tmp_path, bench) -> No
     assert run.next_episode() == ids[1]
     assert run.next_episode(after=ids[2]) == ids[3]
     assert run.next_episode(after=ids[-1]) == ids[1]  # wraps around
-    assert run.status(ids[0]).label() == f"{ids[0]} · kettle · 2 goals · played, 1 step"
-    assert run.status(ids[1]).label() == f"{ids[1]} · kettle · 1 goal · not played"
+    assert run.status(ids[0]).label() == f"{ids[0]} · kettle · 2 goals"
+    assert run.status(ids[0]).summary() == "Played to its end in 1 step."
+    assert run.status(ids[1]).label() == f"{ids[1]} · kettle · 1 goal"
+    assert run.status(ids[1]).summary() == "Not played in this run yet."
 
 
 # ------------------------------------------------------------------------ the page's state
