@@ -164,6 +164,15 @@ class AppServer:
         proc.returncode = os.waitstatus_to_exitcode(status)
         self.peak_memory = usage.ru_maxrss * 1024
 
+    def kill(self) -> None:
+        """SIGKILL to the server's process group: the server dies as in a crash, with no
+        chance to clean up."""
+        proc, self._proc = self._proc, None
+        if proc is None or proc.returncode is not None:
+            return
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
     def text(self) -> str:
         return self.log.read_text(errors="replace")
 

@@ -2,7 +2,8 @@
 
 Two clicks on the image (a view shown 480 pixels wide; the environment renders it 768
 pixels square) become two steps whose 0..1000 coordinates are worked out here by hand; the
-person then gives up, and the human run replays with zero divergent steps.
+person then gives up, and the human run replays with zero divergent steps. A server killed
+in the middle of an episode loses none of its steps: the next one offers to resume it.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import replay
 import vge_analytics as va
 
 from .conftest import ARTIFACTS
-from .streamlit_browser import AppPage
+from .streamlit_browser import AppPage, AppServer
 
 IMAGE = 'iframe[title="streamlit_image_coordinates.streamlit_image_coordinates"]'
 WIDTH = 480
@@ -100,3 +101,33 @@ def test_two_clicks_become_two_steps_and_the_run_replays(play_server, page, tmp_
     assert row["termination"] == "log_ended"
     assert not browser.page_errors, browser.page_errors
     print("seconds to rendered:", {k: round(v, 2) for k, v in timings.items()})
+
+
+def test_a_killed_server_loses_no_step(play_server, page, tmp_path):
+    browser = AppPage(page, play_server.server.url)
+    browser.open("", "Goal 1 of 1")
+    click_image(browser, 240, 240, "Step 0:")  # (500, 500)
+    click_image(browser, 48, 432, "Step 1:")  # (100, 900)
+    play_server.server.kill()  # as a crash: no clean-up
+
+    options = ["--out", str(play_server.run), "--image-width", str(WIDTH)]
+    log = tmp_path / "vge-play-again.log"
+    with AppServer(play_server.bench, command="play", options=options, log=log) as server:
+        browser = AppPage(page, server.url)
+        browser.open("", "2 steps of this episode were played before")
+        before = browser.run_number()
+        browser.page.get_by_role("button", name="Resume").click()
+        browser.wait_rendered("Goal 1 of 1", time.monotonic(), after=before)
+        assert "Step 1: Press(coord=[100, 900], params=[0])" in browser.text()
+        click_image(browser, 479, 1, "Step 2:")  # 997.92 -> 998, 2.08 -> 2
+        before = browser.run_number()
+        browser.page.get_by_role("button", name="Give up").click()
+        browser.wait_rendered("Ended by the player", time.monotonic(), after=before)
+        assert not browser.errors() and not browser.page_errors
+    (line,) = (play_server.run / "episodes.jsonl").read_text().splitlines()
+    coords = [s["action"]["coord"] for s in json.loads(line)["steps"]]
+    assert coords == [[500, 500], [100, 900], [998, 2]]
+    out = tmp_path / "out"
+    replay.replay_runs([play_server.run], play_server.bench, out, progress=False)
+    va.clear_cache()
+    assert va.episodes(out)["diverged_steps"].to_list() == [0]
