@@ -44,7 +44,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import msgspec
 import numpy as np
@@ -52,6 +52,9 @@ import orjson
 
 import replay
 from replay.env import DeviceEnv, episode_lambda
+
+if TYPE_CHECKING:
+    from replay import ImageSource
 
 from ._errors import PlayConflictError, PlayError
 
@@ -232,12 +235,23 @@ class HumanRun:
     """
 
     def __init__(
-        self, root: Path, bench: replay.Benchmark, header: replay.RunHeader, clock: Clock | None
+        self,
+        root: Path,
+        bench: replay.Benchmark,
+        header: replay.RunHeader,
+        *,
+        clock: Clock | None,
+        image_source: ImageSource | None,
+        image_size: tuple[int, int],
     ) -> None:
         self.root = root
         self.bench = bench
         self.header = header
         self.clock = clock
+        self.image_source = image_source
+        """Where the views come from (None: the benchmark's images and rendered views)."""
+        self.image_size = image_size
+        """(width, height) the environment renders each view at."""
 
     # ------------------------------------------------------------------ opening
 
@@ -251,10 +265,13 @@ class HumanRun:
         model: str | None = None,
         lam: float | None = None,
         clock: Clock | None = time.time,
+        image_source: ImageSource | None = None,
+        image_size: tuple[int, int] = (IMAGE_SIZE, IMAGE_SIZE),
     ) -> HumanRun:
         """Create the run at `root` or open it. `run_id` (default: the directory's name),
         `model` (default `human`) and `lam` are written when the run is created; given for
-        an existing run, they must match its run.json."""
+        an existing run, they must match its run.json. `image_source` and `image_size` are
+        the environment's (`replay.env.DeviceEnv`)."""
         root = Path(root)
         if not isinstance(bench, replay.Benchmark):
             bench = replay.Benchmark.open(bench)
@@ -295,7 +312,9 @@ class HumanRun:
             header = replay.read_run_header(root)
         (root / EPISODES_FILE).touch()
         (root / JOURNAL_DIR).mkdir(exist_ok=True)
-        run = cls(root, bench, header, clock)
+        run = cls(
+            root, bench, header, clock=clock, image_source=image_source, image_size=image_size
+        )
         with run.locked():
             run._repair()
         return run
@@ -448,7 +467,7 @@ class HumanRun:
 
     # ------------------------------------------------------------------ playing
 
-    def start(self, episode_id: str, **env_options: Any) -> EpisodePlay:
+    def start(self, episode_id: str) -> EpisodePlay:
         """A new episode. Refused when it was finished in this run (each episode is played
         once per run) or has an unfinished journal (resume or discard it first)."""
         status = self.status(episode_id)
@@ -459,9 +478,9 @@ class HumanRun:
                 f"episode {episode_id!r} has {status.steps} unfinished steps: resume or discard "
                 "them first"
             )
-        return EpisodePlay(self, episode_id, **env_options)
+        return EpisodePlay(self, episode_id)
 
-    def resume(self, episode_id: str, **env_options: Any) -> EpisodePlay:
+    def resume(self, episode_id: str) -> EpisodePlay:
         """The unfinished episode, its journal's steps played again through the environment
         (a torn last line, a step whose feedback was never shown, is cut off first). An
         episode whose last journalled step had ended it is finished at once."""
@@ -472,7 +491,7 @@ class HumanRun:
             steps, good_size = _journal_steps(path)
             if path.stat().st_size != good_size:
                 _truncate(path, good_size)
-        play = EpisodePlay(self, episode_id, **env_options)
+        play = EpisodePlay(self, episode_id)
         play._replay_journal(path, steps)
         return play
 
@@ -508,18 +527,19 @@ class EpisodePlay:
     line goes to the episodes file.
     """
 
-    def __init__(self, run: HumanRun, episode_id: str, **env_options: Any) -> None:
+    def __init__(self, run: HumanRun, episode_id: str) -> None:
         self.run = run
         self.episode_id = episode_id
         header = run.header
-        options = {"image_width": IMAGE_SIZE, "image_height": IMAGE_SIZE} | env_options
         self.env = DeviceEnv(
             run.bench,
             lam=header.lam,
+            image_width=run.image_size[0],
+            image_height=run.image_size[1],
+            image_source=run.image_source,
             run_id=header.run_id,
             model=header.model,
             agent_kind=header.agent_kind,
-            **options,
         )
         self.observation, self.reset_info = self.env.reset(options={"episode_id": episode_id})
         self.journal = run.journal_path(episode_id)
@@ -703,10 +723,9 @@ class PlayState:
     CLICK_VIEW = "play_click_view"
     VIEW = "play_view"
 
-    def __init__(self, run: HumanRun, state: MutableMapping[str, Any], **env_options: Any) -> None:
+    def __init__(self, run: HumanRun, state: MutableMapping[str, Any]) -> None:
         self.run = run
         self.state = state
-        self.env_options = env_options
 
     # ------------------------------------------------------------------ reading
 
@@ -731,7 +750,7 @@ class PlayState:
         if self.run.status(episode_id).state != "new":
             return None
         try:
-            game = self.run.start(episode_id, **self.env_options)
+            game = self.run.start(episode_id)
         except replay.VGEError as exc:
             self.say("error", str(exc))
             return None
@@ -818,7 +837,7 @@ class PlayState:
 
     def resume(self) -> None:
         try:
-            self.state[self.GAME] = self.run.resume(self.episode_id(), **self.env_options)
+            self.state[self.GAME] = self.run.resume(self.episode_id())
         except replay.VGEError as exc:
             self.say("error", str(exc))
 

@@ -19,7 +19,7 @@ from replay.env import no_images
 from vge_analytics import _play as play
 from vge_analytics._errors import PlayConflictError, PlayError
 
-ENV = {"image_source": no_images, "image_width": 40, "image_height": 30}
+SCREEN = {"image_source": no_images, "image_size": (40, 30)}
 """Episodes here do not look at the views: no rendering."""
 KETTLE = "hw_kettle_c"  # 3 goals, C_opt 1 + 2 + 1 (a chain), λ 2
 OVEN = "hw_dash_a"
@@ -120,8 +120,8 @@ def bench(hand) -> Path:
     return hand["bench"]
 
 
-def open_run(root: Path, bench: Path, **kwargs) -> play.HumanRun:
-    return play.HumanRun.open(root, bench, clock=Clock(), **kwargs)
+def open_run(root: Path, bench: Path, **settings) -> play.HumanRun:
+    return play.HumanRun.open(root, bench, clock=Clock(), **SCREEN, **settings)
 
 
 def lines(path: Path) -> list[dict]:
@@ -161,7 +161,7 @@ def test_a_run_of_another_kind_is_refused(tmp_path, hand) -> None:
 
 def test_an_episode_played_to_success_replays_with_zero_divergence(tmp_path, bench) -> None:
     run = open_run(tmp_path / "run", bench)
-    episode = run.start(KETTLE, **ENV)
+    episode = run.start(KETTLE)
     actions = optimal_actions(run, KETTLE)
     assert len(actions) == 4  # C_opt 1 + 2 + 1
     for k, a in enumerate(actions):
@@ -196,15 +196,15 @@ def test_an_episode_played_to_success_replays_with_zero_divergence(tmp_path, ben
     )  # fmt: skip
     assert result == episode.result
     with pytest.raises(PlayError, match="already played"):
-        run.start(KETTLE, **ENV)
+        run.start(KETTLE)
 
 
 def test_ending_early_writes_a_log_ended_episode(tmp_path, bench) -> None:
     run = open_run(tmp_path / "run", bench)
-    episode = run.start(KETTLE, **ENV)
+    episode = run.start(KETTLE)
     assert episode.end() is None  # nothing played, nothing written
     assert run.status(KETTLE).state == "new" and not lines(run.root / "episodes.jsonl")
-    episode = run.start(KETTLE, **ENV)
+    episode = run.start(KETTLE)
     info = episode.act(play.action("Press", (1, 1), ["0"]))
     assert info["feedback_kind"] == "null_effect"
     result = episode.end()
@@ -218,7 +218,7 @@ def test_ending_early_writes_a_log_ended_episode(tmp_path, bench) -> None:
 def test_a_torn_journal_line_is_cut_off_and_the_episode_resumed(tmp_path, bench) -> None:
     run = open_run(tmp_path / "run", bench)
     actions = optimal_actions(run, KETTLE)
-    episode = run.start(KETTLE, **ENV)
+    episode = run.start(KETTLE)
     episode.act(actions[0])
     episode.act(actions[1])
     journal = run.journal_path(KETTLE)
@@ -232,8 +232,8 @@ def test_a_torn_journal_line_is_cut_off_and_the_episode_resumed(tmp_path, bench)
     assert run.status(KETTLE) == play.EpisodeStatus(KETTLE, "kettle", 3, "unfinished", 2)
     assert run.next_episode() == next(iter(run.bench.tasks))  # none is played to its end
     with pytest.raises(PlayError, match="resume or discard"):
-        run.start(KETTLE, **ENV)
-    episode = run.resume(KETTLE, **ENV)
+        run.start(KETTLE)
+    episode = run.resume(KETTLE)
     assert journal.read_bytes() == good
     assert len(episode.steps) == 2 and episode.observation["step"] == 2
     assert episode.observation["goal_index"] == 1
@@ -252,7 +252,7 @@ def test_a_torn_episode_line_is_cut_off_and_the_episode_finished_from_its_journa
     run = open_run(tmp_path / "run", bench)
     actions = optimal_actions(run, KETTLE)
     # A first episode, ended: its line must survive the repair untouched.
-    first = run.start(OVEN, **ENV)
+    first = run.start(OVEN)
     first.act(play.action("Timed_wait"))
     first.end()
     before = (run.root / "episodes.jsonl").read_bytes()
@@ -263,7 +263,7 @@ def test_a_torn_episode_line_is_cut_off_and_the_episode_finished_from_its_journa
             fh.write(data[: len(data) // 2])
         raise KeyboardInterrupt
 
-    episode = run.start(KETTLE, **ENV)
+    episode = run.start(KETTLE)
     for a in actions[:-1]:
         episode.act(a)
     monkeypatch.setattr(play.HumanRun, "_append_episode", crash)
@@ -277,7 +277,7 @@ def test_a_torn_episode_line_is_cut_off_and_the_episode_finished_from_its_journa
     (torn,) = (run.root / "playing" / "discarded").iterdir()  # kept aside, not lost
     assert torn.name == "episodes-tail.1.jsonl" and torn.read_bytes().startswith(b'{"episode_id"')
     assert run.status(KETTLE).state == "unfinished"
-    episode = run.resume(KETTLE, **ENV)
+    episode = run.resume(KETTLE)
     assert episode.done and episode.result.success  # finished at once
     assert not run.journal_path(KETTLE).exists()
     got = lines(run.root / "episodes.jsonl")
@@ -290,7 +290,7 @@ def test_a_torn_episode_line_is_cut_off_and_the_episode_finished_from_its_journa
 def test_a_journal_left_behind_by_a_finished_episode_is_removed(tmp_path, bench) -> None:
     run = open_run(tmp_path / "run", bench)
     actions = optimal_actions(run, KETTLE)
-    episode = run.start(KETTLE, **ENV)
+    episode = run.start(KETTLE)
     for a in actions[:-1]:
         episode.act(a)
     kept = run.journal_path(KETTLE).read_bytes()
@@ -320,7 +320,7 @@ def test_a_hand_written_last_line_without_newline_is_kept(tmp_path, bench) -> No
 def test_discarding_keeps_the_journal_aside_and_the_episode_starts_over(tmp_path, bench) -> None:
     run = open_run(tmp_path / "run", bench)
     for n in (1, 2):
-        episode = run.start(KETTLE, **ENV)
+        episode = run.start(KETTLE)
         episode.act(play.action("Press", (1, 1), ["0"]))
         target = run.discard(KETTLE)
         assert target == run.root / "playing" / "discarded" / (
@@ -330,22 +330,22 @@ def test_discarding_keeps_the_journal_aside_and_the_episode_starts_over(tmp_path
     with pytest.raises(PlayError, match="no unfinished steps"):
         run.discard(KETTLE)
     with pytest.raises(PlayError, match="no unfinished steps"):
-        run.resume(KETTLE, **ENV)
+        run.resume(KETTLE)
     # The discarded journals are not part of the run.
     assert replay_run(run.root, bench, tmp_path / "out")["episodes"].height == 0
 
 
 def test_a_journal_the_environment_no_longer_agrees_with_is_not_resumed(tmp_path, bench) -> None:
     run = open_run(tmp_path / "run", bench)
-    episode = run.start(KETTLE, **ENV)
+    episode = run.start(KETTLE)
     episode.act(optimal_actions(run, KETTLE)[0])
     path = run.journal_path(KETTLE)
     path.write_bytes(path.read_bytes().replace(b'"state":"LidOpen"', b'"state":"Standby"'))
     with pytest.raises(PlayError, match="step 0 of its journal now gives another state"):
-        run.resume(KETTLE, **ENV)
+        run.resume(KETTLE)
     path.write_bytes(path.read_bytes() + b"not json\n")
     with pytest.raises(PlayError, match="line 3 is not a step"):
-        run.resume(KETTLE, **ENV)
+        run.resume(KETTLE)
     assert run.status(KETTLE).state == "unfinished"  # the picker still lists it
     run.discard(KETTLE)
 
@@ -353,12 +353,12 @@ def test_a_journal_the_environment_no_longer_agrees_with_is_not_resumed(tmp_path
 def test_two_windows_on_one_episode_do_not_interleave(tmp_path, bench) -> None:
     run = open_run(tmp_path / "run", bench)  # λ 5: three steps do not end the episode
     press = play.action("Press", (1, 1), ["0"])
-    a = run.start(OVEN, **ENV)
-    b = run.start(OVEN, **ENV)  # both opened before either played
+    a = run.start(OVEN)
+    b = run.start(OVEN)  # both opened before either played
     a.act(press)
     with pytest.raises(PlayConflictError, match="another window"):
         b.act(press)
-    a2 = run.resume(OVEN, **ENV)
+    a2 = run.resume(OVEN)
     a2.act(press)
     with pytest.raises(PlayConflictError, match="another window"):
         a.act(press)  # a2 played on
@@ -379,7 +379,7 @@ def test_next_episode_skips_finished_and_unplayable_tasks(tmp_path, bench) -> No
     assert [s.episode_id for s in run.statuses()] == ["ghost", *ids]
     assert not run.playable("ghost")
     assert run.next_episode() == ids[0]
-    episode = run.start(ids[0], **ENV)
+    episode = run.start(ids[0])
     episode.act(play.action("Timed_wait"))
     episode.end()
     assert run.next_episode() == ids[1]
@@ -397,7 +397,7 @@ def test_next_episode_skips_finished_and_unplayable_tasks(tmp_path, bench) -> No
 def test_the_pages_state_acts_once_per_click_and_moves_on(tmp_path, bench) -> None:
     run = open_run(tmp_path / "run", bench)
     state: dict = {}
-    desk = play.PlayState(run, state, **ENV)
+    desk = play.PlayState(run, state)
     assert desk.episode_id() == "hw_kettle_a" == state["play_episode"]
     state["play_episode"] = OVEN  # picked in the picker
     game = desk.game()
@@ -454,7 +454,7 @@ def test_the_pages_state_acts_once_per_click_and_moves_on(tmp_path, bench) -> No
 def test_the_pages_state_says_when_every_episode_is_played(tmp_path, bench) -> None:
     run = open_run(tmp_path / "run", bench)
     state: dict = {}
-    desk = play.PlayState(run, state, **ENV)
+    desk = play.PlayState(run, state)
     for episode_id in run.bench.tasks:
         state["play_episode"] = episode_id
         desk.wait()
