@@ -18,8 +18,8 @@ import polars as pl
 import streamlit as st
 
 import vge_analytics as va
-from vge_analytics import _play as play
 from vge_analytics import dashboard as dash
+from vge_analytics import play
 from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits
 
 API: dict[str, Callable[..., Any]] = {

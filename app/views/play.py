@@ -5,7 +5,7 @@ from streamlit_image_coordinates import streamlit_image_coordinates
 
 import replay
 from app import _ui as ui
-from vge_analytics import _play as play
+from vge_analytics import play
 
 st.title("Play")
 target = ui.play_target() or ui.PlayTarget("", "", None)  # the entry file routes here with one

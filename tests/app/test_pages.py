@@ -11,8 +11,7 @@ import pytest
 from streamlit.testing.v1 import AppTest
 
 import vge_analytics as va
-from vge_analytics import ERROR_LABELS, compare, error_distribution, sweep, switch_classes
-from vge_analytics import _play as play
+from vge_analytics import ERROR_LABELS, compare, error_distribution, play, sweep, switch_classes
 from vge_analytics import dashboard as dash
 
 from .conftest import APP

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import typer
 
-from vge_analytics import _play as play
+from vge_analytics import play
 from vge_analytics.commands.app import LOOPBACK, is_loopback, serve, streamlit_command
 from vge_analytics.dashboard import OUT_ENV
 

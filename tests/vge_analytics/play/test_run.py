@@ -1,137 +1,20 @@
-"""The Play page's logic (`vge_analytics._play`): the click mapping, worked by hand, and the
-human run writer: what it writes, that `vge replay` reads it with zero divergent steps, and
-what is left after a crash at each point of a write (a torn journal line, a torn episode
+"""The human run writer: what it writes, that `vge replay` reads it with zero divergent steps,
+and what is left after a crash at each point of a write (a torn journal line, a torn episode
 line, a journal left behind), resumed or discarded; two windows on one episode."""
 
 from __future__ import annotations
 
 import json
 import shutil
-from pathlib import Path
 
 import orjson
-import polars as pl
 import pytest
 
 import replay
-import vge_analytics as va
-from replay.env import no_images
-from vge_analytics import _play as play
+from vge_analytics import play
 from vge_analytics._errors import PlayConflictError, PlayError
 
-SCREEN = {"image_source": no_images, "image_size": (40, 30)}
-"""Episodes here do not look at the views: no rendering."""
-KETTLE = "hw_kettle_c"  # 3 goals, C_opt 1 + 2 + 1 (a chain), λ 2
-OVEN = "hw_dash_a"
-
-
-class Clock:
-    """Seconds since the epoch, one more per call (a person taking exactly 1 s a step)."""
-
-    def __init__(self, start: float = 1_760_000_000.0) -> None:
-        self.now = start
-
-    def __call__(self) -> float:
-        self.now += 1.0
-        return self.now
-
-
-# --------------------------------------------------------------------- click mapping
-
-
-@pytest.mark.parametrize(
-    ("offset", "displayed", "expected"),
-    [
-        # The page shows the 768-pixel view 600 pixels wide: 1000 * offset / 600.
-        (150, 600, 250),  # 250 exactly
-        (300, 600, 500),  # the middle
-        (301, 600, 502),  # 501.67 -> 502
-        (7, 600, 12),  # 11.67 -> 12
-        (0, 600, 0),
-        (600, 600, 1000),  # the right edge
-        # The same image at its natural width: the middle is still 500.
-        (384, 768, 500),
-        (100, 768, 130),  # 130.21 -> 130
-        # Halves round up (Python's round() would give 2 and 0).
-        (1, 400, 3),  # 2.5 -> 3
-        (0.4, 800, 1),  # 0.5 -> 1
-        (1, 800, 1),  # 1.25 -> 1
-        (3, 800, 4),  # 3.75 -> 4
-        # A click reported just outside the image stays on the scale.
-        (-2, 600, 0),
-        (605, 600, 1000),
-    ],
-)
-def test_scale_coordinate_worked_by_hand(offset, displayed, expected) -> None:
-    assert play.scale_coordinate(offset, displayed) == expected
-
-
-def test_click_point_uses_the_displayed_size_not_the_natural_one() -> None:
-    # A 768 x 768 view shown at 600 x 600: pixel (150, 450) is (250, 750) on the scale.
-    assert play.click_point({"x": 150, "y": 450, "width": 600, "height": 600}) == (250, 750)
-    # A view shown 600 x 450 (4:3): each axis is scaled by its own displayed size.
-    assert play.click_point({"x": 60, "y": 45, "width": 600, "height": 450}) == (100, 100)
-    assert play.click_point({"x": 301, "y": 7, "width": 600, "height": 450}) == (502, 16)
-    # 7 / 450 * 1000 = 15.56 -> 16.
-    with pytest.raises(PlayError, match="displayed size"):
-        play.click_point({"x": 1, "y": 1, "width": 0, "height": 600})
-    with pytest.raises(PlayError, match="not a click"):
-        play.click_point({"x": 1, "y": 1})
-    with pytest.raises(PlayError, match="must be a number"):
-        play.click_point({"x": float("nan"), "y": 1, "width": 10, "height": 10})
-
-
-def test_actions_as_a_human_log_carries_them() -> None:
-    assert play.parse_params(" 0 , 3,, ") == ["0", "3"]
-    assert play.parse_params("") == []
-    assert play.click_action("Rotate", (331, 875), "0, 3", "front") == {
-        "type": "Rotate",
-        "coord": [331, 875],
-        "params": ["0", "3"],
-    }
-    # A Switch_view with a point (how the locked dashboard is unlocked).
-    assert play.click_action("Switch_view", (10, 20), "ignored", "dashboard") == {
-        "type": "Switch_view",
-        "coord": [10, 20],
-        "params": ["dashboard"],
-    }
-    with pytest.raises(PlayError):
-        play.click_action("Timed_wait", (1, 2), "", "front")
-    assert play.action_text({"action": play.action("Timed_wait")}) == "Timed_wait(params=[])"
-    assert play.click_id(None) is None
-    assert play.click_id({"x": 1, "y": 2, "unix_time": 5}) == (5, 1, 2)
-
-
-# ---------------------------------------------------------------------------- the run
-
-
-def structured(a: replay.Action) -> dict:
-    return play.action(a.type.capitalize(), a.coord, a.params)
-
-
-def optimal_actions(run: play.HumanRun, episode_id: str) -> list[dict]:
-    task = run.bench.tasks[episode_id].task
-    plan = replay.setup_episode(run.bench.machine(task.device_id), task).plan
-    return [structured(s.action) for s in plan.steps]
-
-
-@pytest.fixture
-def bench(hand) -> Path:
-    return hand["bench"]
-
-
-def open_run(root: Path, bench: Path, **settings) -> play.HumanRun:
-    return play.HumanRun.open(root, bench, clock=Clock(), **SCREEN, **settings)
-
-
-def lines(path: Path) -> list[dict]:
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-
-
-def replay_run(run_dir: Path, bench: Path, out: Path) -> dict[str, pl.DataFrame]:
-    replay.replay_runs([str(run_dir)], str(bench), str(out), progress=False)
-    va.clear_cache()
-    return {"steps": va.steps(out), "episodes": va.episodes(out)}
+from .helpers import KETTLE, OVEN, lines, open_run, optimal_actions, replay_run
 
 
 def test_a_new_run_is_a_human_run_vge_replay_reads(tmp_path, bench) -> None:
@@ -389,80 +272,3 @@ def test_next_episode_skips_finished_and_unplayable_tasks(tmp_path, bench) -> No
     assert run.status(ids[0]).summary() == "Played to its end in 1 step."
     assert run.status(ids[1]).label() == f"{ids[1]} · kettle · 1 goal"
     assert run.status(ids[1]).summary() == "Not played in this run yet."
-
-
-# ------------------------------------------------------------------------ the page's state
-
-
-def test_the_pages_state_acts_once_per_click_and_moves_on(tmp_path, bench) -> None:
-    run = open_run(tmp_path / "run", bench)
-    state: dict = {}
-    desk = play.PlayState(run, state)
-    assert desk.episode_id() == "hw_kettle_a" == state["play_episode"]
-    state["play_episode"] = OVEN  # picked in the picker
-    game = desk.game()
-    assert game.episode_id == OVEN and desk.game() is game
-    assert desk.click_view() == "dashboard"  # what a Switch_view click is for
-    click = {"x": 30, "y": 15, "width": 60, "height": 60, "unix_time": 1}
-    state[desk.click_key()] = click
-    desk.click()
-    desk.click()  # reported again on the next rerun: not a second step
-    assert [s["action"] for s in game.steps] == [play.action("Press", (500, 250), ["0"])]
-    state["play_action"] = "Rotate"
-    state[desk.params_key("Rotate")] = "1, 3"
-    state[desk.click_key()] = {**click, "unix_time": 2}
-    desk.click()
-    state["play_action"] = "Switch_view"
-    state[desk.click_key()] = {**click, "unix_time": 3}
-    desk.click()
-    desk.wait()
-    desk.switch_view("back")
-    assert [s["action"] for s in game.steps][1:] == [
-        play.action("Rotate", (500, 250), ["1", "3"]),
-        play.action("Switch_view", (500, 250), ["dashboard"]),
-        play.action("Timed_wait"),
-        play.action("Switch_view", None, ["back"]),
-    ]
-    assert desk.message() is None
-    state[desk.click_key()] = {"x": 1, "y": 1, "unix_time": 4}  # no size: not a click
-    desk.click()
-    assert desk.message() == ("error", f"not a click on the image: {state[desk.click_key()]!r}")
-    assert desk.message() is None  # said once
-    desk.give_up()
-    assert game.done and run.status(OVEN).state == "finished"
-    desk.pick_next()
-    assert state["play_episode"] == "hw_dash_b"
-    # Picking another episode leaves the one being played unfinished, to resume.
-    game = desk.game()
-    game.act(play.action("Timed_wait"))
-    state["play_episode"] = KETTLE
-    assert desk.game().episode_id == KETTLE and state["play_game"].episode_id == KETTLE
-    state["play_episode"] = "hw_dash_b"
-    assert desk.game() is None and run.status("hw_dash_b").state == "unfinished"
-    desk.resume()
-    assert len(desk.game().steps) == 1
-    # Giving up before any step writes nothing.
-    state["play_episode"] = KETTLE
-    desk.give_up()
-    assert desk.message() == (
-        "info",
-        "Nothing was played in this episode, so nothing was written.",
-    )
-    assert run.status(KETTLE).state == "new"
-
-
-def test_the_pages_state_says_when_every_episode_is_played(tmp_path, bench) -> None:
-    run = open_run(tmp_path / "run", bench)
-    state: dict = {}
-    desk = play.PlayState(run, state)
-    for episode_id in run.bench.tasks:
-        state["play_episode"] = episode_id
-        desk.wait()
-        desk.give_up()
-    assert run.next_episode() is None
-    desk.pick_next()
-    assert desk.message() == (
-        "info",
-        "Every episode of the benchmark has been played in this run.",
-    )
-    assert desk.game().done  # the last one played: the page shows its result

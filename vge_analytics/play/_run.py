@@ -1,48 +1,16 @@
-"""Playing a benchmark by hand: the click mapping and the human run behind the Play page.
-
-`vge play BENCH --out RUN` serves the Play page (`app/views/play.py`), which is a thin layer
-over this module. The game is `replay.env.DeviceEnv` (`vge/Device-v0`), itself a wrapper
-over `replay.EpisodeSession`, the object the replay drives: a played episode and the replay
-of its log cannot disagree.
-
-The run directory is one `vge replay` reads (PROTOCOL §1.4):
-
-    RUN/run.json                  agent_kind "human", written when the run is created
-    RUN/episodes.jsonl            one line per finished episode, structured actions
-    RUN/playing/<episode>.jsonl   the journal of an episode being played (not read by replay)
-    RUN/playing/discarded/        journals a person chose to throw away, torn lines cut off
-                                  the episodes file (kept, never read)
-
-Crash safety. Each step is appended to the episode's journal (one `write`, then `fsync`)
-before the page shows its feedback, so a step a person has seen is on disk. When the episode
-ends, its whole line is appended to `episodes.jsonl` the same way, and only then is the
-journal removed. If the app dies:
-- mid-step: the journal's last line may be torn; it is cut off when the episode is resumed
-  (that step's feedback was never shown);
-- mid-episode: the journal stays; the page offers to resume the episode (its steps are
-  played again through the environment, which must give the feedback, state and view the
-  journal recorded) or to discard it (the journal is moved to `playing/discarded/`);
-- while ending an episode: a torn last line of `episodes.jsonl` is cut off when the run is
-  opened (the journal, still there, holds the same steps; the torn bytes are kept in
-  `playing/discarded/`), and a journal whose episode line is complete is removed.
-
-Several browser tabs may play the same run: writes take a lock on the run, and a journal
-that changed since a tab last wrote to it (another tab played on) is refused with a message
-rather than interleaved.
-"""
+"""The human run: a run directory written episode by episode as a person plays (see the
+package docstring for the files and what a crash leaves)."""
 
 from __future__ import annotations
 
 import fcntl
 import hashlib
-import math
 import os
 import re
 import time
-from collections.abc import Callable, Iterator, Mapping, MutableMapping, Sequence
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
-from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -53,13 +21,21 @@ import orjson
 import replay
 from replay.env import DeviceEnv, episode_lambda
 
+from .._errors import PlayConflictError, PlayError
+from ._clicks import action_text
+from ._files import (
+    append_record,
+    fsync_dir,
+    journal_header,
+    journal_steps,
+    truncate,
+    write_all,
+    write_new,
+)
+
 if TYPE_CHECKING:
     from replay import ImageSource
 
-from ._errors import PlayConflictError, PlayError
-
-SCALE = 1000
-"""The agent's coordinate scale: 0..1000 on both axes of a view (PROTOCOL §1.2)."""
 DEFAULT_MODEL = "human"
 """`model` of a human run unless `--model` names the participant or group."""
 DEFAULT_RUN_DIR = "human-run"
@@ -73,117 +49,7 @@ JOURNAL_DIR = "playing"
 DISCARDED_DIR = "discarded"
 LOCK_FILE = ".lock"
 
-DASHBOARD = "dashboard"
-"""The view a large device's control panel is zoomed in on, locked at first (PROTOCOL §3.1)."""
-INTERACTIONS = ("Press", "Rotate", "Push", "Pull", "Grasp")
-CLICK_ACTIONS = (*INTERACTIONS, "Switch_view")
-"""What a click on the image can do (a `Switch_view` with a point unlocks the dashboard
-when the point is on its panel, PROTOCOL §3.2)."""
-
-PARAM_HINTS: dict[str, tuple[str, str]] = {
-    "Press": ("0", "0: a short press, 1: press and hold, 2: double press"),
-    "Rotate": ("0, 1", "direction (0: clockwise, 1: counter-clockwise), then steps; * for any"),
-    "Push": ("4", "direction: 0 up, 1 down, 2 left, 3 right, 4 in"),
-    "Pull": ("4", "direction: 0 up, 1 down, 2 left, 3 right, 4 out"),
-    "Grasp": ("0", "0: pick up, 1: let go"),
-}
-"""Default parameters of each interaction as the page pre-fills them, with what they mean
-(the conventions of the paper's action space; the device decides what it accepts)."""
-
-FEEDBACK_TONES: dict[str, Literal["success", "warning", "error"]] = {
-    "transition": "success",
-    "view_switched": "success",
-    "dashboard_unlocked": "success",
-    "wait_no_effect": "warning",
-    "null_effect": "warning",
-    "operational_error": "warning",
-    "invalid_action": "error",
-}
-"""How the page colours a step's feedback, by kind (PROTOCOL §3.6)."""
-
 Clock = Callable[[], float]
-
-
-# ----------------------------------------------------------------------- click mapping
-
-
-def scale_coordinate(offset: float, displayed: float) -> int:
-    """A pixel offset along an axis of the displayed image -> that axis of the 0..1000 scale.
-
-    The rule is PROTOCOL §1.2's for boxes, `1000 * offset / displayed`, on the size the image
-    is displayed at (never its natural size), rounded to the nearest integer with halves
-    rounded up, then kept within 0..1000. Computed in exact fractions, so 0.5 really rounds
-    up. A whole number keeps the log readable and loses at most half a unit, less than one
-    displayed pixel whenever the image is shown at most 1000 pixels wide.
-    """
-    if not displayed > 0 or not math.isfinite(displayed):
-        raise PlayError(f"the image's displayed size must be positive, not {displayed!r}")
-    if not math.isfinite(offset):
-        raise PlayError(f"a click's offset must be a number, not {offset!r}")
-    value = Fraction(offset) * SCALE / Fraction(displayed)
-    return min(max(math.floor(value + Fraction(1, 2)), 0), SCALE)
-
-
-def click_point(click: Mapping[str, Any]) -> tuple[int, int]:
-    """The 0..1000 point of a click as `streamlit-image-coordinates` reports it: `x`, `y`
-    (offsets from the image's top-left corner) and `width`, `height` (its displayed size)."""
-    try:
-        x, y, width, height = (float(click[k]) for k in ("x", "y", "width", "height"))
-    except (KeyError, TypeError, ValueError):
-        raise PlayError(f"not a click on the image: {dict(click)!r}") from None
-    return scale_coordinate(x, width), scale_coordinate(y, height)
-
-
-def click_id(click: Mapping[str, Any] | None) -> tuple | None:
-    """What tells one click from the next (the component reports its last click again on
-    every rerun of the page; `PlayState.click` acts on each one once)."""
-    if not click:
-        return None
-    return (click.get("unix_time"), click.get("x"), click.get("y"))
-
-
-# ----------------------------------------------------------------------------- actions
-
-
-def parse_params(text: str) -> list[str]:
-    """Parameters typed as `a, b`: split on commas, blanks dropped (the engine normalises
-    each value, PROTOCOL §1.2)."""
-    return [p.strip() for p in text.split(",") if p.strip()]
-
-
-def action(
-    type_: str, coord: Sequence[float] | None = None, params: Sequence[Any] = ()
-) -> dict[str, Any]:
-    """A structured action as a human log carries it: `{"type", "coord", "params"}`."""
-    return {
-        "type": type_,
-        "coord": None if coord is None else [coord[0], coord[1]],
-        "params": list(params),
-    }
-
-
-def click_action(type_: str, point: tuple[int, int], params_text: str, view: str) -> dict:
-    """The action a click at `point` carries out: an interaction with the typed parameters,
-    or a `Switch_view` to `view` with the point (how the dashboard is unlocked)."""
-    if type_ == "Switch_view":
-        return action("Switch_view", point, [view])
-    if type_ not in INTERACTIONS:
-        raise PlayError(f"a click cannot carry out {type_!r}; one of {', '.join(CLICK_ACTIONS)}")
-    return action(type_, point, parse_params(params_text))
-
-
-def action_text(step: Mapping[str, Any]) -> str:
-    """How a logged action reads: `Press(coord=[500, 250], params=[0])`."""
-    a = step["action"]
-    params = ", ".join(str(p) for p in a.get("params") or [])
-    coord = a.get("coord")
-    inner = (f"coord=[{coord[0]:g}, {coord[1]:g}], " if coord is not None else "") + (
-        f"params=[{params}]"
-    )
-    return f"{a['type']}({inner})"
-
-
-# ---------------------------------------------------------------------------- the run
 
 
 @dataclass(frozen=True)
@@ -200,18 +66,18 @@ class EpisodeStatus:
     def label(self) -> str:
         """How the episode picker shows it. Only what never changes: the picker does not
         redraw the label of the chosen episode while it is played."""
-        return f"{self.episode_id} · {self.device_id} · {_count(self.n_goals, 'goal')}"
+        return f"{self.episode_id} · {self.device_id} · {counted(self.n_goals, 'goal')}"
 
     def summary(self) -> str:
         """Where the episode stands, in words."""
         return {
             "new": "Not played in this run yet.",
-            "unfinished": f"Unfinished: {_count(self.steps, 'step')} played so far.",
-            "finished": f"Played to its end in {_count(self.steps, 'step')}.",
+            "unfinished": f"Unfinished: {counted(self.steps, 'step')} played so far.",
+            "finished": f"Played to its end in {counted(self.steps, 'step')}.",
         }[self.state]
 
 
-def _count(n: int, noun: str) -> str:
+def counted(n: int, noun: str) -> str:
     return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
@@ -308,7 +174,7 @@ class HumanRun:
             if lam is not None:
                 document["lambda"] = float(lam)
             document["meta"] = {"interface": "vge play"}
-            _write_new(header_path, orjson.dumps(document, option=orjson.OPT_INDENT_2) + b"\n")
+            write_new(header_path, orjson.dumps(document, option=orjson.OPT_INDENT_2) + b"\n")
             header = replay.read_run_header(root)
         (root / EPISODES_FILE).touch()
         (root / JOURNAL_DIR).mkdir(exist_ok=True)
@@ -351,7 +217,7 @@ class HumanRun:
                 os.fsync(fh.fileno())
         finished = self._finished_logs()
         for path in sorted((self.root / JOURNAL_DIR).glob("*.jsonl")):
-            episode_id = _journal_header(path)
+            episode_id = journal_header(path)
             if episode_id is None and b"\n" not in path.read_bytes():
                 path.unlink()  # the first write was torn: no step of it was ever shown
             elif episode_id in finished:
@@ -364,7 +230,7 @@ class HumanRun:
         n = 1
         while (target := folder / f"{stem}.{n}.jsonl").exists():
             n += 1
-        _write_new(target, data)
+        write_new(target, data)
         return target
 
     # ------------------------------------------------------------------ reading
@@ -389,7 +255,7 @@ class HumanRun:
         """{episode id: journal path} of the episodes being played."""
         out = {}
         for path in sorted((self.root / JOURNAL_DIR).glob("*.jsonl")):
-            header = _journal_header(path)
+            header = journal_header(path)
             if header is not None:
                 out[header] = path
         return out
@@ -411,7 +277,7 @@ class HumanRun:
                 state, steps = "finished", len(finished[episode_id])
             elif episode_id in journals:
                 try:
-                    steps = len(_journal_steps(journals[episode_id])[0])
+                    steps = len(journal_steps(journals[episode_id])[0])
                 except PlayError:
                     steps = 0  # resuming says what is wrong; discarding is offered
                 state = "unfinished"
@@ -488,9 +354,9 @@ class HumanRun:
             path = self._journals().get(episode_id)
             if path is None:
                 raise PlayError(f"episode {episode_id!r} has no unfinished steps to resume")
-            steps, good_size = _journal_steps(path)
+            steps, good_size = journal_steps(path)
             if path.stat().st_size != good_size:
-                _truncate(path, good_size)
+                truncate(path, good_size)
         play = EpisodePlay(self, episode_id)
         play._replay_journal(path, steps)
         return play
@@ -504,7 +370,7 @@ class HumanRun:
                 raise PlayError(f"episode {episode_id!r} has no unfinished steps to discard")
             target = self._set_aside(path.read_bytes(), path.stem)
             path.unlink()
-            _fsync_dir(path.parent)
+            fsync_dir(path.parent)
             return target
 
     def _append_episode(self, episode_id: str, steps: list[dict]) -> None:
@@ -515,7 +381,7 @@ class HumanRun:
             )
         self._repair()
         line = orjson.dumps({"episode_id": episode_id, "steps": steps}) + b"\n"
-        _append(self.episodes_path, line)
+        append_record(self.episodes_path, line)
 
 
 class EpisodePlay:
@@ -597,7 +463,7 @@ class EpisodePlay:
     def _write_step(self, step: dict) -> None:
         line = orjson.dumps(step) + b"\n"
         if self._journal_size is not None:
-            _append(self.journal, line)
+            append_record(self.journal, line)
             self._journal_size += len(line)
             return
         # The first step creates the journal, its header and the step in one write.
@@ -610,10 +476,10 @@ class EpisodePlay:
                 "the episode picker"
             ) from None
         try:
-            _write_all(fd, data, self.journal)
+            write_all(fd, data, self.journal)
         finally:
             os.close(fd)
-        _fsync_dir(self.journal.parent)
+        fsync_dir(self.journal.parent)
         self._journal_size = len(data)
 
     def end(self) -> replay.EpisodeRow | None:
@@ -695,316 +561,18 @@ class EpisodePlay:
             self._check_journal()
             self.run._append_episode(self.episode_id, self.steps)
             self.journal.unlink()
-            _fsync_dir(self.journal.parent)
+            fsync_dir(self.journal.parent)
         session = self.env.session
         assert session is not None
         self.result = session.finish().episode
 
 
-# ------------------------------------------------------------------------ the page
-
-
-class PlayState:
-    """What the Play page does, over its session state (any mutable mapping: Streamlit's
-    `st.session_state`, a dict in tests). The page draws; every decision is here.
-
-    Keys: `play_episode` (the picked episode, the picker's key), `play_game` (the episode
-    being played, an `EpisodePlay`), `play_seen` (the last click acted on),
-    `play_message` (a message for the next drawing of the page, shown once), and the keys of
-    the page's widgets: the image's last click (`click_key`), the action a click does, its
-    parameters (per action) and the view a `Switch_view` click goes to.
-    """
-
-    EPISODE = "play_episode"
-    GAME = "play_game"
-    SEEN = "play_seen"
-    MESSAGE = "play_message"
-    ACTION = "play_action"
-    CLICK_VIEW = "play_click_view"
-    VIEW = "play_view"
-
-    def __init__(self, run: HumanRun, state: MutableMapping[str, Any]) -> None:
-        self.run = run
-        self.state = state
-
-    # ------------------------------------------------------------------ reading
-
-    def episode_id(self) -> str:
-        """The picked episode; at first (or when it is not a task), the next one to play."""
-        picked = self.state.get(self.EPISODE)
-        if picked not in self.run.bench.tasks:
-            picked = self.run.next_episode() or next(iter(self.run.bench.tasks), None)
-            if picked is None:
-                raise PlayError(f"{self.run.bench.tasks_path} has no episode")
-            self.state[self.EPISODE] = picked
-        return picked
-
-    def game(self) -> EpisodePlay | None:
-        """The episode being played, started when the picked one is new; None when it was
-        played already or has unfinished steps (the page offers to resume or discard)."""
-        episode_id = self.episode_id()
-        game = self.state.get(self.GAME)
-        if game is not None and game.episode_id == episode_id:
-            return game
-        self.state[self.GAME] = None  # another episode was picked: its journal stays
-        if self.run.status(episode_id).state != "new":
-            return None
-        try:
-            game = self.run.start(episode_id)
-        except replay.VGEError as exc:
-            self.say("error", str(exc))
-            return None
-        self.state[self.GAME] = game
-        return game
-
-    def message(self) -> tuple[str, str] | None:
-        """(tone, text) to show once, then forgotten."""
-        return self.state.pop(self.MESSAGE, None)
-
-    def say(self, tone: str, text: str) -> None:
-        self.state[self.MESSAGE] = (tone, text)
-
-    # ------------------------------------------------------------------ acting
-
-    def click_key(self) -> str:
-        """Key of the image component: one per episode, so a new episode starts unclicked."""
-        return f"play_click:{self.episode_id()}"
-
-    @staticmethod
-    def params_key(type_: str) -> str:
-        return f"play_params:{type_}"
-
-    def chosen_action(self) -> str:
-        chosen = self.state.get(self.ACTION)
-        return chosen if chosen in CLICK_ACTIONS else CLICK_ACTIONS[0]
-
-    def click(self) -> None:
-        """Carry out the chosen action at the image's last click, once per click (the image
-        reports its last click again on every rerun of the page)."""
-        click = self.state.get(self.click_key())
-        seen = click_id(click)
-        if seen is None or seen == self.state.get(self.SEEN):
-            return
-        self.state[self.SEEN] = seen
-        type_ = self.chosen_action()
-        params = self.state.get(self.params_key(type_), PARAM_HINTS.get(type_, ("",))[0])
-        try:
-            chosen = click_action(type_, click_point(click), params, self.click_view())
-        except PlayError as exc:
-            self.say("error", str(exc))
-            return
-        self.act(chosen)
-
-    def click_view(self) -> str:
-        """The view a `Switch_view` click goes to: as chosen, else the dashboard (what a
-        click is needed for), else the first view."""
-        game = self.state.get(self.GAME)
-        views = list(game.observation["views"]) if game is not None else []
-        chosen = self.state.get(self.CLICK_VIEW)
-        if chosen in views or not views:
-            return chosen or ""
-        return DASHBOARD if DASHBOARD in views else views[0]
-
-    def switch_view(self, view: str) -> None:
-        self.act(action("Switch_view", None, [view]))
-
-    def wait(self) -> None:
-        self.act(action("Timed_wait"))
-
-    def act(self, chosen: Mapping[str, Any]) -> None:
-        game = self.game()
-        if game is None:
-            return
-        try:
-            game.act(chosen)
-        except replay.VGEError as exc:
-            self.say("error", str(exc))
-            if isinstance(exc, PlayConflictError) or game.broken:
-                self.state[self.GAME] = None
-
-    def give_up(self) -> None:
-        """End the episode here (`log_ended`)."""
-        game = self.game()
-        if game is None:
-            return
-        try:
-            if game.end() is None:
-                self.say("info", "Nothing was played in this episode, so nothing was written.")
-                self.state[self.GAME] = None
-        except replay.VGEError as exc:
-            self.say("error", str(exc))
-            self.state[self.GAME] = None
-
-    def resume(self) -> None:
-        try:
-            self.state[self.GAME] = self.run.resume(self.episode_id())
-        except replay.VGEError as exc:
-            self.say("error", str(exc))
-
-    def discard(self) -> None:
-        try:
-            target = self.run.discard(self.episode_id())
-        except replay.VGEError as exc:
-            self.say("error", str(exc))
-            return
-        self.say("info", f"The unfinished steps were moved to {target}.")
-
-    def pick_next(self) -> None:
-        """Pick the next episode not played yet (after the picked one)."""
-        following = self.run.next_episode(after=self.state.get(self.EPISODE))
-        if following is None:
-            self.say("info", "Every episode of the benchmark has been played in this run.")
-            return
-        self.state[self.EPISODE] = following
-
-
-def click_hint(type_: str, view: str) -> str:
-    """What a click on the image will do, in words."""
-    if type_ == "Switch_view":
-        return f"Click on it to switch to the {view} view with that point."
-    return f"Click on it to {type_.lower()} there."
-
-
-def goal_text(observation: Mapping[str, Any]) -> str:
-    """`Goal 2 of 3: <instruction>` (the instruction of the current goal)."""
-    index, total = int(observation["goal_index"]), int(observation["n_goals"])
-    if index >= total:
-        return f"All {total} goals completed."
-    return f"Goal {index + 1} of {total}: {observation['instruction']}"
-
-
-def budget_left(value: Any) -> str:
-    """A budget as the page shows it (budgets are floats: λ may be fractional)."""
-    return f"{float(value):g}"
-
-
-def result_text(row: replay.EpisodeRow) -> str:
-    """How an ended episode reads."""
-    how = {
-        "success": "Success",
-        "budget_global": "Ended: the episode's step budget ran out",
-        "budget_local": "Ended: the step budget of the current goal ran out",
-        "log_ended": "Ended by the player",
-    }.get(row.termination, row.termination)
-    return (
-        f"**{how}.** {row.goals_completed} of {_count(row.n_goals, 'goal')} completed in "
-        f"{_count(row.L_act, 'step')} (the shortest way takes {row.L_opt}); SPL {row.spl:.2f}."
-    )
-
-
-def history(records: Sequence[StepRecord]) -> list[dict[str, Any]]:
-    """The steps of the episode so far, newest first, for a table."""
-    return [
-        {"step": r.index, "action": r.action, "feedback": r.feedback} for r in reversed(records)
-    ]
-
-
-# ------------------------------------------------------------------------ file helpers
-
-
-def _append(path: Path, data: bytes) -> None:
-    """Append `data` to `path` with one write and make it durable."""
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-    try:
-        _write_all(fd, data, path)
-    finally:
-        os.close(fd)
-
-
-def _write_all(fd: int, data: bytes, path: Path) -> None:
-    """One write of a whole record, then fsync: a crash leaves a prefix of it at worst."""
-    written = os.write(fd, data)
-    if written != len(data):  # a full disk; the torn line is cut off when next opened
-        raise PlayError(f"{path}: only {written} of {len(data)} bytes could be written")
-    os.fsync(fd)
-
-
-def _write_new(path: Path, data: bytes) -> None:
-    """Create `path` whole or not at all: written under a temporary name, then renamed."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-    try:
-        _write_all(fd, data, tmp)
-    finally:
-        os.close(fd)
-    os.replace(tmp, path)
-    _fsync_dir(path.parent)
-
-
-def _truncate(path: Path, size: int) -> None:
-    with open(path, "r+b") as fh:
-        fh.truncate(size)
-        fh.flush()
-        os.fsync(fh.fileno())
-
-
-def _fsync_dir(path: Path) -> None:
-    """Make a file's creation, rename or removal in `path` durable."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _journal_header(path: Path) -> str | None:
-    """The episode id a journal's first line names (None if it cannot be read)."""
-    try:
-        with open(path, "rb") as fh:
-            first = fh.readline()
-        head = orjson.loads(first)
-    except (OSError, orjson.JSONDecodeError):
-        return None
-    episode_id = head.get("episode_id") if isinstance(head, dict) else None
-    return episode_id if isinstance(episode_id, str) else None
-
-
-def _journal_steps(path: Path) -> tuple[list[dict], int]:
-    """The steps of a journal and the byte size they end at. A last line without its
-    newline is a write the app died in (its feedback was never shown) and is left out; a
-    complete line that is not a step cannot come from a crash and is an error."""
-    data = path.read_bytes()
-    steps: list[dict] = []
-    pos = data.find(b"\n") + 1  # after the header line
-    while pos > 0:
-        end = data.find(b"\n", pos)
-        if end < 0:
-            break
-        try:
-            step = orjson.loads(data[pos:end])
-        except orjson.JSONDecodeError:
-            step = None
-        if not isinstance(step, dict) or not isinstance(step.get("action"), dict):
-            raise PlayError(f"{path}: line {len(steps) + 2} is not a step; discard the episode")
-        steps.append(step)
-        pos = end + 1
-    return steps, pos
-
-
 __all__ = [
-    "CLICK_ACTIONS",
     "DEFAULT_MODEL",
     "DEFAULT_RUN_DIR",
-    "FEEDBACK_TONES",
     "IMAGE_SIZE",
-    "INTERACTIONS",
-    "PARAM_HINTS",
-    "SCALE",
     "EpisodePlay",
     "EpisodeStatus",
     "HumanRun",
-    "PlayState",
     "StepRecord",
-    "action",
-    "action_text",
-    "budget_left",
-    "click_action",
-    "click_hint",
-    "click_id",
-    "click_point",
-    "goal_text",
-    "history",
-    "parse_params",
-    "result_text",
-    "scale_coordinate",
 ]
