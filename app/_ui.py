@@ -21,6 +21,7 @@ import streamlit as st
 
 import vge_analytics as va
 from vge_analytics import dashboard as dash
+from vge_analytics import play
 from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits
 from vge_analytics._metric_set import default_folder
 
@@ -93,6 +94,37 @@ def out_argument(argv: Sequence[str] | None = None) -> str:
 def out_dir() -> Path:
     """The checked OUT directory (raises `OutputDirError` with what to run if it is not one)."""
     return dash.check_out(out_argument())
+
+
+class PlayTarget(NamedTuple):
+    """What `vge play` opened the app on."""
+
+    bench: str
+    run: str
+    image_width: int | None
+    """CSS pixels the view is shown at; None: the width of its column."""
+
+
+def play_target(argv: Sequence[str] | None = None) -> PlayTarget | None:
+    """BENCH, RUN and the image width when the app was opened by `vge play` (`-- --bench
+    BENCH --run RUN [--image-width PX]`); None for the dashboard over OUT. Script options
+    only, no environment variable: one left set in a shell would turn a later `vge app`
+    into the Play page."""
+    bench = script_option("bench", argv)
+    if not bench:
+        return None
+    width = script_option("image-width", argv)
+    return PlayTarget(
+        bench,
+        script_option("run", argv) or play.DEFAULT_RUN_DIR,
+        int(width) if width else None,
+    )
+
+
+@st.cache_resource(show_spinner="Opening the benchmark…")
+def human_run(bench: str, run: str) -> play.HumanRun:
+    """The human run the Play page writes (one per server: its files are the state)."""
+    return play.HumanRun.open(run, bench)
 
 
 @st.cache_data(show_spinner=False, max_entries=1024)

@@ -1,4 +1,5 @@
-"""Entry file of the dashboard: routing only (`vge app [OUT]` runs it with `-- --out OUT`).
+"""Entry file of the dashboard: routing only (`vge app [OUT]` runs it with `-- --out OUT`;
+`vge play BENCH` with `-- --bench BENCH --run RUN`, and then it shows the Play page alone).
 
 The sidebar shows which OUT is open and holds the run-facet filters every page applies.
 Every run ends with an invisible marker (`ui.end_of_page`): browser tests and the render-time
@@ -16,6 +17,12 @@ from app import _ui as ui
 
 def run() -> None:
     st.set_page_config(page_title="VGE Analytics", page_icon=":material/analytics:", layout="wide")
+    if ui.play_target() is not None:  # opened by `vge play`: the Play page alone
+        play = st.Page("views/play.py", title="Play", icon=":material/touch_app:", default=True)
+        with contextlib.suppress(ui.PageStopped):
+            st.navigation([play]).run()
+        ui.end_of_page()
+        return
     page = st.navigation(
         [
             st.Page(

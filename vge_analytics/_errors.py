@@ -75,6 +75,14 @@ class RunDirError(AnalyticsError):
     """RUN_DIR of `vge run` cannot be started or resumed as asked."""
 
 
+class PlayError(AnalyticsError):
+    """A human run cannot be written as asked (`vge play`, the Play page)."""
+
+
+class PlayConflictError(PlayError):
+    """Another window changed the episode being played (played on, ended or discarded it)."""
+
+
 class SweepRefused(AnalyticsError):
     """A lambda sweep cannot be computed from the logs that exist."""
 
@@ -89,6 +97,8 @@ __all__ = [
     "InfrastructureError",
     "MetricFileError",
     "OutputDirError",
+    "PlayConflictError",
+    "PlayError",
     "QueryError",
     "QueryLimitError",
     "QueryRefused",

@@ -28,6 +28,7 @@ COMMAND_MODULES = (
     "sweep",
     "sql",
     "app",
+    "play",
 )
 
 app = typer.Typer(

@@ -12,14 +12,16 @@ Browser fixtures (Playwright through pytest-playwright, Debian's Chromium):
   bound (`SERVER_ADDRESS_SPACE`);
 - `app_page`: a fresh browser page on it (`AppPage`: open, navigate, run a query, wait until
   rendered, read tables).
-Tests that use `app_server` run in one xdist group (`browser`), so the session starts one
-server and one Chromium.
+- `play_server`: `vge play` on the tiny benchmark, writing a fresh human run (`PlayServer`).
+Tests that use `app_server` or `play_server` run in one xdist group (`browser`), so the
+session starts one Chromium.
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 
@@ -114,9 +116,12 @@ def metrics_env(metrics_folder, monkeypatch) -> Path:
 # ---------------------------------------------------------------------------- browser
 
 
+SERVERS = {"app_server", "play_server"}
+
+
 def pytest_collection_modifyitems(items) -> None:
     for item in items:
-        if "app_server" in getattr(item, "fixturenames", ()):
+        if SERVERS & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.xdist_group("browser"))
 
 
@@ -152,3 +157,21 @@ def app_server(tiny_out, tmp_path_factory):
 def app_page(page, app_server) -> AppPage:
     """A new browser page (its own context) on the test server."""
     return AppPage(page, app_server.url)
+
+
+class PlayServer(NamedTuple):
+    server: AppServer
+    bench: Path
+    run: Path
+
+
+@pytest.fixture
+def play_server(tiny_out, tmp_path):
+    """`vge play BENCH --out RUN` on the tiny benchmark, RUN a new directory."""
+    bench = tiny_out.parent / "synth" / "bench"
+    run = tmp_path / "alice"
+    log = tmp_path / "vge-play.log"
+    options = ["--out", str(run), "--image-width", "480"]
+    with AppServer(bench, command="play", options=options, log=log) as server:
+        yield PlayServer(server, bench, run)
+    assert "Traceback" not in server.text(), server.text()

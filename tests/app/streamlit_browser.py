@@ -1,8 +1,9 @@
 """The dashboard as a person sees it: `vge app` as a real server, pages in Playwright's Chromium.
 
-- `AppServer`: `vge app OUT --headless --port <free port> [options]` as a real process (its
-  own session, optionally under an address-space bound so a regression cannot eat the
-  machine), waited for until it answers, stopped with its peak memory measured.
+- `AppServer`: `vge app OUT --headless --port <free port> [options]` (or `vge play BENCH`)
+  as a real process (its own session, optionally under an address-space bound so a
+  regression cannot eat the machine), waited for until it answers, stopped with its peak
+  memory measured.
 - `AppPage`: a Playwright page on that server with the waits a Streamlit app needs: a page
   is *rendered* when the app's end-of-run marker of a run after the one before is there
   (`app._ui.END_MARKER`), nothing is stale, every visible chart has drawn, every image has
@@ -79,7 +80,8 @@ def free_port() -> int:
 
 
 class AppServer:
-    """`vge app OUT` on a free port; a context manager (start, then stop)."""
+    """`vge app OUT` (or `vge COMMAND OUT`: `play BENCH`) on a free port; a context manager
+    (start, then stop)."""
 
     def __init__(
         self,
@@ -89,8 +91,10 @@ class AppServer:
         log: Path,
         address_space: int | None = None,
         startup: float = 60.0,
+        command: str = "app",
     ) -> None:
         self.out = out
+        self.command = command
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         self.log = log
@@ -113,7 +117,7 @@ class AppServer:
             resource.setrlimit(resource.RLIMIT_AS, limit)
 
     def start(self) -> AppServer:
-        cmd = [sys.executable, "-m", "vge_analytics.cli", "app", str(self.out)]
+        cmd = [sys.executable, "-m", "vge_analytics.cli", self.command, str(self.out)]
         cmd += ["--port", str(self.port), "--headless", *self.options]
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
         env.pop("VGE_APP_OUT", None)
@@ -137,7 +141,7 @@ class AppServer:
                 pass
             if self._proc.poll() is not None or time.monotonic() > deadline:
                 self.stop()
-                raise RuntimeError(f"vge app did not start:\n{self.log.read_text()}")
+                raise RuntimeError(f"vge {self.command} did not start:\n{self.log.read_text()}")
             time.sleep(0.2)
 
     def stop(self) -> None:
@@ -159,6 +163,15 @@ class AppServer:
             time.sleep(0.05)
         proc.returncode = os.waitstatus_to_exitcode(status)
         self.peak_memory = usage.ru_maxrss * 1024
+
+    def kill(self) -> None:
+        """SIGKILL to the server's process group: the server dies as in a crash, with no
+        chance to clean up."""
+        proc, self._proc = self._proc, None
+        if proc is None or proc.returncode is not None:
+            return
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
 
     def text(self) -> str:
         return self.log.read_text(errors="replace")

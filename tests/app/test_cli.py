@@ -1,4 +1,4 @@
-"""`vge app`: what it runs, and what it says when there is nothing to show."""
+"""`vge app` and `vge play`: what they run, and what they say when there is nothing to show."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from vge_analytics import dashboard as dash
 from vge_analytics._limits import SqlLimits
 from vge_analytics.cli import main
 from vge_analytics.commands.app import is_loopback, streamlit_command
+from vge_analytics.commands.play import play_command
 
 from ..vge_analytics.metric_files import SR_MULTI
 
@@ -97,3 +98,35 @@ def test_metrics_dir_precedence(monkeypatch):
     assert _ui.metrics_dir([]) == "/from/env"
     monkeypatch.setenv("VGE_METRICS_DIR", "")
     assert _ui.metrics_dir([]) is None
+
+
+def test_play_command(tiny_out, tmp_path):
+    bench, run = tiny_out.parent / "synth" / "bench", tmp_path / "run"
+    cmd = play_command(bench, run, port=8600, headless=True)
+    assert cmd[1:4] == ["-m", "vge_analytics._serve", "run"]  # as `vge app` serves
+    assert Path(cmd[4]) == dash.app_script()
+    assert cmd[cmd.index("--server.address") + 1] == "127.0.0.1"  # this machine only
+    assert cmd[cmd.index("--server.port") + 1] == "8600"
+    assert cmd[cmd.index("--") :] == ["--", "--bench", str(bench), "--run", str(run)]
+    cmd = play_command(bench, run, port=1, headless=False, host="0.0.0.0", image_width=480)
+    assert cmd[cmd.index("--server.address") + 1] == "0.0.0.0"
+    script_args = cmd[cmd.index("--") + 1 :]
+    assert script_args[-2:] == ["--image-width", "480"]
+    from app import _ui
+
+    assert _ui.play_target(script_args) == _ui.PlayTarget(str(bench), str(run), 480)
+    assert _ui.play_target(["--bench", "B"]) == _ui.PlayTarget("B", "human-run", None)
+    # `vge app OUT` has no benchmark: the dashboard, without the Play page.
+    assert _ui.play_target(["--out", str(tiny_out)]) is None
+
+
+def test_play_refuses_with_one_line(tiny_out, tmp_path, capsys):
+    assert main(["play", str(tmp_path / "nowhere")]) == 1
+    err = capsys.readouterr().err
+    assert err == f"error: {tmp_path / 'nowhere'}: benchmark directory not found\n"
+    vlm = next(p for p in (tiny_out.parent / "synth" / "runs").iterdir() if "vlm" in p.name)
+    bench = tiny_out.parent / "synth" / "bench"
+    assert main(["play", str(bench), "--out", str(vlm)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {vlm} is a run of agent kind 'vlm': `vge play` writes human")
+    assert err.count("\n") == 1

@@ -3,13 +3,15 @@ are the analytics API's (on the replayed tiny synthetic benchmark)."""
 
 from __future__ import annotations
 
+import json
+
 import polars as pl
 import pyarrow as pa
 import pytest
 from streamlit.testing.v1 import AppTest
 
 import vge_analytics as va
-from vge_analytics import ERROR_LABELS, compare, error_distribution, sweep, switch_classes
+from vge_analytics import ERROR_LABELS, compare, error_distribution, play, sweep, switch_classes
 from vge_analytics import dashboard as dash
 
 from .conftest import APP
@@ -364,3 +366,106 @@ def test_a_bad_metrics_folder_is_explained(app_env, tmp_path, monkeypatch):
     assert at.sidebar.error[0].value == "Unusable metrics folder"
     assert f"{tmp_path}/x.sql:1: missing header keys" in at.main.error[0].value
     assert not at.dataframe
+
+
+# ----------------------------------------------------------------------------- play
+
+
+def open_play(bench, run, monkeypatch) -> AppTest:
+    """The app as `vge play BENCH --out RUN` runs it (`-- --bench BENCH --run RUN`)."""
+    monkeypatch.setattr("sys.argv", ["streamlit_app.py", "--bench", str(bench), "--run", str(run)])
+    at = AppTest.from_file(str(APP), default_timeout=60)
+    return rerun(at)
+
+
+def play_click(at: AppTest, x: int, y: int, when: int) -> AppTest:
+    """What the image component reports after a click (displayed 600 px wide)."""
+    key = f"play_click:{at.session_state['play_episode']}"
+    at.session_state[key] = {"x": x, "y": y, "width": 600, "height": 600, "unix_time": when}
+    return rerun(at)
+
+
+def test_play_page_writes_each_step_of_a_human_run(tiny_out, tmp_path, monkeypatch):
+    bench, run = tiny_out.parent / "synth" / "bench", tmp_path / "bob"
+    at = open_play(bench, run, monkeypatch)
+    assert at.title[0].value == "Play"
+    assert not at.sidebar.multiselect  # no run facets: there is no replay output here
+    episode = at.selectbox(key="play_episode").value
+    assert episode == "ElectricKettle_000-00"  # the next one not played: the first
+    assert at.info[0].value == "Goal 1 of 1: Disconnect the kettle from the mains"
+    assert [(m.label, m.value) for m in at.metric] == [
+        ("Steps taken", "0"), ("Steps left", "10"), ("Left for this goal", "10"),
+    ]  # fmt: skip
+    assert at.radio(key="play_action").options == list(play.CLICK_ACTIONS)
+    assert at.text_input(key="play_params:Press").value == "0"
+
+    # A click at pixel (300, 150) of the view shown 600 wide: (500, 250). The initial view is
+    # axonometric, so the press is refused (invalid_action), and still a step.
+    at = play_click(at, 300, 150, when=1)
+    assert at.error[0].value.startswith("Step 0: `Press(coord=[500, 250], params=[0])`")
+    at = rerun(at)  # the same click reported again is not a second step
+    at.selectbox(key="play_view").select("front")
+    button(at, "Switch view").click()  # without a point
+    at = rerun(at)
+    assert at.success[0].value.startswith("Step 1: `Switch_view(params=[front])`")
+    at.radio(key="play_action").set_value("Rotate")
+    at = rerun(at)
+    at.text_input(key="play_params:Rotate").input("1, 2")
+    at = play_click(at, 60, 540, when=2)  # (100, 900)
+    journal = lines_of(next((run / "playing").glob("*.jsonl")))
+    assert journal[0] == {"episode_id": episode}
+    assert [s["action"] for s in journal[1:]] == [
+        {"type": "Press", "coord": [500, 250], "params": ["0"]},
+        {"type": "Switch_view", "coord": None, "params": ["front"]},
+        {"type": "Rotate", "coord": [100, 900], "params": ["1", "2"]},
+    ]
+    assert [m.value for m in at.metric][:2] == ["3", "7"]
+    assert "Unfinished: 3 steps played so far." in [c.value for c in at.caption]
+    assert at.dataframe[0].value["step"].to_list() == [2, 1, 0]  # newest first
+
+    button(at, "Give up").click()
+    at = rerun(at)
+    assert at.success[0].value.startswith("**Ended by the player.** 0 of 1 goal completed in 3")
+    assert not list((run / "playing").glob("*.jsonl"))
+    (line,) = lines_of(run / "episodes.jsonl")
+    assert [s["action"] for s in line["steps"]] == [s["action"] for s in journal[1:]]
+    button(at, "Next episode").click()
+    at = rerun(at)
+    assert at.selectbox(key="play_episode").value == "ElectricKettle_000-01"
+    assert "1 of 24 episodes played" in " ".join(c.value for c in at.sidebar.caption)
+
+
+def test_play_page_resumes_or_discards_an_unfinished_episode(tiny_out, tmp_path, monkeypatch):
+    bench, run = tiny_out.parent / "synth" / "bench", tmp_path / "carol"
+    at = open_play(bench, run, monkeypatch)
+    at = play_click(at, 300, 300, when=1)
+    at = play_click(at, 30, 30, when=2)
+    # The page is closed; a new session opens it again.
+    at = open_play(bench, run, monkeypatch)
+    assert at.info[0].value.startswith("2 steps of this episode were played before")
+    button(at, "Resume").click()
+    at = rerun(at)
+    assert [m.value for m in at.metric][0] == "2"
+    assert at.dataframe[0].value["action"].to_list() == [
+        "Press(coord=[50, 50], params=[0])",
+        "Press(coord=[500, 500], params=[0])",
+    ]
+    at = open_play(bench, run, monkeypatch)
+    button(at, "Discard and start over").click()
+    at = rerun(at)
+    assert at.info[0].value.startswith("The unfinished steps were moved to ")
+    assert [m.value for m in at.metric][0] == "0"  # a new start
+    assert len(list((run / "playing" / "discarded").glob("*.jsonl"))) == 1
+
+
+def test_play_page_says_what_is_wrong(tmp_path, monkeypatch):
+    at = open_play(tmp_path / "no-bench", tmp_path / "run", monkeypatch)
+    assert at.error[0].value.startswith(f"{tmp_path / 'no-bench'}: benchmark directory not found")
+
+
+def button(at: AppTest, label: str):
+    return next(b for b in at.button if b.label == label)
+
+
+def lines_of(path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]

@@ -1,4 +1,4 @@
-"""`vge app` listens on this machine only unless asked, and warns when asked.
+"""`vge app` and `vge play` listen on this machine only unless asked, and warn when asked.
 
 Both tests start the real server and read what the kernel says it listens on
 (`/proc/net/tcp` and `/proc/net/tcp6`: local address and state of every socket).
@@ -71,4 +71,21 @@ def test_listening_on_all_interfaces_is_a_choice_with_a_warning(tiny_out, tmp_pa
     assert (
         f"warning: listening on 0.0.0.0: anyone who can reach this machine on port "
         f"{server.port} can read the logs and model outputs and run queries on the SQL page"
+    ) in text
+
+
+def test_vge_play_listens_on_loopback_only_unless_asked(play_server, tmp_path):
+    addresses = listening_addresses(play_server.server.port)
+    assert addresses and all(a.is_loopback for a in addresses), addresses
+    assert "warning" not in play_server.server.text()
+    run = tmp_path / "open-run"
+    options = ["--out", str(run), "--host", "0.0.0.0"]
+    log = tmp_path / "vge-play-open.log"
+    with AppServer(play_server.bench, command="play", options=options, log=log) as server:
+        addresses = listening_addresses(server.port)
+        text = server.text()
+    assert ipaddress.ip_address("0.0.0.0") in addresses, addresses
+    assert (
+        f"warning: listening on 0.0.0.0: anyone who can reach this machine on port "
+        f"{server.port} can play and write steps into {run.resolve()}"
     ) in text

@@ -41,6 +41,23 @@ def is_loopback(host: str) -> bool:
         return False
 
 
+def serve(cmd: list[str], env: dict[str, str], *, host: str, port: int, exposes: str) -> None:
+    """Become the server `cmd` starts (`vge app`, `vge play`), after a warning when it
+    listens beyond this machine: anyone who can reach the port then `exposes` (what they
+    can do there)."""
+    if not is_loopback(host):
+        typer.echo(
+            f"warning: listening on {host}: anyone who can reach this machine on port {port} "
+            f"{exposes}",
+            err=True,
+        )
+    sys.stderr.flush()
+    if os.name == "posix":
+        # Replace this process: signals (Ctrl-C, kill) go straight to Streamlit.
+        os.execve(sys.executable, cmd, env)
+    raise typer.Exit(subprocess.call(cmd, env=env))  # pragma: no cover - not POSIX
+
+
 def streamlit_command(
     out: Path,
     *,
@@ -147,17 +164,13 @@ def app(
         f"queries stop after {limits.timeout or 0:g} s or {format_size(limits.memory)}",
         err=True,
     )
-    if not is_loopback(host):
-        typer.echo(
-            f"warning: listening on {host}: anyone who can reach this machine on port {port} "
-            "can read the logs and model outputs and run queries on the SQL page",
-            err=True,
-        )
-    sys.stderr.flush()
-    if os.name == "posix":
-        # Replace this process: signals (Ctrl-C, kill) go straight to Streamlit.
-        os.execve(sys.executable, cmd, env)
-    raise typer.Exit(subprocess.call(cmd, env=env))  # pragma: no cover - not POSIX
+    serve(
+        cmd,
+        env,
+        host=host,
+        port=port,
+        exposes="can read the logs and model outputs and run queries on the SQL page",
+    )
 
 
 def register(typer_app: typer.Typer) -> None:
