@@ -45,7 +45,7 @@ CORES = os.cpu_count() or 1
 
 
 def _episode_files(data: Path) -> list[Path]:
-    return sorted(replay.episodes_file(d) for d in (data / "runs").iterdir() if d.is_dir())
+    return sorted(replay.episodes_file(d).local for d in (data / "runs").iterdir() if d.is_dir())
 
 
 def _read(path: Path) -> bytes:
