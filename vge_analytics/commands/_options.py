@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import typer
 
+from replay import ConfigError
+
 from .._metric_set import METRICS_DIR_ENV
 
 METRICS_DIR_HELP = (
@@ -17,4 +19,15 @@ def metrics_dir_option(help: str = METRICS_DIR_HELP) -> str | None:
     return typer.Option(None, "--metrics-dir", envvar=METRICS_DIR_ENV, show_envvar=True, help=help)
 
 
-__all__ = ["METRICS_DIR_HELP", "metrics_dir_option"]
+def episode_ids(text: str | None, option: str) -> tuple[str, ...] | None:
+    """The episode ids of a comma-separated option (`--episodes`, `--mcap-episodes`); None
+    when the option is not given, an error when it names none."""
+    if text is None:
+        return None
+    ids = tuple(part.strip() for part in text.split(",") if part.strip())
+    if not ids:
+        raise ConfigError(f"{option}: no episode id given")
+    return ids
+
+
+__all__ = ["METRICS_DIR_HELP", "episode_ids", "metrics_dir_option"]

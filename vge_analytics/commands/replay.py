@@ -15,7 +15,9 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from replay import BenchImages, ConfigError, ImageSource, Manifest, location, replay_runs
+from replay import BenchImages, ImageSource, Manifest, location, replay_runs
+
+from ._options import episode_ids
 
 
 def image_source(bench: str) -> ImageSource:
@@ -28,15 +30,6 @@ def image_source(bench: str) -> ImageSource:
     if len(inspect.signature(view_image).parameters) == 3:
         return functools.partial(view_image, bench)
     return BenchImages(bench)
-
-
-def _episode_list(text: str | None) -> list[str] | None:
-    if text is None:
-        return None
-    ids = [part.strip() for part in text.split(",") if part.strip()]
-    if not ids:
-        raise ConfigError("--mcap-episodes: no episode id given")
-    return ids
 
 
 def _summary(manifest: Manifest) -> Table:
@@ -110,7 +103,7 @@ def replay_command(
         lam=lam,
         workers=workers,
         mcap=mcap,
-        mcap_episodes=_episode_list(mcap_episodes),
+        mcap_episodes=episode_ids(mcap_episodes, "--mcap-episodes"),
         force=force,
         progress=progress,
         image_source=image_source(bench),

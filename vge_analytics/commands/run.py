@@ -16,19 +16,10 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from replay import ConfigError
+from ._options import episode_ids
 
 if TYPE_CHECKING:
     from vge_analytics.live import Counters
-
-
-def _episode_list(text: str | None) -> tuple[str, ...] | None:
-    if text is None:
-        return None
-    ids = tuple(part.strip() for part in text.split(",") if part.strip())
-    if not ids:
-        raise ConfigError("--episodes: no episode id given")
-    return ids
 
 
 def _figures(counters: Counters, started: float, done_before: int) -> dict[str, str]:
@@ -126,7 +117,7 @@ def run_command(
         model=model,
         agent_kind=agent_kind,
         lam=lam,
-        episodes=_episode_list(episodes),
+        episodes=episode_ids(episodes, "--episodes"),
         limit=limit,
         concurrency=concurrency,
         resume=resume,
