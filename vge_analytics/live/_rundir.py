@@ -11,8 +11,6 @@ replaced whole, never written in place.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -20,6 +18,7 @@ import msgspec
 
 import replay
 
+from .._durable import append_record, truncate, write_atomic
 from .._errors import RunDirError
 
 EPISODES = "episodes.jsonl"
@@ -41,34 +40,6 @@ class FailureRecord(msgspec.Struct, frozen=True):
 
 _episode_decoder = msgspec.json.Decoder(replay.EpisodeLog)
 _encoder = msgspec.json.Encoder()
-
-
-def write_atomic(path: Path, data: bytes) -> None:
-    """Replace `path` with `data`: a temporary file in the same directory, synced, renamed."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    _sync_dir(path.parent)
-
-
-def _sync_dir(directory: Path) -> None:
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 def header_bytes(header: replay.RunHeader) -> bytes:
@@ -111,9 +82,7 @@ class RunDir:
             return {}
         cut = data.rfind(b"\n") + 1
         if cut < len(data):
-            with open(self.episodes_path, "r+b") as fh:
-                fh.truncate(cut)
-                os.fsync(fh.fileno())
+            truncate(self.episodes_path, cut)
         finished: dict[str, bytes] = {}
         for number, line in enumerate(data[:cut].splitlines(keepends=True), start=1):
             if not line.strip():
@@ -134,10 +103,10 @@ class RunDir:
         write_atomic(self.header_path, header_bytes(header))
 
     def append_episode(self, line: bytes) -> None:
-        _append(self.episodes_path, line)
+        append_record(self.episodes_path, line, create=True)
 
     def append_failure(self, record: FailureRecord) -> None:
-        _append(self.failures_path, _encoder.encode(record) + b"\n")
+        append_record(self.failures_path, _encoder.encode(record) + b"\n", create=True)
 
     # ------------------------------------------------------------------ completing
 
@@ -155,17 +124,4 @@ class RunDir:
             self.failures_path.unlink(missing_ok=True)
 
 
-def _append(path: Path, line: bytes) -> None:
-    """One line, in one write, synced: after a crash the file ends with whole lines, or with
-    one cut short that `read_finished` drops."""
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-    try:
-        view = memoryview(line)
-        while view:
-            view = view[os.write(fd, view) :]
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-__all__ = ["EPISODES", "FAILURES", "RUN_JSON", "FailureRecord", "RunDir", "write_atomic"]
+__all__ = ["EPISODES", "FAILURES", "RUN_JSON", "FailureRecord", "RunDir"]

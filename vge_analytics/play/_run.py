@@ -21,17 +21,10 @@ import orjson
 import replay
 from replay.env import DeviceEnv, episode_lambda
 
+from .._durable import append_record, fsync_dir, truncate, write_all, write_atomic
 from .._errors import PlayConflictError, PlayError
 from ._clicks import action_text
-from ._files import (
-    append_record,
-    fsync_dir,
-    journal_header,
-    journal_steps,
-    truncate,
-    write_all,
-    write_new,
-)
+from ._files import journal_header, journal_steps
 
 if TYPE_CHECKING:
     from replay import ImageSource
@@ -174,7 +167,7 @@ class HumanRun:
             if lam is not None:
                 document["lambda"] = float(lam)
             document["meta"] = {"interface": "vge play"}
-            write_new(header_path, orjson.dumps(document, option=orjson.OPT_INDENT_2) + b"\n")
+            write_atomic(header_path, orjson.dumps(document, option=orjson.OPT_INDENT_2) + b"\n")
             header = replay.read_run_header(root)
         (root / EPISODES_FILE).touch()
         (root / JOURNAL_DIR).mkdir(exist_ok=True)
@@ -230,7 +223,7 @@ class HumanRun:
         n = 1
         while (target := folder / f"{stem}.{n}.jsonl").exists():
             n += 1
-        write_new(target, data)
+        write_atomic(target, data)
         return target
 
     # ------------------------------------------------------------------ reading
@@ -476,7 +469,7 @@ class EpisodePlay:
                 "the episode picker"
             ) from None
         try:
-            write_all(fd, data, self.journal)
+            write_all(fd, data)
         finally:
             os.close(fd)
         fsync_dir(self.journal.parent)
