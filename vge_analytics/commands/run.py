@@ -56,6 +56,13 @@ def run_command(
     history: int | None = typer.Option(
         None, "--history", min=0, help="Steps of history the agent keeps (default: all)."
     ),
+    history_images: int | None = typer.Option(
+        None,
+        "--history-images",
+        min=0,
+        help="openai: of the steps kept, the latest J keep their picture (default: all; 0: "
+        "text only, for servers that take one image per request).",
+    ),
     lam: float | None = typer.Option(
         None, "--lambda", help="Budget factor of the run (default 5; a task's own wins)."
     ),
@@ -76,7 +83,10 @@ def run_command(
     timeout: float = typer.Option(120.0, "--timeout", min=0.001, help="openai: s per request."),
     retries: int = typer.Option(4, "--retries", min=0, help="openai: retries of a request."),
     retry_wait: float = typer.Option(
-        2.0, "--retry-wait", min=0.0, help="openai: s before the first retry (doubles)."
+        2.0,
+        "--retry-wait",
+        min=0.0,
+        help="openai: s before the first retry (doubles, with jitter).",
     ),
     prompt_price: float | None = typer.Option(
         None, "--prompt-price", min=0.0, help="USD per million prompt tokens (for the cost)."
@@ -99,6 +109,7 @@ def run_command(
         agent,
         AgentOptions(
             history=history,
+            history_images=history_images,
             seed=seed,
             client=ClientSettings(
                 base_url=base_url,

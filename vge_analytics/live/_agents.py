@@ -81,6 +81,8 @@ class AgentOptions(msgspec.Struct, frozen=True):
 
     history: int | None = None
     """Steps of history the agent keeps (None: the whole episode)."""
+    history_images: int | None = None
+    """Of the steps kept, how many of the latest keep their picture (None: all of them)."""
     seed: int = 0
     """Seed of the simulated profiles."""
     client: ClientSettings = ClientSettings()

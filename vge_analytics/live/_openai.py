@@ -3,8 +3,9 @@ SGLang, Ollama, ...), with the one retry policy of `vge run`.
 
 Every request has a timeout. A rate limit (429), a server error (5xx), a timeout, a lost
 connection or an answer that cannot be read is retried, up to `retries` more times, waiting
-`retry_wait` seconds and doubling each time (or what the server's `Retry-After` asks, when
-longer). A request that still fails raises `InfrastructureError`: the harness ends that
+about `retry_wait` seconds and doubling each time (or what the server's `Retry-After` asks,
+when longer). Each wait is drawn between half and all of its doubled value ("equal jitter"),
+so the threads of `--concurrency N`, refused together, do not all come back together. A request that still fails raises `InfrastructureError`: the harness ends that
 episode as an infrastructure failure, never as the agent's. A key, model or address the
 service refuses (401, 403, 404) raises `AgentError` at once: every request would fail alike.
 """
@@ -12,6 +13,7 @@ service refuses (401, 403, 404) raises `AgentError` at once: every request would
 from __future__ import annotations
 
 import os
+import random
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -66,11 +68,18 @@ class ChatClient:
     """Sends chat requests; safe to share between threads (the `openai` client is)."""
 
     def __init__(
-        self, model: str, settings: ClientSettings, *, sleep: Callable[[float], None] = time.sleep
+        self,
+        model: str,
+        settings: ClientSettings,
+        *,
+        sleep: Callable[[float], None] = time.sleep,
+        jitter: Callable[[], float] = random.random,
     ) -> None:
         self.model = model
         self.settings = settings
         self._sleep = sleep
+        self._jitter = jitter
+        """A number in [0, 1) per wait (tests fix it)."""
         # Retries are ours (one policy, counted here), so the library makes one attempt.
         self._client = openai.OpenAI(
             api_key=api_key(settings.base_url),
@@ -90,7 +99,7 @@ class ChatClient:
             extra["max_tokens"] = s.max_tokens
         reasons: list[str] = []
         for attempt in range(s.retries + 1):
-            wait = s.retry_wait * (2**attempt)
+            asked = 0.0  # what the server's Retry-After asks
             started = time.perf_counter()
             try:
                 response = self._client.chat.completions.create(
@@ -109,7 +118,7 @@ class ChatClient:
                 ) from None
             except (openai.RateLimitError, openai.InternalServerError) as exc:
                 reasons.append(_say(exc))
-                wait = max(wait, _retry_after(exc))
+                asked = _retry_after(exc)
             except openai.APIConnectionError as exc:  # timeouts included
                 reasons.append(_say(exc))
             except openai.APIStatusError as exc:  # another 4xx: this request will not pass
@@ -119,7 +128,8 @@ class ChatClient:
             else:
                 return completion
             if attempt < s.retries:
-                self._sleep(wait)
+                wait = s.retry_wait * (2**attempt) * (1.0 + self._jitter()) / 2.0
+                self._sleep(max(wait, asked))
         raise InfrastructureError(
             f"no answer after {s.retries + 1} attempt(s); last: {reasons[-1]}"
         )

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import base64
 import io
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 from PIL import Image
@@ -121,25 +121,50 @@ def observation_text(obs: Mapping[str, Any], last_action: str | None) -> str:
     return "\n".join(lines)
 
 
+class Turn(NamedTuple):
+    """One past step of the conversation."""
+
+    said: str
+    """The step's user message text."""
+    image_url: str
+    """The picture it showed."""
+    answered: str
+    """The model's answer."""
+
+
 def build_messages(
-    history: list[tuple[str, str]], current: str, image_url: str
+    history: Sequence[Turn], current: str, image_url: str, *, images: int | None = None
 ) -> list[dict[str, Any]]:
-    """System rules, the past turns kept (text only: what was said and answered), then the
-    current step with its picture."""
+    """System rules, the past turns kept (what was said, with its picture for the latest
+    `images` of them, None: all; and what was answered), then the current step with its
+    picture."""
     messages: list[dict[str, Any]] = [{"role": "system", "content": SYSTEM_PROMPT}]
-    for said, answered in history:
-        messages.append({"role": "user", "content": said})
-        messages.append({"role": "assistant", "content": answered})
-    messages.append(
-        {
-            "role": "user",
-            "content": [
-                {"type": "text", "text": current},
-                {"type": "image_url", "image_url": {"url": image_url}},
-            ],
-        }
-    )
+    pictured = len(history) if images is None else min(images, len(history))
+    for i, turn in enumerate(history):
+        if i >= len(history) - pictured:
+            messages.append(_user(turn.said, turn.image_url))
+        else:
+            messages.append({"role": "user", "content": turn.said})
+        messages.append({"role": "assistant", "content": turn.answered})
+    messages.append(_user(current, image_url))
     return messages
 
 
-__all__ = ["SYSTEM_PROMPT", "build_messages", "observation_text", "png_data_url", "views_text"]
+def _user(text: str, image_url: str) -> dict[str, Any]:
+    return {
+        "role": "user",
+        "content": [
+            {"type": "text", "text": text},
+            {"type": "image_url", "image_url": {"url": image_url}},
+        ],
+    }
+
+
+__all__ = [
+    "SYSTEM_PROMPT",
+    "Turn",
+    "build_messages",
+    "observation_text",
+    "png_data_url",
+    "views_text",
+]

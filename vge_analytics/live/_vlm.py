@@ -1,6 +1,7 @@
 """`openai:MODEL`: a vision-language model behind an OpenAI-compatible chat API, prompted
 ReAct-style (`_prompt.py`) with the current view as a PNG and the last K steps of the
-conversation (`--history K`)."""
+conversation (`--history K`), the latest J of them with their pictures (`--history-images J`;
+by default every step kept keeps its picture, as in a chat that shows the whole history)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import replay
 
 from ._agents import AgentOptions, EpisodeStart, Reply, history_text
 from ._openai import ChatClient
-from ._prompt import build_messages, observation_text, png_data_url
+from ._prompt import Turn, build_messages, observation_text, png_data_url
 
 
 class OpenAIAgent:
@@ -21,6 +22,7 @@ class OpenAIAgent:
         self.spec = f"openai:{model}"
         self.model = model
         self.history = options.history
+        self.history_images = options.history_images
         self.client_settings = options.client
         self.client = client if client is not None else ChatClient(model, options.client)
 
@@ -29,6 +31,7 @@ class OpenAIAgent:
         out: dict[str, Any] = {
             "agent": self.spec,
             "history_length": history_text(self.history),
+            "history_images": history_text(self.history_images),
             "base_url": s.base_url or "",
             "request_timeout_seconds": s.timeout,
             "retries": s.retries,
@@ -40,16 +43,17 @@ class OpenAIAgent:
         return out
 
     def start(self, episode: EpisodeStart) -> _VLMPlayer:
-        return _VLMPlayer(self.client, self.history)
+        return _VLMPlayer(self.client, self.history, self.history_images)
 
 
 class _VLMPlayer:
-    def __init__(self, client: ChatClient, history: int | None) -> None:
+    def __init__(self, client: ChatClient, history: int | None, images: int | None) -> None:
         self.client = client
         self.history = history
-        self.turns: list[tuple[str, str]] = []
+        self.images = images
+        self.turns: list[Turn] = []
         self.last_action: str | None = None
-        self._pending: tuple[str, str] | None = None
+        self._pending: Turn | None = None
 
     def act(self, obs: dict[str, Any]) -> Reply:
         said = observation_text(obs, self.last_action)
@@ -57,8 +61,9 @@ class _VLMPlayer:
             kept = self.turns
         else:
             kept = self.turns[len(self.turns) - self.history :] if self.history else []
-        answer = self.client.complete(build_messages(kept, said, png_data_url(obs["image"])))
-        self._pending = (said, answer.text)
+        picture = png_data_url(obs["image"])
+        answer = self.client.complete(build_messages(kept, said, picture, images=self.images))
+        self._pending = Turn(said, picture, answer.text)
         return Reply(
             answer.text,
             prompt_tokens=answer.prompt_tokens,
@@ -71,7 +76,7 @@ class _VLMPlayer:
         assert self._pending is not None
         self.turns.append(self._pending)
         # What the model is told it did: the call it wrote, as the grammar read it.
-        self.last_action = replay.parse_action(self._pending[1]).action_text
+        self.last_action = replay.parse_action(self._pending.answered).action_text
         self._pending = None
 
 

@@ -79,6 +79,7 @@ def test_a_scripted_server_run_replays_with_zero_divergence(
         assert (img.format, img.size) == ("PNG", (768, 768))
     second = server.requests[2]["body"]["messages"]
     assert [m["role"] for m in second] == ["system", "user", "assistant", "user"]
+    assert second[1]["content"] == user["content"]  # the past step, with its picture
     assert second[2]["content"] == MALFORMED
     assert "What happened: System Notification:" in second[3]["content"][0]["text"]
     assert server.requests[5]["body"]["messages"][1]["content"][0]["text"].startswith(

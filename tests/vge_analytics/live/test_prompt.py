@@ -1,5 +1,6 @@
 """The prompt of `openai:` agents: its examples are actions the grammar reads, the step message
-says what the model needs, and `--history K` keeps the last K turns."""
+says what the model needs, `--history K` keeps the last K turns and `--history-images J` the
+pictures of the latest J of them."""
 
 from __future__ import annotations
 
@@ -68,6 +69,59 @@ def test_history_keeps_the_last_k_turns(
     assert "What happened: System Notification:" in second
     assert "Your last action: Push(coord=[780, 725], params=[1])" in third
     assert recorder.sent[-1][-1]["content"][1]["image_url"]["url"].startswith("data:image/png")
+
+
+def _play_boil(kettle_bench: Path, options: AgentOptions) -> list[list[dict]]:
+    """The requests of an `openai:` agent over the kettle's `boil` episode (three steps)."""
+    recorder = _Recorder([MALFORMED, PUSH_POWER, WAIT])
+    agent = OpenAIAgent("m", options, client=recorder)  # type: ignore[arg-type]
+    env = DeviceEnv(kettle_bench, image_source=no_images, image_width=16, image_height=12)
+    obs, _ = env.reset(options={"episode_id": "boil"})
+    player = agent.start(EpisodeStart(obs, env, "r"))
+    done = False
+    while not done:
+        obs, _, terminated, truncated, info = env.step(player.act(obs).action)
+        player.observe(obs, info)
+        done = terminated or truncated
+    return recorder.sent
+
+
+@pytest.mark.parametrize(
+    ("history", "images", "pictured"),
+    [
+        (None, None, [True, True]),  # the whole conversation, as a chat shows it
+        (None, 1, [False, True]),
+        (None, 0, [False, False]),
+        (1, None, [True]),
+        (1, 0, [False]),
+        (2, 5, [True, True]),
+    ],
+)
+def test_history_images_keeps_the_pictures_of_the_latest_j_turns(
+    kettle_bench: Path, history: int | None, images: int | None, pictured: list[bool]
+) -> None:
+    sent = _play_boil(kettle_bench, AgentOptions(history=history, history_images=images))
+    # The current step always has its picture; past user messages have one or are text.
+    current_pictures = [m[-1]["content"][1]["image_url"]["url"] for m in sent]
+    third = sent[2]
+    past_users = [m for m in third[1:-1] if m["role"] == "user"]
+    assert [isinstance(m["content"], list) for m in past_users] == pictured
+    # A past turn's picture is the one it was sent with; its text is the same either way.
+    first_kept = 2 - len(past_users)
+    for k, message in enumerate(past_users):
+        said = sent[first_kept + k][-1]["content"][0]["text"]
+        if isinstance(message["content"], list):
+            assert message["content"][0]["text"] == said
+            assert message["content"][1]["image_url"]["url"] == current_pictures[first_kept + k]
+        else:
+            assert message["content"] == said
+
+
+def test_history_images_is_a_setting_of_the_run() -> None:
+    agent = OpenAIAgent("m", AgentOptions(history_images=2), client=_Recorder([]))  # type: ignore[arg-type]
+    assert agent.settings()["history_images"] == "2"
+    agent = OpenAIAgent("m", AgentOptions(), client=_Recorder([]))  # type: ignore[arg-type]
+    assert agent.settings()["history_images"] == "unlimited"
 
 
 def test_a_locked_dashboard_is_listed_as_locked() -> None:
