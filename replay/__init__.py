@@ -35,6 +35,7 @@ from .io._load import (
     load_machine,
     load_ssm,
     read_run_header,
+    run_header_bytes,
     validate_benchmark,
     validate_run,
 )
@@ -182,6 +183,7 @@ __all__ = [
     "QuarantineRecord",
     "read_manifest",
     "read_run_header",
+    "run_header_bytes",
     "rect_contains",
     "rect_distance",
     "replay_episode",

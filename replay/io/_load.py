@@ -1,15 +1,16 @@
 """Reading inputs (PROTOCOL §1): SSM/UCSM files, tasks, run headers, episode logs; and the
 validator behind `vge validate`. Every error names the file (and line). Inputs are local
-paths or URIs (`_fs.location`)."""
+paths or URIs (`_fs.location`). And the bytes of a run.json, beside its reader, for every
+program that writes runs (`vge synth`, `vge run`, `vge play`)."""
 
 from __future__ import annotations
 
 import gzip
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import msgspec
 
@@ -126,6 +127,14 @@ def read_run_header(run_dir: str | Path | Location) -> RunHeader:
     if not header.run_id.strip():
         raise InputError(str(path), "run_id is empty")
     return header
+
+
+def run_header_bytes(header: RunHeader | Mapping[str, Any]) -> bytes:
+    """run.json's bytes: JSON indented by two spaces, with a final newline. A `RunHeader`'s
+    fields come in their declared order and its meta's keys sorted; a mapping's keys in the
+    order given."""
+    order = "deterministic" if isinstance(header, RunHeader) else None
+    return msgspec.json.format(msgspec.json.encode(header, order=order), indent=2) + b"\n"
 
 
 def episodes_file(run_dir: str | Path | Location) -> Location:

@@ -42,10 +42,6 @@ _episode_decoder = msgspec.json.Decoder(replay.EpisodeLog)
 _encoder = msgspec.json.Encoder()
 
 
-def header_bytes(header: replay.RunHeader) -> bytes:
-    return msgspec.json.format(msgspec.json.encode(header, order="deterministic"), indent=2) + b"\n"
-
-
 class RunDir:
     """RUN_DIR: its header, the finished episodes (as their lines) and the failures."""
 
@@ -100,7 +96,7 @@ class RunDir:
     # ------------------------------------------------------------------ while running
 
     def write_header(self, header: replay.RunHeader) -> None:
-        write_atomic(self.header_path, header_bytes(header))
+        write_atomic(self.header_path, replay.run_header_bytes(header))
 
     def append_episode(self, line: bytes) -> None:
         append_record(self.episodes_path, line, create=True)

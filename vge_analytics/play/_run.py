@@ -167,7 +167,7 @@ class HumanRun:
             if lam is not None:
                 document["lambda"] = float(lam)
             document["meta"] = {"interface": "vge play"}
-            write_atomic(header_path, orjson.dumps(document, option=orjson.OPT_INDENT_2) + b"\n")
+            write_atomic(header_path, replay.run_header_bytes(document))
             header = replay.read_run_header(root)
         (root / EPISODES_FILE).touch()
         (root / JOURNAL_DIR).mkdir(exist_ok=True)

@@ -36,7 +36,7 @@ from ._agent import play_episode
 from ._catalog import PAPER_DEVICE_COUNTS, UCSM_DIR, available_categories, load_catalog
 from ._instantiate import dashboard_probability, dump_ssm, instantiate_device
 from ._rng import rng_for
-from ._runs import RunSpec, agent_rng, episode_line, header_bytes, in_run, run_specs
+from ._runs import RunSpec, agent_rng, episode_line, in_run, run_specs
 from ._tasks import sample_tasks
 
 SYNTH_VERSION = 1
@@ -268,7 +268,7 @@ def generate(
         for spec in runs:
             run_dir = tmp / "runs" / spec.run_id
             run_dir.mkdir(parents=True)
-            (run_dir / "run.json").write_bytes(header_bytes(spec.header(seed, scale)))
+            (run_dir / "run.json").write_bytes(replay.run_header_bytes(spec.header(seed, scale)))
             raw = open(run_dir / "episodes.jsonl.gz", "wb")  # noqa: SIM115 (closed below)
             gz = gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0, compresslevel=6)
             writers[spec.run_id] = (raw, gz)

@@ -96,6 +96,3 @@ def episode_line(
         out.append(item)
     return orjson.dumps({"episode_id": episode_id, "steps": out}) + b"\n"
 
-
-def header_bytes(header: dict) -> bytes:
-    return orjson.dumps(header, option=orjson.OPT_INDENT_2) + b"\n"
