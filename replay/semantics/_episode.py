@@ -105,6 +105,17 @@ def parse_log_step(log_step: LogStep) -> ParsedAction:
     return _NO_ACTION
 
 
+def goals_reached(entered: Sequence[int], goals: Sequence[int], current: int) -> int:
+    """PROTOCOL §3: the current goal's index after a step that entered `entered` (in order),
+    from `current` before it. Each goal reached in turn completes, and the next one becomes
+    current: one step may complete several."""
+    n_goals = len(goals)
+    for s in entered:
+        if current < n_goals and s == goals[current]:
+            current += 1
+    return current
+
+
 def advance_goals(
     entered: Sequence[int],
     goals: Sequence[int],
@@ -114,19 +125,17 @@ def advance_goals(
     completed_at: list[int | None],
     dyn: list[int | None],
 ) -> int:
-    """PROTOCOL §3 goal bookkeeping for step k, which entered `entered` (in order): each goal reached
-    in turn completes at k (one that became current in this very step also starts there, with
+    """PROTOCOL §3 goal bookkeeping for step k (`goals_reached`): each goal reached in it
+    completes at k (one that became current in this very step also starts there, with
     C_opt_dyn 0), and the next goal starts at k + 1. Returns the new current goal index."""
     first = current
-    n_goals = len(goals)
-    for s in entered:
-        if current < n_goals and s == goals[current]:
-            completed_at[current] = k
-            if current != first:
-                started[current] = k  # became current and completed in this step
-                dyn[current] = 0
-            current += 1
-    if first < current < n_goals:
+    current = goals_reached(entered, goals, first)
+    for c in range(first, current):
+        completed_at[c] = k
+        if c != first:
+            started[c] = k  # became current and completed in this step
+            dyn[c] = 0
+    if first < current < len(goals):
         started[current] = k + 1
     return current
 
@@ -139,6 +148,20 @@ def refreshed_budget(
     for c in range(first + 1, min(current + 1, len(c_opt))):
         budget_local = max(budget_local, lam * c_opt[c])
     return budget_local
+
+
+def termination_after(
+    current: int, n_goals: int, taken: int, budget_global: float, budget_local: float
+) -> str | None:
+    """PROTOCOL §3.5: how the episode ends after a step, or None if it goes on. Success is
+    checked first, then the global budget, then the local one."""
+    if current >= n_goals:
+        return "success"
+    if taken >= budget_global:
+        return "budget_global"
+    if budget_local <= 0:
+        return "budget_local"
+    return None
 
 
 def _first_visit_order(states: list[int]) -> list[int]:
@@ -300,12 +323,9 @@ class EpisodeSession:
 
         cls = self._classify(goal_index, goal, before, parsed, outcome, sim, completed)
 
-        if current >= self.n_goals:
-            self.termination = "success"
-        elif taken >= self.budget_global:
-            self.termination = "budget_global"
-        elif budget_local <= 0:
-            self.termination = "budget_local"
+        self.termination = termination_after(
+            current, self.n_goals, taken, self.budget_global, budget_local
+        )
 
         state_after = names[sim.state]
         diverged_fields = []

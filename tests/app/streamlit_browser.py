@@ -268,6 +268,31 @@ class AppPage:
         """The cells of every table on the page (header row first; rows the grid has drawn)."""
         return list(self.page.evaluate(_TABLES_JS) or [])
 
+    def table_with(
+        self, header: list[str], *, index: int = -1, settle: float = 0.3
+    ) -> list[list[str]]:
+        """The cells of table `index` once its header starts with `header` and its cells
+        have stayed the same for `settle` seconds: a table that replaces another in the same
+        place (the SQL page's result) may still show the old one's cells for a moment after
+        the rerun's text has rendered, on a loaded machine."""
+        deadline = time.monotonic() + self.timeout
+        seen: list[list[str]] | None = None
+        since = 0.0
+        while True:
+            now = time.monotonic()
+            tables = self.tables()
+            table = tables[index] if tables else None
+            if table and table[0][: len(header)] == header and len(table) > 1:
+                if table != seen:
+                    seen, since = table, now
+                elif now - since >= settle:
+                    return table
+            else:
+                seen = None
+            if now > deadline:
+                raise TimeoutError(f"no steady table with header {header}: {tables}")
+            time.sleep(0.05)
+
     def errors(self) -> list[str]:
         """Texts of the exceptions and error boxes the page shows."""
         return list(self.page.evaluate(_ERRORS_JS) or [])

@@ -112,7 +112,9 @@ class AgentStep:
 
 
 class BudgetTracker:
-    """PROTOCOL §3 budgets and goal completion, step by step (in the order of PROTOCOL §3.5)."""
+    """PROTOCOL §3 budgets and goal completion, step by step, by the rules the replay applies
+    (`replay.goals_reached`, `refreshed_budget`, `termination_after`): a simulated log ends
+    exactly where its replay ends."""
 
     def __init__(self, c_opt: tuple[int, ...], goals: tuple[int, ...], lam: float) -> None:
         self.c_opt = c_opt
@@ -127,22 +129,17 @@ class BudgetTracker:
     def advance(self, entered: tuple[int, ...]) -> int:
         """Account one step; returns the number of goals it completed."""
         goal_index = self.current
-        completed = 0
-        for s in entered:
-            if self.current < len(self.goals) and s == self.goals[self.current]:
-                self.current += 1
-                completed += 1
+        self.current = replay.goals_reached(entered, self.goals, goal_index)
+        completed = self.current - goal_index
         self.taken += 1
         self.local -= 1
         if completed:
-            for c in range(goal_index + 1, min(self.current + 1, len(self.goals))):
-                self.local = max(self.local, self.lam * self.c_opt[c])
-        if self.current >= len(self.goals):
-            self.termination = "success"
-        elif self.taken >= self.global_budget:
-            self.termination = "budget_global"
-        elif self.local <= 0:
-            self.termination = "budget_local"
+            self.local = replay.refreshed_budget(
+                self.local, self.lam, self.c_opt, goal_index, self.current
+            )
+        self.termination = replay.termination_after(
+            self.current, len(self.goals), self.taken, self.global_budget, self.local
+        )
         return completed
 
 
