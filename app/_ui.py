@@ -22,7 +22,7 @@ import streamlit as st
 import vge_analytics as va
 from vge_analytics import dashboard as dash
 from vge_analytics import play
-from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits
+from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, CLI_TIMEOUT, SqlLimits
 from vge_analytics._metric_set import default_folder
 
 API: dict[str, Callable[..., Any]] = {
@@ -130,7 +130,15 @@ def human_run(bench: str, run: str) -> play.HumanRun:
 @st.cache_data(show_spinner=False, max_entries=1024)
 def _cached(name: str, out: str, version: str, args: tuple, kwargs: dict) -> Any:
     del version  # part of the cache key only
-    return API[name](out, *args, **kwargs)
+    with va.query_time_limit(query_timeout()):
+        return API[name](out, *args, **kwargs)
+
+
+def query_timeout(argv: Sequence[str] | None = None) -> float | None:
+    """The pages' analytics queries' time limit: `--query-timeout` among the script arguments
+    (what `vge app` passes; 0: none), else the command line's default."""
+    value = script_option("query-timeout", argv)
+    return CLI_TIMEOUT if value is None else (float(value) or None)
 
 
 def call(name: str, *args: Any, **kwargs: Any) -> Any:

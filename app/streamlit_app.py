@@ -13,6 +13,7 @@ import contextlib
 import streamlit as st
 
 from app import _ui as ui
+from vge_analytics import AnalyticsError
 
 
 def run() -> None:
@@ -44,8 +45,12 @@ def run() -> None:
         ]
     )
     if ui.sidebar():
-        with contextlib.suppress(ui.PageStopped):  # a page said all it could (ui.stop)
+        try:
             page.run()
+        except ui.PageStopped:  # a page said all it could (ui.stop)
+            pass
+        except AnalyticsError as exc:  # a query past its time limit, a metric that fails
+            ui.show_error(exc)
     ui.end_of_page()
 
 

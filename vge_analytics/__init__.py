@@ -31,6 +31,8 @@ prompt, the run writer; docs/LIVE.md).
 
 Read-only SQL (within a memory and a time limit, see `_limits`):
     sql(out, "SELECT ...", timeout=300, memory_limit=None)   views steps, episodes, goals, runs
+    with query_time_limit(60): ...       the analytics above stop a query after 60 s (default:
+                                         no limit; the CLI's and the app's: 300 s)
 
 `where` filters are `{column: value or list of values}` over columns of runs/episodes (and
 of steps/goals where the result is computed from them); `by` lists grouping columns.
@@ -64,7 +66,7 @@ from ._ranking import competition_ranks, kendall_tau_b
 from ._registry import MAIN_TABLE, METRIC_NAMES, Metric, get_metric, registry
 from ._rescore import Rescore, rescore
 from ._scope import DEFAULT_BY, groupable_columns
-from ._sql import sql
+from ._sql import query_time_limit, sql
 from ._store import clear_cache, open_store, table_columns
 from ._sweep import parse_lambdas, sweep
 from ._taxonomy import (
@@ -126,6 +128,7 @@ __all__ = [
     "open_store",
     "parse_lambdas",
     "polars_metrics",
+    "query_time_limit",
     "registry",
     "render",
     "render_latex",

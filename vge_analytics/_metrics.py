@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import duckdb
 import polars as pl
 
-from ._errors import QueryError, UnknownColumnError
+from ._errors import QueryError, QueryLimitError, UnknownColumnError
 from ._metric_set import MetricSet, MetricsSource, metric_set
 from ._registry import Metric
 from ._scope import (
@@ -27,7 +27,7 @@ from ._scope import (
     parse_by,
     run_keys_scope,
 )
-from ._sql import check_read_only
+from ._sql import Deadline, analytics_timeout, check_read_only
 from ._store import Store, open_store, quote_ident
 
 MetricNames = str | Sequence[str] | None
@@ -140,15 +140,25 @@ def compose(
 def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
     """Run one of the analytics' queries on the store's locked-down connection (files outside
     OUT unreadable, settings final). It must be one read-only statement, checked as `vge
-    sql` checks a user's: the metric expressions in it may come from a user's files."""
+    sql` checks a user's: the metric expressions in it may come from a user's files. It is
+    stopped at the time limit of `query_time_limit`, if one is set."""
     cursor = store.cursor()
+    timeout = analytics_timeout()
+    deadline = Deadline(cursor, timeout)
     try:
         check_read_only(sql, cursor)
         return cursor.sql(sql, params=list(params)).pl()
     except duckdb.Error as exc:
+        if deadline.fired.is_set() and isinstance(exc, duckdb.InterruptException):
+            raise QueryLimitError(
+                f"{store.out}: a query ran past its time limit of {timeout:g} s and was "
+                "stopped (--timeout sets it)",
+                limit="time",
+            ) from None
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise QueryError(f"{store.out}: query failed: {first}") from None
     finally:
+        deadline.cancel()
         cursor.close()
 
 

@@ -25,6 +25,7 @@ import contextlib
 import re
 import threading
 from collections.abc import Iterator
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -79,7 +80,7 @@ def check_read_only(query: str, con: duckdb.DuckDBPyConnection | None = None) ->
     return query
 
 
-class _Deadline:
+class Deadline:
     """Interrupts a cursor's query after `seconds` (None: never); remembers that it did."""
 
     def __init__(self, cursor: duckdb.DuckDBPyConnection, seconds: float | None) -> None:
@@ -100,8 +101,29 @@ class _Deadline:
             self._timer.cancel()
 
 
+_ANALYTICS_TIMEOUT: ContextVar[float | None] = ContextVar("vge_analytics_timeout", default=None)
+
+
+@contextlib.contextmanager
+def query_time_limit(seconds: float | None) -> Iterator[None]:
+    """Within the block, each query of the analytics (metrics, errors, comparisons, sweeps,
+    rescoring, the dashboard's tables) is stopped after `seconds` (None or 0: no limit, the
+    API's default) with `QueryLimitError`. A metric a user wrote that runs away ends with one
+    line instead of holding the command or the dashboard. Per thread (a context variable)."""
+    token = _ANALYTICS_TIMEOUT.set(seconds or None)
+    try:
+        yield
+    finally:
+        _ANALYTICS_TIMEOUT.reset(token)
+
+
+def analytics_timeout() -> float | None:
+    """The time limit of the analytics' queries here (`query_time_limit`)."""
+    return _ANALYTICS_TIMEOUT.get()
+
+
 def _limit_error(
-    exc: BaseException, store: Store, limits: SqlLimits, deadline: _Deadline
+    exc: BaseException, store: Store, limits: SqlLimits, deadline: Deadline
 ) -> Exception:
     """The one-line error for a failure while a query ran or its result was read.
 
@@ -196,7 +218,7 @@ def stream(
     check_read_only(query)
     store = open_store(out, limits)
     cursor = store.cursor()
-    deadline = _Deadline(cursor, limits.timeout)
+    deadline = Deadline(cursor, limits.timeout)
 
     def fail(exc: BaseException) -> Exception:
         return _limit_error(exc, store, limits, deadline)
@@ -278,4 +300,15 @@ def sql_head(
         return SqlHead(frame=result.frame(kept), truncated=truncated)
 
 
-__all__ = ["BATCH_ROWS", "Batches", "SqlHead", "check_read_only", "sql", "sql_head", "stream"]
+__all__ = [
+    "BATCH_ROWS",
+    "Batches",
+    "Deadline",
+    "SqlHead",
+    "analytics_timeout",
+    "check_read_only",
+    "query_time_limit",
+    "sql",
+    "sql_head",
+    "stream",
+]

@@ -57,6 +57,13 @@ def test_streamlit_command(tiny_out):
     default_limits, rows = _ui.sql_settings([])
     assert (default_limits.timeout, rows) == (30.0, 10_000)
     assert default_limits.memory == SqlLimits.make().memory
+    # The other pages' analytics queries: `vge app --query-timeout S` passes it on.
+    cmd = streamlit_command(tiny_out, port=1, headless=True, query_timeout=7.5)
+    script_args = cmd[cmd.index("--") + 1 :]
+    assert script_args[-2:] == ["--query-timeout", "7.5"]
+    assert _ui.query_timeout(script_args) == 7.5
+    assert _ui.query_timeout(["--query-timeout", "0"]) is None  # no limit
+    assert _ui.query_timeout([]) == 300.0  # the command line's default
 
 
 def test_loopback_hosts():

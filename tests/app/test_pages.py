@@ -14,6 +14,7 @@ import vge_analytics as va
 from vge_analytics import ERROR_LABELS, compare, error_distribution, play, sweep, switch_classes
 from vge_analytics import dashboard as dash
 
+from ..vge_analytics.metric_files import RUNAWAY, write_folder
 from .conftest import APP
 
 
@@ -469,3 +470,15 @@ def button(at: AppTest, label: str):
 
 def lines_of(path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
+def test_a_runaway_metric_ends_with_one_line_on_the_page(app_env, tmp_path, monkeypatch):
+    folder = write_folder(tmp_path / "runaway", {"runaway.sql": RUNAWAY})
+    monkeypatch.setenv("VGE_METRICS_DIR", str(folder))
+    # As `vge app --query-timeout 0.5` starts the app.
+    monkeypatch.setattr("sys.argv", ["streamlit_app.py", "--query-timeout", "0.5"])
+    at = AppTest.from_file(str(APP), default_timeout=60).run()
+    assert not at.exception, [e.message for e in at.exception]
+    assert [e.value for e in at.main.error] == [
+        f"{app_env}: a query ran past its time limit of 0.5 s and was stopped (--timeout sets it)"
+    ]

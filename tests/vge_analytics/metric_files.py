@@ -66,6 +66,26 @@ SR_AS_SSR = metric_text(
 """An override of SR: SSR's definition under SR's name."""
 
 
+RUNAWAY = """\
+-- metric: Runaway
+-- title: A metric whose expression never ends
+-- direction: higher
+-- unit: percent
+-- level: episode-mean
+-- grain: episodes
+-- version: 1
+-- definition: Counts a trillion numbers before it counts the episodes.
+-- null: never null.
+
+-- numerator
+count(*) FILTER (WHERE (SELECT count(*) FROM range(1000000000000) AS t(i) WHERE i % 7 = 3) > 0)
+
+-- denominator
+count(*)
+"""
+"""A metric whose query runs until a time limit stops it (a scalar subquery over a trillion rows)."""
+
+
 def write_folder(root: Path, files: dict[str, str]) -> Path:
     """A metrics folder at `root` holding `files` ({file name: text})."""
     root.mkdir(parents=True, exist_ok=True)

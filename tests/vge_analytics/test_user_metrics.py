@@ -29,7 +29,15 @@ import vge_analytics as va
 from replay import ConfigError
 from vge_analytics.cli import main
 
-from .metric_files import EXAMPLES, GOALS_DONE, SR_AS_SSR, SR_MULTI, TIR_DASHBOARD, write_folder
+from .metric_files import (
+    EXAMPLES,
+    GOALS_DONE,
+    RUNAWAY,
+    SR_AS_SSR,
+    SR_MULTI,
+    TIR_DASHBOARD,
+    write_folder,
+)
 from .test_metrics_hand import EXPECTED
 
 HAND_VALUES = {
@@ -83,7 +91,9 @@ def test_the_documented_examples(hand_out: Path, sample_out: Path) -> None:
     # fails, its last), so there the corrected PSR equals the built-in one: 5/13 and 3/8.
     examples = va.load_metrics(EXAMPLES)
     assert examples.names == (*va.METRIC_NAMES, "SR-multi", "TIR-dashboard")
-    changed = {m.name: examples.origin(m.name) for m in examples if examples.origin(m.name) != "built-in"}
+    changed = {
+        m.name: examples.origin(m.name) for m in examples if examples.origin(m.name) != "built-in"
+    }
     assert changed == {"PSR": "override", "SR-multi": "added", "TIR-dashboard": "added"}
     df = va.metrics(hand_out, metrics=["SR-multi", "TIR-dashboard", "PSR"], metrics_dir=EXAMPLES)
     for row in df.iter_rows(named=True):
@@ -112,9 +122,7 @@ def test_grouping_applies_to_user_metrics(hand_out: Path, mine: Path) -> None:
     assert values[("kettle-vlm", 3)] == (None, 100.0)  # c, the 3-goal episode, succeeds
     assert _close(values[("kettle-vlm", 2)][1], 50.0)  # a, f succeed; d, e fail
     # A steps-only column groups the steps metric, as for the built-ins.
-    by_action = va.metrics(
-        hand_out, by="action_type", metrics="TIR-dashboard", metrics_dir=mine
-    )
+    by_action = va.metrics(hand_out, by="action_type", metrics="TIR-dashboard", metrics_dir=mine)
     assert "press" in by_action["action_type"].to_list()
     with pytest.raises(va.UnknownColumnError, match="TIR-dashboard.*not.*SR-multi"):
         va.metrics(hand_out, by="action_type", metrics="TIR-dashboard,SR-multi", metrics_dir=mine)
@@ -187,7 +195,8 @@ def test_metric_set_origins(mine: Path) -> None:
 
 def test_a_metric_named_like_a_grouping_column(hand_out: Path, tmp_path: Path) -> None:
     folder = write_folder(
-        tmp_path / "clash", {"model.sql": SR_MULTI.replace("-- metric: SR-multi", "-- metric: model")}
+        tmp_path / "clash",
+        {"model.sql": SR_MULTI.replace("-- metric: SR-multi", "-- metric: model")},
     )
     with pytest.raises(va.UnknownColumnError, match="'model' has the name of a grouping column"):
         va.metrics(hand_out, metrics_dir=folder)
@@ -209,3 +218,35 @@ def test_builtin_values_do_not_change_without_a_folder(hand_out: Path) -> None:
     # The polars cross-check (test_polars_agrees.py) covers the built-ins; with no folder and
     # no environment variable, metrics are the built-ins exactly.
     assert va.metrics(hand_out).equals(va.metrics(hand_out, metrics_dir=va.MetricSet.builtin()))
+
+
+def test_a_runaway_metric_stops_at_the_time_limit(
+    capsys, hand_out: Path, pair_out: Path, tmp_path: Path
+) -> None:
+    folder = write_folder(tmp_path / "runaway", {"runaway.sql": RUNAWAY})
+    # The API has no limit unless asked; within the block, the query stops at it.
+    with va.query_time_limit(0.5), pytest.raises(va.QueryLimitError) as caught:
+        va.metrics(hand_out, metrics=["SR", "Runaway"], metrics_dir=folder)
+    assert caught.value.limit == "time"
+    assert str(caught.value) == (
+        f"{hand_out}: a query ran past its time limit of 0.5 s and was stopped (--timeout sets it)"
+    )
+    # The limit ends with the block: the built-ins are computed as before.
+    assert va.metrics(hand_out, metrics=["SR"])["SR"].to_list() == [
+        EXPECTED[run]["SR"] for run in ("kettle-vlm", "oven-human")
+    ]
+    # The commands take --timeout; the error is one line.
+    for out, args in (
+        (hand_out, ["metrics", str(hand_out), "--metrics", "Runaway"]),
+        (pair_out, ["compare", str(pair_out), "A", "B"]),
+        (hand_out, ["rescore", str(hand_out)]),
+    ):
+        code = main([*args, "--metrics-dir", str(folder), "--timeout", "0.5"])
+        err = capsys.readouterr().err
+        assert code == 1, (args[0], err)
+        assert err == (
+            f"error: {out}: a query ran past its time limit of 0.5 s and was stopped "
+            "(--timeout sets it)\n"
+        ), args[0]
+    # Queries that end in time are not affected by one.
+    assert main(["errors", str(hand_out), "--timeout", "0.5"]) == 0

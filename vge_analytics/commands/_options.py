@@ -6,6 +6,7 @@ import typer
 
 from replay import ConfigError
 
+from .._limits import CLI_TIMEOUT
 from .._metric_set import METRICS_DIR_ENV
 
 METRICS_DIR_HELP = (
@@ -19,6 +20,17 @@ def metrics_dir_option(help: str = METRICS_DIR_HELP) -> str | None:
     return typer.Option(None, "--metrics-dir", envvar=METRICS_DIR_ENV, show_envvar=True, help=help)
 
 
+def timeout_option() -> float:
+    """`--timeout S`: how long each analytics query may run (a typer option default)."""
+    return typer.Option(
+        CLI_TIMEOUT,
+        "--timeout",
+        min=0.0,
+        help="Seconds each query may run before it is stopped with one line (0: no limit); "
+        "a metric file's expression that runs away ends there.",
+    )
+
+
 def episode_ids(text: str | None, option: str) -> tuple[str, ...] | None:
     """The episode ids of a comma-separated option (`--episodes`, `--mcap-episodes`); None
     when the option is not given, an error when it names none."""
@@ -30,4 +42,4 @@ def episode_ids(text: str | None, option: str) -> tuple[str, ...] | None:
     return ids
 
 
-__all__ = ["METRICS_DIR_HELP", "episode_ids", "metrics_dir_option"]
+__all__ = ["METRICS_DIR_HELP", "episode_ids", "metrics_dir_option", "timeout_option"]

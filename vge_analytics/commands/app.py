@@ -22,7 +22,13 @@ from pathlib import Path
 
 import typer
 
-from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits, format_size
+from vge_analytics._limits import (
+    APP_MAX_ROWS,
+    APP_TIMEOUT,
+    CLI_TIMEOUT,
+    SqlLimits,
+    format_size,
+)
 from vge_analytics._metric_set import load_metrics
 from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
 
@@ -66,11 +72,12 @@ def streamlit_command(
     host: str = LOOPBACK,
     sql: tuple[SqlLimits, int] | None = None,
     metrics_dir: Path | None = None,
+    query_timeout: float | None = None,
 ) -> list[str]:
     """The argument list that serves the dashboard for OUT on `host:port`: `streamlit run
     ...` through `vge_analytics._serve`, which warms the libraries and OUT up before the
     server listens. `sql`: the SQL page's limits and row cap, `metrics_dir`: the metrics
-    folder, both passed on to the app."""
+    folder, `query_timeout`: the pages' analytics queries' time limit, passed on to the app."""
     cmd = [
         sys.executable,
         "-m",
@@ -105,6 +112,8 @@ def streamlit_command(
         ]
     if metrics_dir is not None:
         cmd += ["--metrics-dir", str(metrics_dir)]
+    if query_timeout is not None:
+        cmd += ["--query-timeout", f"{query_timeout:g}"]
     return cmd
 
 
@@ -136,6 +145,13 @@ def app(
     sql_max_rows: int = typer.Option(
         APP_MAX_ROWS, "--sql-max-rows", min=1, help="Rows the SQL page shows and downloads."
     ),
+    query_timeout: float = typer.Option(
+        CLI_TIMEOUT,
+        "--query-timeout",
+        min=0.0,
+        help="The other pages stop an analytics query (a metric, a table) after this many "
+        "seconds, with one line (0: no limit).",
+    ),
     metrics_dir: str = metrics_dir_option(
         "A folder of metric files whose metrics every page shows (overriding or adding to the "
         "built-in ones); the Rescore page shows what they change."
@@ -156,6 +172,7 @@ def app(
         host=host,
         sql=(limits, sql_max_rows),
         metrics_dir=folder,
+        query_timeout=query_timeout,
     )
     env = {**os.environ, OUT_ENV: str(resolved)}
     shown = "localhost" if is_loopback(host) else host

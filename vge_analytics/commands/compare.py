@@ -10,7 +10,8 @@ from .._compare import DEFAULT_RESAMPLES, DEFAULT_SEED
 from .._compare import compare as compute_compare
 from .._format import check_format
 from .._output import FORMAT_HELP, emit_sections
-from ._options import metrics_dir_option
+from .._sql import query_time_limit
+from ._options import metrics_dir_option, timeout_option
 
 
 def compare(
@@ -22,23 +23,25 @@ def compare(
     resamples: int = typer.Option(DEFAULT_RESAMPLES, "--resamples", help="Bootstrap resamples."),
     metrics_dir: str = metrics_dir_option(),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    timeout: float = timeout_option(),
 ) -> None:
     """Paired comparison of two runs on the episodes both have.
 
     Metrics of A and B, B - A with paired bootstrap 95% CIs, McNemar's exact test on
     success, error-distribution difference in percentage points, flipped episodes.
     """
-    check_format(fmt)
-    result = compute_compare(
-        out,
-        run_a,
-        run_b,
-        metrics=metric_names,
-        seed=seed,
-        resamples=resamples,
-        metrics_dir=metrics_dir,
-    )
-    emit_sections(result.sections(), fmt)
+    with query_time_limit(timeout):
+        check_format(fmt)
+        result = compute_compare(
+            out,
+            run_a,
+            run_b,
+            metrics=metric_names,
+            seed=seed,
+            resamples=resamples,
+            metrics_dir=metrics_dir,
+        )
+        emit_sections(result.sections(), fmt)
 
 
 def register(app: typer.Typer) -> None:

@@ -10,7 +10,9 @@ import typer
 from .._format import check_format
 from .._output import FORMAT_HELP, emit_sections
 from .._scope import parse_by
+from .._sql import query_time_limit
 from .._taxonomy import ERROR_LABELS, error_distribution, groups_of, switch_classes
+from ._options import timeout_option
 from .metrics import parse_where
 
 
@@ -31,34 +33,42 @@ def errors(
     by: str = typer.Option("run_id", "--by", help="Group by these columns (default: run_id)."),
     where: list[str] = typer.Option(None, "--where", help="Filter COLUMN=VALUE[,VALUE...]."),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    timeout: float = timeout_option(),
 ) -> None:
     """Error taxonomy (share of errors, counts) and switch classes per run.
 
     The seven error types and three error groups as shares of all errors (the paper's pie)
     with counts, and the NP/PN/NN/PP classes of successful view switches.
     """
-    check_format(fmt)
-    by_cols = list(parse_by(by))
-    filters = parse_where(where)
-    types = error_distribution(out, by_cols, filters)
-    groups = groups_of(types, by_cols)
-    switches = switch_classes(out, by_cols, filters)
-    if fmt in ("json", "csv"):
-        sections = {"error_types": types, "error_groups": groups, "switch_classes": switches}
-    else:
-        labelled = types.with_columns(error_type=pl.col("error_type").replace_strict(ERROR_LABELS))
-        sections = {
-            "error types: share of errors (%)": _wide(
-                labelled, by_cols, ["error_group", "error_type"], "share"
-            ),
-            "error types: count": _wide(labelled, by_cols, ["error_group", "error_type"], "count"),
-            "error groups: share of errors (%)": _wide(groups, by_cols, ["error_group"], "share"),
-            "switch classes: share of classified switches (%)": _wide(
-                switches, by_cols, ["switch_class"], "share"
-            ),
-            "switch classes: count": _wide(switches, by_cols, ["switch_class"], "count"),
-        }
-    emit_sections(sections, fmt, fixed=True)
+    with query_time_limit(timeout):
+        check_format(fmt)
+        by_cols = list(parse_by(by))
+        filters = parse_where(where)
+        types = error_distribution(out, by_cols, filters)
+        groups = groups_of(types, by_cols)
+        switches = switch_classes(out, by_cols, filters)
+        if fmt in ("json", "csv"):
+            sections = {"error_types": types, "error_groups": groups, "switch_classes": switches}
+        else:
+            labelled = types.with_columns(
+                error_type=pl.col("error_type").replace_strict(ERROR_LABELS)
+            )
+            sections = {
+                "error types: share of errors (%)": _wide(
+                    labelled, by_cols, ["error_group", "error_type"], "share"
+                ),
+                "error types: count": _wide(
+                    labelled, by_cols, ["error_group", "error_type"], "count"
+                ),
+                "error groups: share of errors (%)": _wide(
+                    groups, by_cols, ["error_group"], "share"
+                ),
+                "switch classes: share of classified switches (%)": _wide(
+                    switches, by_cols, ["switch_class"], "share"
+                ),
+                "switch classes: count": _wide(switches, by_cols, ["switch_class"], "count"),
+            }
+        emit_sections(sections, fmt, fixed=True)
 
 
 def register(app: typer.Typer) -> None:

@@ -17,7 +17,8 @@ from .._metrics import metrics as compute_metrics
 from .._output import FORMAT_HELP, emit
 from .._registry import MAIN_TABLE
 from .._scope import DEFAULT_BY, parse_by
-from ._options import metrics_dir_option
+from .._sql import query_time_limit
+from ._options import metrics_dir_option, timeout_option
 
 LIST_COLUMNS: tuple[str, ...] = (
     "metric",
@@ -89,6 +90,7 @@ def metrics(
         "(built-in, or the file that defines or overrides it) and definition.",
     ),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    timeout: float = timeout_option(),
 ) -> None:
     """The paper's main table: its twelve metrics per run or per any grouping.
 
@@ -96,27 +98,28 @@ def metrics(
     --metrics-dir); in table, markdown and latex the best value of each metric is bold and
     the second best underlined.
     """
-    check_format(fmt)
-    available = load_metrics(metrics_dir)
-    if list_metrics:
-        title = "Metrics" + (f" (built-in and {available.folder})" if available.folder else "")
-        emit(list_table(available), fmt, title=title, marks=False)
-        return
-    if out is None:
-        raise click.UsageError("Missing argument 'OUT' (or --list to list the metrics).")
-    by_cols = parse_by(by)
-    chosen = list(MAIN_TABLE) if metric_names == "main" else metric_names
-    df = compute_metrics(
-        out, by=by_cols, metrics=chosen, where=parse_where(where), metrics_dir=available
-    )
-    if fmt in ("table", "markdown", "latex"):
-        df = for_people(df, by_cols)
-    emit(
-        df,
-        fmt,
-        title="The paper's metrics: \u2191 higher is better, \u2193 lower is better",
-        metric_set=available,
-    )
+    with query_time_limit(timeout):
+        check_format(fmt)
+        available = load_metrics(metrics_dir)
+        if list_metrics:
+            title = "Metrics" + (f" (built-in and {available.folder})" if available.folder else "")
+            emit(list_table(available), fmt, title=title, marks=False)
+            return
+        if out is None:
+            raise click.UsageError("Missing argument 'OUT' (or --list to list the metrics).")
+        by_cols = parse_by(by)
+        chosen = list(MAIN_TABLE) if metric_names == "main" else metric_names
+        df = compute_metrics(
+            out, by=by_cols, metrics=chosen, where=parse_where(where), metrics_dir=available
+        )
+        if fmt in ("table", "markdown", "latex"):
+            df = for_people(df, by_cols)
+        emit(
+            df,
+            fmt,
+            title="The paper's metrics: \u2191 higher is better, \u2193 lower is better",
+            metric_set=available,
+        )
 
 
 def register(app: typer.Typer) -> None:

@@ -11,7 +11,8 @@ from .._output import FORMAT_HELP, emit, emit_sections
 from .._rescore import DEFAULT_RESCORE_BY
 from .._rescore import rescore as compute_rescore
 from .._scope import parse_by
-from ._options import metrics_dir_option
+from .._sql import query_time_limit
+from ._options import metrics_dir_option, timeout_option
 from .metrics import parse_where
 
 
@@ -45,6 +46,7 @@ def rescore(
         "the groups whose rank moved); in json a list of such objects.",
     ),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    timeout: float = timeout_option(),
 ) -> None:
     """What the metrics of a folder change: per run, each changed or added metric before and
     after, the difference, the rank before and after; per metric, Kendall's tau-b between the
@@ -55,25 +57,26 @@ def rescore(
     rank_before, rank_after), or with --summary the rankings; table, markdown and latex print
     both.
     """
-    check_format(fmt)
-    result = compute_rescore(
-        out,
-        metrics_dir,
-        against=against,
-        by=parse_by(by),
-        where=parse_where(where),
-        metrics=metric_names,
-    )
-    if not result.changes:
-        typer.echo("The metrics folder changes no metric: nothing to report.", err=True)
-    if fmt in ("json", "csv"):
-        table = result.summary if summary else result.rows
-        emit(table, fmt, marks=False)
-        return
-    sections = result.tables()
-    if summary:
-        sections = {"rankings": sections["rankings"]}
-    emit_sections(sections, fmt, fixed=True)
+    with query_time_limit(timeout):
+        check_format(fmt)
+        result = compute_rescore(
+            out,
+            metrics_dir,
+            against=against,
+            by=parse_by(by),
+            where=parse_where(where),
+            metrics=metric_names,
+        )
+        if not result.changes:
+            typer.echo("The metrics folder changes no metric: nothing to report.", err=True)
+        if fmt in ("json", "csv"):
+            table = result.summary if summary else result.rows
+            emit(table, fmt, marks=False)
+            return
+        sections = result.tables()
+        if summary:
+            sections = {"rankings": sections["rankings"]}
+        emit_sections(sections, fmt, fixed=True)
 
 
 def register(app: typer.Typer) -> None:

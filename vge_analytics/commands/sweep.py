@@ -8,9 +8,10 @@ import typer
 
 from .._format import check_format
 from .._output import FORMAT_HELP, emit
+from .._sql import query_time_limit
 from .._sweep import DEFAULT_SWEEP_METRICS
 from .._sweep import sweep as compute_sweep
-from ._options import metrics_dir_option
+from ._options import metrics_dir_option, timeout_option
 
 
 def sweep(
@@ -31,24 +32,26 @@ def sweep(
     ),
     metrics_dir: str = metrics_dir_option(),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    timeout: float = timeout_option(),
 ) -> None:
     """SR and SSR per run at each lambda, by re-replaying the logs.
 
     Also the gain over the smallest lambda. A lambda above what a run's logs support (an
     episode hit its recorded budget and its log stops there) is refused.
     """
-    check_format(fmt)
-    run_ids = [r.strip() for r in runs.split(",") if r.strip()] if runs else None
-    df = compute_sweep(
-        out,
-        lambdas,
-        runs=run_ids,
-        metrics=metric_names.split(","),
-        workers=workers,
-        ray=ray,
-        metrics_dir=metrics_dir,
-    )
-    emit(df, fmt, title="Budget sweep (gain over the smallest lambda)", marks=False)
+    with query_time_limit(timeout):
+        check_format(fmt)
+        run_ids = [r.strip() for r in runs.split(",") if r.strip()] if runs else None
+        df = compute_sweep(
+            out,
+            lambdas,
+            runs=run_ids,
+            metrics=metric_names.split(","),
+            workers=workers,
+            ray=ray,
+            metrics_dir=metrics_dir,
+        )
+        emit(df, fmt, title="Budget sweep (gain over the smallest lambda)", marks=False)
 
 
 def register(app: typer.Typer) -> None:

@@ -95,4 +95,3 @@ def episode_line(
         item["timestamp"] = round(t, 3)
         out.append(item)
     return orjson.dumps({"episode_id": episode_id, "steps": out}) + b"\n"
-
