@@ -11,6 +11,11 @@ installed or loaded, its memory is capped (`memory_limit`, spilling to a private
 directory capped by `max_temp_directory_size`; see `_limits`), and `lock_configuration =
 true` makes those settings final. Every query, ours or a user's (`vge sql`), runs on a cursor
 of that connection. A store is cached per (directory, memory limits).
+
+OUT may also be a URI (`s3://bucket/out?...`, `gs://...`; docs/SCALE.md): its Parquet files are
+then read through pyarrow's filesystem (`replay.Location`, the replay's own), as Arrow
+datasets that DuckDB scans, so no DuckDB extension is needed, and DuckDB is given no file
+access at all. A `file://` URI is the local directory.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from pathlib import Path
 
 import duckdb
 import pyarrow as pa
+import pyarrow.dataset as pads
 
 import replay
 
@@ -101,11 +107,14 @@ def _signature(out: Path) -> tuple:
 class Store:
     """An opened OUT directory: DuckDB connection, column catalogue, manifest."""
 
-    out: Path
+    out: Path | replay.Location
+    """A local directory, or a location in object storage."""
     con: duckdb.DuckDBPyConnection
     columns: dict[str, dict[str, str]]
     """table -> {column: DuckDB type}, in table order."""
     manifest: dict
+    sources: tuple = ()
+    """The Arrow datasets the views of a remote OUT scan (kept alive with the connection)."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
@@ -154,6 +163,43 @@ def _create_views(con: duckdb.DuckDBPyConnection, out: Path) -> None:
     rel.create_view("runs")
 
 
+def _remote_source(loc: replay.Location, names: list[str]) -> pads.Dataset:
+    """The Parquet files `names` (relative to `loc`) as one Arrow dataset, their schemas
+    unified by column name as DuckDB's `union_by_name` does (a column some files lack is
+    null there)."""
+    paths = [f"{loc.path.rstrip('/')}/{name}" for name in names]
+    found = pads.dataset(paths, filesystem=loc.fs, format="parquet")
+    schema = pa.unify_schemas(
+        [fragment.physical_schema for fragment in found.get_fragments()],
+        promote_options="permissive",
+    )
+    return pads.dataset(paths, filesystem=loc.fs, format="parquet", schema=schema)
+
+
+def _create_remote_views(
+    con: duckdb.DuckDBPyConnection, out: replay.Location, manifest: dict
+) -> tuple:
+    """The four views over a remote OUT; returns the datasets they scan. The tables' files
+    are the ones the manifest lists (`runs[].outputs`), not a listing of the prefix: on object
+    storage a listing may catch a run mid-commit, the manifest never does (docs/SCALE.md)."""
+    sources = []
+    for table in TABLES:
+        if table == "runs":
+            names = [f"runs/{n}" for n in (out / "runs").names() if n.endswith(".parquet")]
+            empty = _empty_runs()
+        else:
+            names = sorted(f for run in manifest.get("runs", []) for f in run["outputs"][table])
+            empty = replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
+        if names:
+            source = _remote_source(out, names)
+            sources.append(source)
+            rel = con.from_arrow(source)
+        else:
+            rel = con.from_arrow(empty)
+        rel.create_view(table)
+    return tuple(sources)
+
+
 _SPILL_DIRS = itertools.count()
 
 
@@ -165,20 +211,22 @@ def _spill_directory() -> str:
     return str(Path(tempfile.gettempdir()) / name)
 
 
-def _secure(con: duckdb.DuckDBPyConnection, out: Path, limits: SqlLimits) -> None:
+def _secure(con: duckdb.DuckDBPyConnection, out: Path | None, limits: SqlLimits) -> None:
+    """Lock the connection down; `out`: the one directory it may read (None: none, the views
+    of a remote OUT scan Arrow datasets, not files)."""
     # Order matters: allowed_directories can only be set while external access is on, and
     # lock_configuration must come last (it freezes every setting, including itself).
     con.execute("SET memory_limit = ?", [f"{limits.memory}B"])
     con.execute("SET temp_directory = ?", [_spill_directory()])
     con.execute("SET max_temp_directory_size = ?", [f"{limits.spill}B"])
-    con.execute("SET allowed_directories = ?", [[str(out) + "/"]])
+    con.execute("SET allowed_directories = ?", [[str(out) + "/"] if out is not None else []])
     con.execute("SET enable_external_access = false")
     con.execute("SET autoinstall_known_extensions = false")
     con.execute("SET autoload_known_extensions = false")
     con.execute("SET lock_configuration = true")
 
 
-def resolve_input(out: str | Path, recorded: str) -> Path | replay.Location:
+def resolve_input(out: str | Path | replay.Location, recorded: str) -> Path | replay.Location:
     """An input path as the manifest records it (as given to `vge replay`): a URI
     (`s3://...`, opened as it is), absolute, or relative to the directory the replay ran in,
     which is not recorded: the current directory is tried first, then OUT's parent
@@ -189,16 +237,20 @@ def resolve_input(out: str | Path, recorded: str) -> Path | replay.Location:
     path = Path(recorded)
     if path.is_absolute() or path.exists():
         return path
+    if isinstance(out, replay.Location):
+        if out.local is None:  # nothing is beside an OUT in object storage
+            return path
+        out = out.local
     beside = Path(out).resolve().parent / path
     return beside if beside.exists() else path
 
 
-def _read_manifest(out: Path) -> dict:
+def _read_manifest(out: Path | replay.Location) -> dict:
     path = out / "manifest.json"
     if not path.exists():
         return {}
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(path.read_bytes().decode("utf-8"))
     except (OSError, ValueError) as exc:
         raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
     return data if isinstance(data, dict) else {}
@@ -220,39 +272,76 @@ def _open(out: Path, limits: SqlLimits) -> Store:
     except duckdb.Error as exc:
         con.close()
         raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
+    columns = _catalogue(con)
+    _secure(con, out, limits)
+    return Store(out=out, con=con, columns=columns, manifest=_read_manifest(out))
+
+
+def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:
+    try:
+        data = (out / "manifest.json").read_bytes()
+    except FileNotFoundError:
+        raise OutputDirError(
+            f"{out}: not a replay output (no manifest.json); run `vge replay ... --out {out}` first"
+        ) from None
+    except OSError as exc:
+        raise OutputDirError(f"{out}: cannot read it ({exc})") from None
+    try:
+        manifest = json.loads(data.decode("utf-8"))
+        con = duckdb.connect(":memory:")
+        sources = _create_remote_views(con, out, manifest)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise OutputDirError(f"{out}: cannot read the replay output ({exc})") from None
+    columns = _catalogue(con)
+    _secure(con, None, limits)
+    return Store(out=out, con=con, columns=columns, manifest=manifest, sources=sources)
+
+
+def _catalogue(con: duckdb.DuckDBPyConnection) -> dict[str, dict[str, str]]:
     columns: dict[str, dict[str, str]] = {}
     for table in TABLES:
         rows = con.execute(f"DESCRIBE {table}").fetchall()  # table names are constants
         columns[table] = {r[0]: str(r[1]) for r in rows}
-    _secure(con, out, limits)
-    return Store(out=out, con=con, columns=columns, manifest=_read_manifest(out))
+    return columns
+
+
+def _remote_signature(out: replay.Location) -> tuple:
+    """Fingerprint of a remote OUT: its manifest, which the replay writes last, after every
+    table file (the commit marker of object storage, docs/SCALE.md)."""
+    try:
+        return ("manifest", (out / "manifest.json").read_bytes())
+    except OSError:
+        return ("manifest", None)
 
 
 _CACHE: dict[tuple[str, int, int], tuple[tuple, Store]] = {}
 _CACHE_LOCK = threading.Lock()
 
 
-def open_store(out: str | Path | Store, limits: SqlLimits | None = None) -> Store:
-    """The `Store` of an OUT directory, cached per directory and memory limits (re-opened if
-    the directory changed). `limits`: the memory DuckDB may use (default: `SqlLimits.make()`,
-    a quarter of the machine's memory)."""
+def open_store(out: str | Path | replay.Location | Store, limits: SqlLimits | None = None) -> Store:
+    """The `Store` of an OUT directory (a path or a URI), cached per directory and memory
+    limits (re-opened if the directory changed). `limits`: the memory DuckDB may use
+    (default: `SqlLimits.make()`, a quarter of the machine's memory)."""
     if isinstance(out, Store):
         return out
-    if "://" in str(out):
-        raise OutputDirError(
-            f"{out}: the analytics read OUT on the local disk or a shared filesystem; query "
-            "object storage with DuckDB (httpfs), Spark or Trino, or copy OUT down first "
-            "(docs/SCALE.md)"
-        )
     limits = limits or SqlLimits.make()
-    path = Path(out).resolve()
-    sig = _signature(path)
-    key = (str(path), limits.memory, limits.spill)
+    where: Path | replay.Location
+    if isinstance(out, replay.Location) or "://" in str(out):
+        where = replay.location(out)
+        if where.local is not None:  # file://
+            where = where.local.resolve()
+    else:
+        where = Path(out).resolve()
+    if isinstance(where, Path):
+        sig, opener = _signature(where), _open
+    else:
+        sig, opener = _remote_signature(where), _open_remote
+    key = (str(where), limits.memory, limits.spill)
     with _CACHE_LOCK:
         hit = _CACHE.get(key)
         if hit is not None and hit[0] == sig:
             return hit[1]
-        store = _open(path, limits)
+        store = opener(where, limits)  # type: ignore[arg-type]
         # The previous connection is not closed here: another thread may still be reading
         # from it; it closes when the last reference goes.
         _CACHE[key] = (sig, store)

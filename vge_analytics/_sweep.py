@@ -114,7 +114,9 @@ BATCH_LINES = 1024
 """Episode lines per sweep task."""
 
 
-def _resolve(out: Path, path: str, what: str, run_id: str) -> Path | replay.Location:
+def _resolve(
+    out: Path | replay.Location, path: str, what: str, run_id: str
+) -> Path | replay.Location:
     p = resolve_input(out, path)
     if p.exists():
         return p
@@ -133,7 +135,7 @@ def _sha256(path: Path | replay.Location) -> str:
     return h.hexdigest()
 
 
-def _check_unchanged(out: Path, entry, run_id: str) -> None:
+def _check_unchanged(out: Path | replay.Location, entry, run_id: str) -> None:
     """The inputs must be the ones OUT was replayed from (sha256 in the manifest)."""
     refs = [("episodes file", entry.inputs.episodes), ("tasks file", entry.inputs.tasks)]
     refs += [(f"SSM of {device}", ref) for device, ref in sorted(entry.inputs.ssm.items())]

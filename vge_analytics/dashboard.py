@@ -60,8 +60,14 @@ def app_script() -> Path:
 
 def check_out(out: str | Path) -> Path:
     """OUT, resolved, if it is a replay output directory; else an error saying what to run."""
-    path = Path(out).expanduser()
     shown = str(out)
+    if "://" in shown and not shown.startswith("file://"):
+        raise OutputDirError(
+            f"{shown}: the dashboard reads OUT on this machine (its viewer opens the episodes' "
+            "files); copy OUT down first, or query it where it is with vge metrics, errors, "
+            "compare, rescore, sweep and sql"
+        )
+    path = Path(shown.removeprefix("file://")).expanduser()
     if not path.is_dir():
         hint = (
             "run `vge demo` first (it replays the bundled sample into ./logs-replayed)"

@@ -118,8 +118,8 @@ def streamlit_command(
 
 
 def app(
-    out: Path = typer.Argument(
-        Path(DEFAULT_OUT),
+    out: str = typer.Argument(
+        DEFAULT_OUT,
         help="Replay output directory (default: ./logs-replayed, written by `vge demo`).",
     ),
     port: int = typer.Option(8501, "--port", help="Port to serve on."),

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import typer
 
 from .._compare import DEFAULT_RESAMPLES, DEFAULT_SEED
@@ -15,7 +13,7 @@ from ._options import metrics_dir_option, timeout_option
 
 
 def compare(
-    out: Path = typer.Argument(..., help="Replay output directory."),
+    out: str = typer.Argument(..., help="Replay output directory (a path, or a URI such as s3://bucket/out)."),
     run_a: str = typer.Argument(..., help="Baseline run id (A)."),
     run_b: str = typer.Argument(..., help="Compared run id (B); differences are B - A."),
     metric_names: str = typer.Option(None, "--metrics", help="Metrics (default: all)."),

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import polars as pl
 import typer
 
@@ -29,7 +27,7 @@ def _wide(df: pl.DataFrame, by: list[str], index: list[str], value: str) -> pl.D
 
 
 def errors(
-    out: Path = typer.Argument(..., help="Replay output directory."),
+    out: str = typer.Argument(..., help="Replay output directory (a path, or a URI such as s3://bucket/out)."),
     by: str = typer.Option("run_id", "--by", help="Group by these columns (default: run_id)."),
     where: list[str] = typer.Option(None, "--where", help="Filter COLUMN=VALUE[,VALUE...]."),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),

@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 import polars as pl
 import typer
@@ -63,7 +61,7 @@ def list_table(available: MetricSet) -> pl.DataFrame:
 
 
 def metrics(
-    out: Path = typer.Argument(
+    out: str = typer.Argument(
         None, help="Replay output directory (vge replay --out); not needed with --list."
     ),
     by: str = typer.Option(

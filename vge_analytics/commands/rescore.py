@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import typer
 
 from .._format import check_format
@@ -17,7 +15,7 @@ from .metrics import parse_where
 
 
 def rescore(
-    out: Path = typer.Argument(..., help="Replay output directory."),
+    out: str = typer.Argument(..., help="Replay output directory (a path, or a URI such as s3://bucket/out)."),
     metrics_dir: str = metrics_dir_option(
         "The folder of metric files whose changes are reported (required, or $VGE_METRICS_DIR)."
     ),

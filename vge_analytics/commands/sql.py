@@ -3,8 +3,6 @@ memory and time limits (see `vge_analytics._limits`)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import typer
 
 from .._errors import QueryLimitError
@@ -21,7 +19,7 @@ _HINTS = {
 
 
 def sql(
-    out: Path = typer.Argument(..., help="Replay output directory."),
+    out: str = typer.Argument(..., help="Replay output directory (a path, or a URI such as s3://bucket/out)."),
     query: str = typer.Argument(..., help="One SELECT query over steps, episodes, goals, runs."),
     fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
     timeout: float = typer.Option(

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import typer
 
 from .._format import check_format
@@ -15,7 +13,7 @@ from ._options import metrics_dir_option, timeout_option
 
 
 def sweep(
-    out: Path = typer.Argument(
+    out: str = typer.Argument(
         ..., help="Replay output directory (its manifest names the inputs)."
     ),
     lambdas: str = typer.Option("2,3,4,5", "--lambdas", help="Comma-separated lambdas."),

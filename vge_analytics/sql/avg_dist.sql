@@ -11,7 +11,7 @@
 -- null: null when no step of the group has a distance.
 
 -- numerator
-sum(distance)
+fsum(distance)
 
 -- denominator
 count(distance)

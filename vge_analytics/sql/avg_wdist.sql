@@ -11,7 +11,7 @@
 -- null: null when no step of the group has a distance.
 
 -- numerator
-sum(weight * distance) FILTER (WHERE distance IS NOT NULL)
+fsum(weight * distance) FILTER (WHERE distance IS NOT NULL)
 
 -- denominator
 count(distance)

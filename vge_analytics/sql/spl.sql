@@ -12,7 +12,7 @@
 -- null: null when the group has no episode.
 
 -- numerator
-sum(
+fsum(
     CASE
         WHEN NOT success THEN 0.0
         WHEN "L_opt" = 0 THEN 1.0

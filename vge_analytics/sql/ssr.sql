@@ -10,7 +10,7 @@
 -- null: null when the group has no episode.
 
 -- numerator
-sum(CAST(goals_completed AS DOUBLE) / n_goals)
+fsum(CAST(goals_completed AS DOUBLE) / n_goals)
 
 -- denominator
 count(*)

@@ -13,7 +13,7 @@
 -- null: null when the group has no episode.
 
 -- numerator
-sum(
+fsum(
     2.0 * len(list_filter(visited_states, lambda s: list_contains(optimal_states, s)))
     / (len(visited_states) + len(optimal_states))
 )

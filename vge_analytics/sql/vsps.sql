@@ -11,7 +11,7 @@
 -- null: null when no episode of the group completed a goal.
 
 -- numerator
-sum(CAST(vsps_switches AS DOUBLE) / goals_completed) FILTER (WHERE goals_completed > 0)
+fsum(CAST(vsps_switches AS DOUBLE) / goals_completed) FILTER (WHERE goals_completed > 0)
 
 -- denominator
 count(*) FILTER (WHERE goals_completed > 0)
