@@ -9,14 +9,22 @@ text that is not one expression (a `;`, extra columns). The connection doing it 
 like the store's (no file access, no extensions, settings final), so binding a file
 reference fails instead of reading the file.
 
+Then the expression must be additive (its value over a union of rows is the sum of its
+values over the parts), because the metric's terms are added across runs, groups and the
+resampled episodes of `compare`. Read from DuckDB's own parse tree (`json_serialize_sql`),
+the expression must be a sum or a count (no DISTINCT), or built from them with `+`, `-`, a
+constant factor, a cast, or `coalesce(..., 0)`; what is inside an aggregate is free.
+
 A problem is reported at the line of the file DuckDB points to (its `LINE n:`), else at the
 expression's first line.
 """
 
 from __future__ import annotations
 
+import json
 import re
 import threading
+from typing import Any
 
 import duckdb
 import pyarrow as pa
@@ -107,7 +115,89 @@ def check_expression(metric: Metric, part: str) -> Problem | None:
     kind = types[1].upper()
     if kind not in NUMERIC_TYPES and not kind.startswith("DECIMAL"):
         return problem(f"gives {types[1]} values, not numbers (it must be a count or a sum)")
+    cursor = _schema_connection()
+    try:
+        why = not_additive(_parsed(cursor, expression))
+    finally:
+        cursor.close()
+    if why is not None:
+        return problem(
+            f"is not additive: {why} (the terms are added across runs, groups and resampled "
+            "episodes; write a mean as a sum in the numerator over a count in the denominator)"
+        )
     return None
+
+
+_ADDITIVE = frozenset({"sum", "fsum", "sumkahan", "kahan_sum", "count", "count_star"})
+"""Aggregates whose value over a union of rows is the sum of their values over the parts."""
+
+
+def _arguments(node: dict[str, Any]) -> list[dict[str, Any]]:
+    """A function's argument expressions (each wrapped with its name in the tree)."""
+    return [a.get("expression", a) for a in node.get("arguments") or []]
+
+
+def _constant(node: dict[str, Any]) -> dict[str, Any] | None:
+    """The constant a node is (through casts and a sign), or None."""
+    while True:
+        kind = node.get("class")
+        if kind == "CONSTANT":
+            return node
+        if kind == "CAST":
+            node = node["child"]
+        elif kind == "FUNCTION" and node.get("function_name") == "-" and len(_arguments(node)) == 1:
+            node = _arguments(node)[0]
+        else:
+            return None
+
+
+def _is_zero(node: dict[str, Any]) -> bool:
+    constant = _constant(node)
+    text = None if constant is None else (constant.get("literal") or {}).get("text")
+    try:
+        return text is not None and float(text) == 0
+    except ValueError:
+        return False
+
+
+def not_additive(node: dict[str, Any]) -> str | None:
+    """Why the expression (a node of DuckDB's parse tree) is not additive, or None."""
+    kind = node.get("class")
+    if kind == "FUNCTION":
+        name = str(node.get("function_name", "")).lower()
+        args = _arguments(node)
+        if not node.get("is_operator"):
+            if name not in _ADDITIVE:
+                return f"{name}(...) is not a sum or a count"
+            if node.get("distinct"):
+                return f"{name}(DISTINCT ...) is not a sum or a count of rows"
+            return None
+        if name in ("+", "-"):
+            return next((why for why in map(not_additive, args) if why), None)
+        if name == "*" and len(args) == 2:
+            factors = [a for a in args if _constant(a) is None]
+            if len(factors) == 1:
+                return not_additive(factors[0])
+        return f"'{name}' applied to aggregates is not a sum of them"
+    if kind == "CAST":
+        return not_additive(node["child"])
+    if kind == "OPERATOR" and node.get("type") == "OPERATOR_COALESCE":
+        children = node.get("children") or []
+        if len(children) == 2 and _is_zero(children[1]):
+            return not_additive(children[0])
+        return "coalesce(...) other than coalesce(aggregate, 0) is not a sum"
+    if kind == "SUBQUERY":
+        return "a subquery outside an aggregate is not a sum or a count"
+    if kind == "CONSTANT":
+        return "a constant outside an aggregate is not a sum or a count"
+    return f"{str(node.get('type', kind)).lower()} around the aggregates is not a sum of them"
+
+
+def _parsed(cursor: duckdb.DuckDBPyConnection, expression: str) -> dict[str, Any]:
+    text = cursor.execute(
+        "SELECT json_serialize_sql(?::VARCHAR)", ["SELECT (\n" + expression + "\n)"]
+    ).fetchall()[0][0]
+    return json.loads(text)["statements"][0]["node"]["select_list"][0]
 
 
 def check_metric(metric: Metric) -> list[Problem]:
@@ -116,4 +206,4 @@ def check_metric(metric: Metric) -> list[Problem]:
     return [p for p in found if p is not None]
 
 
-__all__ = ["bind_query", "check_expression", "check_metric"]
+__all__ = ["bind_query", "check_expression", "check_metric", "not_additive"]

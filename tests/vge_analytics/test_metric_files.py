@@ -161,6 +161,33 @@ MALFORMED = {
         'the numerator does not bind over episodes: Permission Error: Cannot access file '
         '"/etc/passwd"',
     ),
+    "a mean": (
+        _numerator("avg(CAST(success AS INTEGER))"),
+        10,
+        "the numerator is not additive: avg(...) is not a sum or a count (the terms are added "
+        "across runs, groups and resampled episodes; write a mean as a sum in the numerator "
+        "over a count in the denominator)",
+    ),
+    "a ratio of aggregates": (
+        _numerator("count(*) FILTER (WHERE success) / count(*)"),
+        10,
+        "the numerator is not additive: '/' applied to aggregates is not a sum of them",
+    ),
+    "a distinct count": (
+        _numerator("count(DISTINCT episode_id)"),
+        10,
+        "the numerator is not additive: count(DISTINCT ...) is not a sum or a count of rows",
+    ),
+    "a product of aggregates": (
+        _numerator("sum(n_goals) * count(*)"),
+        10,
+        "the numerator is not additive: '*' applied to aggregates is not a sum of them",
+    ),
+    "a subquery": (
+        _numerator("(SELECT 1) + count(*)"),
+        10,
+        "the numerator is not additive: a subquery outside an aggregate is not a sum or a count",
+    ),
     "denominator of another grain": (
         metric_text("X", "count(*)", "count(*) FILTER (WHERE success)", grain="steps"),
         13,
@@ -266,6 +293,18 @@ def test_builtin_files_follow_the_public_format() -> None:
         parsed, problems = parse_metric_file((base / name).read_text(), metric.source)
         assert problems == [] and parsed == metric
         assert check_metric(metric) == [], metric.name
+
+
+def test_additive_forms_are_accepted(tmp_path) -> None:
+    # Sums and counts, combined by +, -, a constant factor, a cast or coalesce(..., 0); what
+    # is inside an aggregate (a subquery in a FILTER included) is free.
+    numerator = (
+        "100 * count(*) FILTER (WHERE success) - coalesce(fsum(CAST(goals_completed AS DOUBLE)"
+        " / n_goals), 0) + CAST(sum(n_goals) AS DOUBLE) * -0.5 + (count(*) - count(*))\n"
+        "+ count(*) FILTER (WHERE (SELECT 1) = 1)"
+    )
+    folder = write_folder(tmp_path / "ok", {"x.sql": _numerator(numerator)})
+    assert va.load_metrics(folder).get("X").numerator == numerator
 
 
 def test_comments_and_continuations(tmp_path) -> None:
