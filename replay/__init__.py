@@ -22,7 +22,7 @@ from ._errors import (
 )
 from ._version import ENGINE_VERSION
 from .io._executor import Executor, in_order, make_executor
-from .io._fs import Location, location
+from .io._fs import Location, is_uri, location
 from .io._lambdas import LambdaBatch, LambdaTask, replay_lambdas
 
 # Input and output: loading and validating, the runner (`vge replay`), manifest, quarantine, MCAP,
@@ -160,6 +160,7 @@ __all__ = [
     "goals_reached",
     "ImageSource",
     "in_order",
+    "is_uri",
     "InputError",
     "iter_lines",
     "LambdaBatch",

@@ -103,20 +103,17 @@ def check_expression(metric: Metric, part: str) -> Problem | None:
             return problem(f"is not valid SQL: {message}", line)
         if len(statements) != 1:
             return problem("must be one SQL expression (it holds a ';')")
-        relation = cursor.sql(query)
-        columns, types = relation.columns, [str(t) for t in relation.types]
-    except duckdb.Error as exc:
-        message, line = _first_lines(exc)
-        return problem(f"does not bind over {metric.grain}: {message}", line)
-    finally:
-        cursor.close()
-    if columns != ["__group", "__value"]:
-        return problem("must be one SQL expression (it adds columns)")
-    kind = types[1].upper()
-    if kind not in NUMERIC_TYPES and not kind.startswith("DECIMAL"):
-        return problem(f"gives {types[1]} values, not numbers (it must be a count or a sum)")
-    cursor = _schema_connection()
-    try:
+        try:
+            relation = cursor.sql(query)
+            columns, types = relation.columns, [str(t) for t in relation.types]
+        except duckdb.Error as exc:
+            message, line = _first_lines(exc)
+            return problem(f"does not bind over {metric.grain}: {message}", line)
+        if columns != ["__group", "__value"]:
+            return problem("must be one SQL expression (it adds columns)")
+        kind = types[1].upper()
+        if kind not in NUMERIC_TYPES and not kind.startswith("DECIMAL"):
+            return problem(f"gives {types[1]} values, not numbers (it must be a count or a sum)")
         why = not_additive(_parsed(cursor, expression))
     finally:
         cursor.close()

@@ -149,7 +149,7 @@ def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
         check_read_only(sql, cursor)
         return cursor.sql(sql, params=list(params)).pl()
     except duckdb.Error as exc:
-        if deadline.fired.is_set() and isinstance(exc, duckdb.InterruptException):
+        if deadline.stopped(exc):
             raise QueryLimitError(
                 f"{store.out}: a query ran past its time limit of {timeout:g} s and was "
                 "stopped (--timeout sets it)",

@@ -100,6 +100,14 @@ class Deadline:
         if self._timer is not None:
             self._timer.cancel()
 
+    def stopped(self, exc: BaseException) -> bool:
+        """Whether `exc` is the interruption this deadline caused (DuckDB's, or its text
+        carried by a pyarrow error while batches are read)."""
+        if not self.fired.is_set():
+            return False
+        first = (str(exc).splitlines() or [""])[0]
+        return isinstance(exc, duckdb.InterruptException) or "INTERRUPT" in first
+
 
 _ANALYTICS_TIMEOUT: ContextVar[float | None] = ContextVar("vge_analytics_timeout", default=None)
 
@@ -130,9 +138,7 @@ def _limit_error(
     DuckDB's errors reach us as duckdb exceptions, or, while the Arrow reader pulls batches,
     as pyarrow errors carrying DuckDB's text: both are classified by that text."""
     first = (str(exc).splitlines() or [type(exc).__name__])[0]
-    if deadline.fired.is_set() and (
-        isinstance(exc, duckdb.InterruptException) or "INTERRUPT" in first
-    ):
+    if deadline.stopped(exc):
         return QueryLimitError(
             f"the query ran past its time limit of {limits.timeout:g} s and was stopped",
             limit="time",

@@ -173,7 +173,7 @@ def _remote_source(loc: replay.Location, names: list[str]) -> pads.Dataset:
         [fragment.physical_schema for fragment in found.get_fragments()],
         promote_options="permissive",
     )
-    return pads.dataset(paths, filesystem=loc.fs, format="parquet", schema=schema)
+    return found.replace_schema(schema)  # the same files, not listed or opened again
 
 
 def _create_remote_views(
@@ -232,7 +232,7 @@ def resolve_input(out: str | Path | replay.Location, recorded: str) -> Path | re
     which is not recorded: the current directory is tried first, then OUT's parent
     (`vge replay ... --out OUT` run next to OUT). Returns the path as recorded when neither
     exists (the caller reports it)."""
-    if "://" in recorded:
+    if replay.is_uri(recorded):
         return replay.location(recorded)
     path = Path(recorded)
     if path.is_absolute() or path.exists():
@@ -326,7 +326,7 @@ def open_store(out: str | Path | replay.Location | Store, limits: SqlLimits | No
         return out
     limits = limits or SqlLimits.make()
     where: Path | replay.Location
-    if isinstance(out, replay.Location) or "://" in str(out):
+    if isinstance(out, replay.Location) or replay.is_uri(str(out)):
         where = replay.location(out)
         if where.local is not None:  # file://
             where = where.local.resolve()

@@ -61,13 +61,17 @@ def app_script() -> Path:
 def check_out(out: str | Path) -> Path:
     """OUT, resolved, if it is a replay output directory; else an error saying what to run."""
     shown = str(out)
-    if "://" in shown and not shown.startswith("file://"):
-        raise OutputDirError(
-            f"{shown}: the dashboard reads OUT on this machine (its viewer opens the episodes' "
-            "files); copy OUT down first, or query it where it is with vge metrics, errors, "
-            "compare, rescore, sweep and sql"
-        )
-    path = Path(shown.removeprefix("file://")).expanduser()
+    if replay.is_uri(shown):
+        if not shown.startswith("file://"):  # opening it would reach the store: say so first
+            raise OutputDirError(
+                f"{shown}: the dashboard reads OUT on this machine (its viewer opens the "
+                "episodes' files); copy OUT down first, or query it where it is with vge "
+                "metrics, errors, compare, rescore, sweep and sql"
+            )
+        path = replay.location(shown).local
+        assert path is not None  # a file:// URI names a local path
+    else:
+        path = Path(shown).expanduser()
     if not path.is_dir():
         hint = (
             "run `vge demo` first (it replays the bundled sample into ./logs-replayed)"
@@ -224,15 +228,11 @@ ORIGIN_MARKS: dict[str, str] = {"built-in": "", "override": " ✎", "added": " �
 (✎) or adds (＋)."""
 
 
-def metric_headers(
-    metric_names: Sequence[str], metrics: MetricSet | None = None
-) -> dict[str, str]:
+def metric_headers(metric_names: Sequence[str], metrics: MetricSet | None = None) -> dict[str, str]:
     """{metric: header with the paper's arrow and its origin mark}, e.g. `SR ↑`, `VSPS ↓`,
     `SR ↑ ✎` (overridden by a metrics folder), `SR-multi ↑ ＋` (added by one)."""
     chosen = metrics or MetricSet.builtin()
-    return {
-        n: f"{n} {chosen.get(n).arrow}{ORIGIN_MARKS[chosen.origin(n)]}" for n in metric_names
-    }
+    return {n: f"{n} {chosen.get(n).arrow}{ORIGIN_MARKS[chosen.origin(n)]}" for n in metric_names}
 
 
 def metric_help(name: str, metrics: MetricSet | None = None) -> str:
@@ -1106,9 +1106,7 @@ def computed_sweep(
     shows it at once next time, across restarts of the app."""
     from ._sweep import sweep
 
-    table = sweep(
-        out, sorted(lambdas), runs=sorted(runs), workers=workers, metrics_dir=metrics_dir
-    )
+    table = sweep(out, sorted(lambdas), runs=sorted(runs), workers=workers, metrics_dir=metrics_dir)
     path = _sweep_cache_file(out, runs, lambdas, metrics_dir)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -37,6 +37,27 @@ from ._options import metrics_dir_option
 LOOPBACK = "127.0.0.1"
 
 
+def port_option() -> int:
+    """`--port` of the commands that serve the app (a typer option default)."""
+    return typer.Option(8501, "--port", help="Port to serve on.")
+
+
+def host_option(opened: str) -> str:
+    """`--host`/`--address`: this machine only by default; `opened` says what listening on
+    0.0.0.0 lets the network do (a typer option default)."""
+    return typer.Option(
+        LOOPBACK,
+        "--host",
+        "--address",
+        help=f"Address to listen on. The default serves this machine only; 0.0.0.0 {opened}.",
+    )
+
+
+def headless_option() -> bool:
+    """`--headless` (a typer option default)."""
+    return typer.Option(False, "--headless", help="Do not open a browser (servers, CI, tests).")
+
+
 def is_loopback(host: str) -> bool:
     """True when `host` is reachable from this machine only (127.0.0.0/8, ::1, localhost)."""
     if host == "localhost":
@@ -122,17 +143,11 @@ def app(
         DEFAULT_OUT,
         help="Replay output directory (default: ./logs-replayed, written by `vge demo`).",
     ),
-    port: int = typer.Option(8501, "--port", help="Port to serve on."),
-    host: str = typer.Option(
-        LOOPBACK,
-        "--host",
-        "--address",
-        help="Address to listen on. The default serves this machine only; 0.0.0.0 opens the "
-        "dashboard (logs, model outputs, the SQL page) to the network.",
+    port: int = port_option(),
+    host: str = host_option(
+        "opens the dashboard (logs, model outputs, the SQL page) to the network"
     ),
-    headless: bool = typer.Option(
-        False, "--headless", help="Do not open a browser (servers, CI, tests)."
-    ),
+    headless: bool = headless_option(),
     sql_timeout: float = typer.Option(
         APP_TIMEOUT, "--sql-timeout", help="The SQL page stops a query after this many seconds."
     ),

@@ -17,7 +17,15 @@ from pathlib import Path
 import typer
 
 from vge_analytics import play
-from vge_analytics.commands.app import LOOPBACK, is_loopback, serve, streamlit_command
+from vge_analytics.commands.app import (
+    LOOPBACK,
+    headless_option,
+    host_option,
+    is_loopback,
+    port_option,
+    serve,
+    streamlit_command,
+)
 from vge_analytics.dashboard import OUT_ENV
 
 
@@ -61,17 +69,9 @@ def play_cmd(
         min=100,
         help="Show the view this many pixels wide (default: as wide as its column).",
     ),
-    port: int = typer.Option(8501, "--port", help="Port to serve on."),
-    host: str = typer.Option(
-        LOOPBACK,
-        "--host",
-        "--address",
-        help="Address to listen on. The default serves this machine only; 0.0.0.0 lets anyone "
-        "on the network play into the run.",
-    ),
-    headless: bool = typer.Option(
-        False, "--headless", help="Do not open a browser (servers, CI, tests)."
-    ),
+    port: int = port_option(),
+    host: str = host_option("lets anyone on the network play into the run"),
+    headless: bool = headless_option(),
 ) -> None:
     """Play the benchmark in the browser: pick an episode, click on the device's views; each
     step is written to a human run that `vge replay` reads."""
