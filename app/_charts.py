@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import altair as alt
 import polars as pl
 
+from replay import SCALE
 from vge_analytics import ERROR_LABELS, ERROR_TYPES, SWITCH_CLASSES
 from vge_analytics.dashboard import ViewPicture
 
@@ -323,11 +324,11 @@ def click_scatter(
 ):
     """Click points over the device view with the component boxes (targets in green)."""
     height = round(width * picture.height / picture.width)
-    x_scale = alt.Scale(domain=[0, 1000], nice=False, zero=False)
-    y_scale = alt.Scale(domain=[1000, 0], nice=False, zero=False)
-    x_axis = alt.Axis(title="x (0..1000)", grid=False)
-    y_axis = alt.Axis(title="y (0..1000)", grid=False)
-    corners = {"x": 0, "x2": 1000, "y": 0, "y2": 1000, "url": _data_uri(picture)}
+    x_scale = alt.Scale(domain=[0, SCALE], nice=False, zero=False)
+    y_scale = alt.Scale(domain=[SCALE, 0], nice=False, zero=False)
+    x_axis = alt.Axis(title=f"x (0..{SCALE})", grid=False)
+    y_axis = alt.Axis(title=f"y (0..{SCALE})", grid=False)
+    corners = {"x": 0, "x2": SCALE, "y": 0, "y2": SCALE, "url": _data_uri(picture)}
     image = (
         alt.Chart(alt.Data(values=[corners]))
         .mark_image(aspect=False, opacity=0.9)

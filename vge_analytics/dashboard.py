@@ -424,7 +424,7 @@ def draw_step(
     img = Image.open(io.BytesIO(picture.data)).convert("RGB")
     if img.width > max_width:
         img = img.resize((max_width, round(img.height * max_width / img.width)))
-    sx, sy = img.width / 1000.0, img.height / 1000.0
+    sx, sy = img.width / replay.SCALE, img.height / replay.SCALE
     draw = ImageDraw.Draw(img)
     if not picture.rendered:
         draw.text((10, 10), "no image of this view in the benchmark", fill=(90, 90, 90))
@@ -493,21 +493,12 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     log = _find_episode_log(replay.episodes_file(run_dir), episode_id)
     task = bench.tasks[episode_id].task
     machine = bench.machine(task.device_id)
-    lam = next(
-        v
-        for v in (
-            (entry.get("options") or {}).get("lambda"),
-            task.lam,
-            header.lam,
-            replay.DEFAULT_LAMBDA,
-        )
-        if v is not None
-    )
+    lam = replay.episode_lambda(task, header.lam, (entry.get("options") or {}).get("lambda"))
     result = replay.replay_episode(
         machine,
         task,
         log,
-        lam=float(lam),
+        lam=lam,
         run_id=header.run_id,
         model=header.model,
         agent_kind=header.agent_kind,

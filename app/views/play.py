@@ -75,7 +75,7 @@ with right:
     chosen = st.radio(
         "A click on the image does", play.CLICK_ACTIONS, key=desk.ACTION, horizontal=True
     )
-    if chosen == "Switch_view":
+    if chosen == play.SWITCH_VIEW:
         views = list(obs["views"])
         st.selectbox(
             "View to switch to", views, index=views.index(desk.click_view()), key=desk.CLICK_VIEW
@@ -86,8 +86,8 @@ with right:
     st.markdown("**Without a point**")
     view = st.selectbox("Switch to the view", list(obs["views"]), key=desk.VIEW)
     v1, v2, v3 = st.columns(3)
-    v1.button("Switch view", on_click=desk.switch_view, args=(view,), help="Switch_view")
-    v2.button("Wait", on_click=desk.wait, help="Timed_wait: let time pass")
+    v1.button("Switch view", on_click=desk.switch_view, args=(view,), help=play.SWITCH_VIEW)
+    v2.button("Wait", on_click=desk.wait, help=f"{play.TIMED_WAIT}: let time pass")
     v3.button("Give up", on_click=desk.give_up, help="End this episode here")
 with left:
     st.caption(f"The **{obs['view']}** view. {play.click_hint(chosen, desk.click_view())}")

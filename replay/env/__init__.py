@@ -2,7 +2,7 @@
 
 import gymnasium
 
-from ._env import STEP_FIELDS, DeviceEnv, episode_lambda, log_step_of
+from ._env import STEP_FIELDS, DeviceEnv, log_step_of
 from ._images import default_image_source, no_images
 
 ENV_ID = "vge/Device-v0"
@@ -17,7 +17,6 @@ __all__ = [
     "STEP_FIELDS",
     "DeviceEnv",
     "default_image_source",
-    "episode_lambda",
     "log_step_of",
     "no_images",
 ]

@@ -21,11 +21,12 @@ from gymnasium.error import ResetNeeded
 from .._errors import ActionError, ConfigError, VGEError
 from ..io._load import Benchmark
 from ..io._mcap import ImageSource
+from ..semantics._budget import episode_lambda
 from ..semantics._episode import EpisodeSession
 from ..semantics._machine import Machine
-from ..semantics._records import ActionRecord, LogStep, Task
+from ..semantics._records import ActionRecord, LogStep
 from ..semantics._rows import StepRow
-from ..semantics._vocab import DASHBOARD, DEFAULT_LAMBDA
+from ..semantics._vocab import DASHBOARD
 from ._images import ViewImages, default_image_source
 from ._spaces import action_space, observation_space
 
@@ -36,15 +37,6 @@ TERMINATED = "success"
 TRUNCATED = ("budget_global", "budget_local")
 
 _RESET_OPTIONS = ("episode_id",)
-
-
-def episode_lambda(task: Task, run_lambda: float | None) -> float:
-    """λ of a live episode: the task's own, else the run's, else 5 (PROTOCOL §3.5; a live run
-    has no replay option, so its replay without `--lambda` uses the same λ)."""
-    for value in (task.lam, run_lambda):
-        if value is not None:
-            return float(value)
-    return DEFAULT_LAMBDA
 
 
 def log_step_of(action: str | Mapping[str, Any]) -> LogStep:
@@ -237,4 +229,4 @@ class DeviceEnv(gymnasium.Env):
         }
 
 
-__all__ = ["STEP_FIELDS", "DeviceEnv", "episode_lambda", "log_step_of"]
+__all__ = ["STEP_FIELDS", "DeviceEnv", "log_step_of"]

@@ -19,7 +19,7 @@ import numpy as np
 import pyarrow as pa
 
 from ..kernel._batch import EpisodeInput, replay_kernel
-from ..semantics._vocab import DEFAULT_LAMBDA
+from ..semantics._budget import episode_lambda
 from ._load import episode_decoder
 from ._worker import worker_state
 
@@ -70,9 +70,7 @@ def replay_lambdas(task: LambdaTask) -> LambdaBatch:
         machine = bench.machine(entry.task.device_id)
         setup = state.setup(machine, entry.task)
         inputs.append(EpisodeInput(machine, entry.task, setup, log, 0.0))
-        recorded.append(
-            next(v for v in (entry.task.lam, task.run_lambda, DEFAULT_LAMBDA) if v is not None)
-        )
+        recorded.append(episode_lambda(entry.task, task.run_lambda))
     head = {"run_id": task.run_id, "model": task.model, "agent_kind": task.agent_kind}
     tables = [
         replay_kernel([e._replace(lam=lam) for e in inputs], **head).episodes

@@ -20,6 +20,7 @@ import pyarrow as pa
 from msgspec import Meta
 
 from .._errors import InputError, decode_error_message
+from ..semantics._budget import run_lambda
 from ._fs import Location, location
 
 MANIFEST_FORMAT = "vge-replay-manifest"
@@ -271,15 +272,14 @@ def _meta_column(values: list[Any]) -> pa.Array:
     )
 
 
-def runs_table(runs: list[RunEntry], default_lambda: float) -> pa.Table:
+def runs_table(runs: list[RunEntry]) -> pa.Table:
     """One row per run: header, lambda, counts, meta as JSON and its scalars as columns."""
     fixed: dict[str, list[Any]] = {f.name: [] for f in _RUN_COLUMNS}
     for r in runs:
-        effective = r.options.lam if r.options.lam is not None else r.run.lam
         fixed["run_id"].append(r.run_id)
         fixed["model"].append(r.run.model)
         fixed["agent_kind"].append(r.run.agent_kind)
-        fixed["lambda"].append(default_lambda if effective is None else float(effective))
+        fixed["lambda"].append(run_lambda(r.run.lam, r.options.lam))
         fixed["lambda_run"].append(r.run.lam)
         fixed["lines_read"].append(r.counts.lines_read)
         fixed["episodes"].append(r.counts.replayed)

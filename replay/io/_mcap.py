@@ -39,6 +39,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 from ..semantics._machine import Machine, Rect
 from ..semantics._plan import target_rects
 from ..semantics._rows import StepRow
+from ..semantics._vocab import SCALE
 from ._fs import location
 
 if TYPE_CHECKING:
@@ -151,7 +152,7 @@ def _annotations(
     machine: Machine, row: StepRow, view: str, stamp: Timestamp, size: tuple[int, int]
 ) -> ImageAnnotations:
     """Targets (green), components hit (orange) and the click (red), in image pixels."""
-    sx, sy = size[0] / 1000.0, size[1] / 1000.0
+    sx, sy = size[0] / SCALE, size[1] / SCALE
     msg = ImageAnnotations(timestamp=stamp)
     if row.state_before is not None and row.goal_state is not None:
         s = machine.state_index[row.state_before]
@@ -260,7 +261,7 @@ def write_episode_mcap(
 
     shown_view: str | None = None
     shown_stamp = _stamp(t0)
-    shown_size = (1000, 1000)
+    shown_size = (SCALE, SCALE)
 
     def show(view: str, t: int) -> None:
         nonlocal shown_view, shown_stamp, shown_size
@@ -273,7 +274,7 @@ def write_episode_mcap(
             shown_size = (width, height)
         else:
             declared = machine.images.get(view)
-            shown_size = (declared[1], declared[2]) if declared else (1000, 1000)
+            shown_size = (declared[1], declared[2]) if declared else (SCALE, SCALE)
 
     show(result.episode.initial_view, t0)
     for row, t in zip(steps, times, strict=True):

@@ -16,7 +16,6 @@ import pyarrow.parquet as pq
 from .._errors import ConfigError
 from .._version import ENGINE_VERSION
 from ..semantics._records import SCHEMA_VERSION
-from ..semantics._vocab import DEFAULT_LAMBDA
 from ._files import STATE_DIR, atomic_write, atomic_write_bytes
 from ._fs import Location, location
 from ._manifest import (
@@ -102,7 +101,7 @@ def publish(out: Location, entries: dict[str, RunEntry]) -> ManifestFile:
 
     atomic_write(out / "quarantine.jsonl", write_quarantine)
     (out / "runs").mkdir()
-    table = runs_table(runs, DEFAULT_LAMBDA)
+    table = runs_table(runs)
     atomic_write(out / "runs" / "runs.parquet", lambda fh: pq.write_table(table, fh))
     manifest = ManifestFile(
         engine_version=ENGINE_VERSION,

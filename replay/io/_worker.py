@@ -19,12 +19,12 @@ import pyarrow.compute as pc
 
 from .._errors import TaskError, VGEError
 from ..kernel._batch import BatchTables, EpisodeInput, replay_kernel
+from ..semantics._budget import episode_lambda
 from ..semantics._episode import EpisodeResult, EpisodeSetup, replay_episode, setup_episode
 from ..semantics._machine import Machine
 from ..semantics._records import Task
 from ..semantics._rows import EpisodeRow, GoalRow, StepRow
 from ..semantics._tables import TABLE_ROWS, rows_to_table
-from ..semantics._vocab import DEFAULT_LAMBDA
 from ._files import write_part
 from ._fs import location
 from ._load import Benchmark, episode_decoder
@@ -121,14 +121,6 @@ def as_image_tuple(got: object) -> ImageTuple | None:
     if got is None or isinstance(got, tuple):
         return got  # type: ignore[return-value]
     return (got.data, got.format, got.width, got.height)  # type: ignore[attr-defined]
-
-
-def episode_lambda(ctx: RunContext, task: Task) -> float:
-    """Lambda precedence: replay option > task > run.json > 5."""
-    for value in (ctx.option_lambda, task.lam, ctx.run_lambda):
-        if value is not None:
-            return float(value)
-    return DEFAULT_LAMBDA
 
 
 def replay_batch(task: BatchTask) -> BatchReport | BatchFailure:
@@ -320,9 +312,8 @@ def _prepare_line(
         reason = one_line(f"{exc} (tasks.jsonl line {entry.line})")
         outcomes.append(LineOutcome(number, eid, True, "task_error", reason))
         return
-    todo.append(
-        (len(outcomes), number, EpisodeInput(machine, task, setup, log, episode_lambda(ctx, task)))
-    )
+    lam = episode_lambda(task, ctx.run_lambda, ctx.option_lambda)
+    todo.append((len(outcomes), number, EpisodeInput(machine, task, setup, log, lam)))
     outcomes.append(None)
 
 

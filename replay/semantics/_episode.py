@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from .._errors import TaskError
+from ._budget import Budget, goals_reached
 from ._classify import Classifier
 from ._machine import Machine
 from ._parse import ParsedAction, action_from_record, parse_action
@@ -105,17 +106,6 @@ def parse_log_step(log_step: LogStep) -> ParsedAction:
     return _NO_ACTION
 
 
-def goals_reached(entered: Sequence[int], goals: Sequence[int], current: int) -> int:
-    """PROTOCOL §3: the current goal's index after a step that entered `entered` (in order),
-    from `current` before it. Each goal reached in turn completes, and the next one becomes
-    current: one step may complete several."""
-    n_goals = len(goals)
-    for s in entered:
-        if current < n_goals and s == goals[current]:
-            current += 1
-    return current
-
-
 def advance_goals(
     entered: Sequence[int],
     goals: Sequence[int],
@@ -140,30 +130,6 @@ def advance_goals(
     return current
 
 
-def refreshed_budget(
-    budget_local: float, lam: float, c_opt: Sequence[int], first: int, current: int
-) -> float:
-    """B_local after goals `first` .. `current - 1` completed in one step (PROTOCOL §3): at least
-    lam * C_opt of every goal that became current in it, the new current one included."""
-    for c in range(first + 1, min(current + 1, len(c_opt))):
-        budget_local = max(budget_local, lam * c_opt[c])
-    return budget_local
-
-
-def termination_after(
-    current: int, n_goals: int, taken: int, budget_global: float, budget_local: float
-) -> str | None:
-    """PROTOCOL §3.5: how the episode ends after a step, or None if it goes on. Success is
-    checked first, then the global budget, then the local one."""
-    if current >= n_goals:
-        return "success"
-    if taken >= budget_global:
-        return "budget_global"
-    if budget_local <= 0:
-        return "budget_local"
-    return None
-
-
 def _first_visit_order(states: list[int]) -> list[int]:
     seen: dict[int, None] = {}
     for s in states:
@@ -186,10 +152,10 @@ class EpisodeSession:
     """
 
     __slots__ = (
-        "machine", "task", "setup", "lam", "budget_global", "c_opt", "goals", "n_goals",
-        "sim", "visited", "current", "taken", "termination", "n_switches", "diverged_steps",
-        "truncated_steps", "budget_local", "rows", "_head", "_classify", "_has_dashboard",
-        "_started", "_completed_at", "_steps_used", "_switches", "_dyn",
+        "machine", "task", "setup", "budget", "c_opt", "goals", "n_goals", "sim", "visited",
+        "current", "termination", "n_switches", "diverged_steps", "truncated_steps", "rows",
+        "_head", "_classify", "_has_dashboard", "_started", "_completed_at", "_steps_used",
+        "_switches", "_dyn",
     )  # fmt: skip
 
     def __init__(
@@ -211,9 +177,7 @@ class EpisodeSession:
         self.goals = setup.goals
         self.n_goals = n_goals = len(setup.goals)
         self.c_opt = c_opt = setup.plan.c_opt
-        self.lam = lam = float(lam)
-        self.budget_global = lam * sum(c_opt)
-        self.budget_local = lam * c_opt[0]
+        self.budget = Budget(c_opt, lam)
         self.sim = sim = reset(machine, setup.initial_state, setup.initial_view)[0]
         self.visited: list[int] = list(setup.reset_states)
         self._classify = Classifier(machine).classify
@@ -227,7 +191,6 @@ class EpisodeSession:
         self._started[0] = 0
         self._dyn[0] = c_opt_dynamic(machine, sim.state, sim.view, sim.unlocked, setup.goals[0])
         self.current = 0
-        self.taken = 0
         self.termination: str | None = None
         self.n_switches = 0
         self.diverged_steps = 0
@@ -250,9 +213,26 @@ class EpisodeSession:
         return self.termination is not None
 
     @property
+    def lam(self) -> float:
+        return self.budget.lam
+
+    @property
+    def budget_global(self) -> float:
+        return self.budget.budget_global
+
+    @property
+    def budget_local(self) -> float:
+        return self.budget.local
+
+    @property
+    def taken(self) -> int:
+        """Scored steps so far."""
+        return self.budget.taken
+
+    @property
     def budget_global_left(self) -> float:
         """`B_global` minus the steps taken."""
-        return self.budget_global - self.taken
+        return self.budget.global_left
 
     @property
     def instruction(self) -> str:
@@ -306,26 +286,21 @@ class EpisodeSession:
         )
         self.current = current
         completed = current - goal_index
-        self.taken = taken = self.taken + 1
         self._steps_used[goal_index] += 1
         switched = outcome.switched
         if switched:
             self.n_switches += 1
             self._switches[goal_index] += 1
-        budget_local = self.budget_local - 1
-        if completed:
-            budget_local = refreshed_budget(budget_local, self.lam, self.c_opt, goal_index, current)
-            if current < self.n_goals:
-                self._dyn[current] = c_opt_dynamic(
-                    machine, sim.state, sim.view, sim.unlocked, goals[current]
-                )
-        self.budget_local = budget_local
+        budget = self.budget
+        budget.spend(goal_index, current)
+        if completed and current < self.n_goals:
+            self._dyn[current] = c_opt_dynamic(
+                machine, sim.state, sim.view, sim.unlocked, goals[current]
+            )
 
         cls = self._classify(goal_index, goal, before, parsed, outcome, sim, completed)
 
-        self.termination = termination_after(
-            current, self.n_goals, taken, self.budget_global, budget_local
-        )
+        self.termination = budget.termination
 
         state_after = names[sim.state]
         diverged_fields = []
@@ -356,7 +331,7 @@ class EpisodeSession:
             [names[s] for s in outcome.entered], tr.component if tr is not None else None,
             outcome.dangerous, switched, completed,
             *cls,
-            self.budget_global - taken, budget_local, False,
+            budget.global_left, budget.local, False,
             recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts,
         )  # fmt: skip
         self.rows.append(row)

@@ -18,11 +18,14 @@ from ._vocab import (
     IMMEDIATE,
     ORTHOGRAPHIC_VIEWS,
     PSEUDO_COMPONENTS,
+    SCALE,
     STANDARD_VIEWS,
     TIMED_WAIT,
     VIEW_RANK,
     normalize_param,
 )
+
+_SCALE = float(SCALE)
 
 Rect = tuple[float, float, float, float, float]
 """(x0, y0, x1, y1, area) on the agent's 0..1000 scale."""
@@ -31,10 +34,10 @@ Rect = tuple[float, float, float, float, float]
 def rect_from_coordinate(coord: list[float]) -> Rect:
     """`[x, y, w, h, W, H]` in pixels -> normalised rect (PROTOCOL §1.2)."""
     x, y, w, h, width, height = coord
-    x0 = x * 1000.0 / width
-    y0 = y * 1000.0 / height
-    wn = w * 1000.0 / width
-    hn = h * 1000.0 / height
+    x0 = x * _SCALE / width
+    y0 = y * _SCALE / height
+    wn = w * _SCALE / width
+    hn = h * _SCALE / height
     return (x0, y0, x0 + wn, y0 + hn, wn * hn)
 
 

@@ -24,6 +24,7 @@ from ._vocab import (
     FB_WAIT_NO_EFFECT,
     INVALID_DETAILS,
     ORTHOGRAPHIC_VIEWS,
+    SCALE,
     SWITCH_VIEW,
     TIMED_WAIT,
 )
@@ -107,7 +108,7 @@ def step(machine: Machine, sim: SimState, parsed: ParsedAction) -> tuple[SimStat
     if coord is None:
         return sim, _INVALID["missing_coord"]
     px, py = coord
-    if not (0.0 <= px <= 1000.0 and 0.0 <= py <= 1000.0):
+    if not (0.0 <= px <= SCALE and 0.0 <= py <= SCALE):
         return sim, _INVALID["out_of_range"]
     if not sim.unlocked and machine.dashboard_regions and machine.in_dashboard_region(view, px, py):
         return SimState(sim.state, view, True), _PASSIVE

@@ -5,6 +5,10 @@ from __future__ import annotations
 
 import math
 
+SCALE = 1000
+"""The agent's coordinate scale: a point is `[x, y]` with 0..SCALE on both axes of a view,
+relative to its width and height (PROTOCOL §1.2)."""
+
 ORTHOGRAPHIC_VIEWS = ("front", "back", "left", "right", "top", "bottom")
 AXONOMETRIC_VIEWS = ("front_top", "back_bottom")
 DASHBOARD = "dashboard"

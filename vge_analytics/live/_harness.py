@@ -22,7 +22,7 @@ from typing import Any
 import msgspec
 
 import replay
-from replay.env import DeviceEnv, episode_lambda, log_step_of, no_images
+from replay.env import DeviceEnv, log_step_of, no_images
 
 from .._errors import AgentError, InfrastructureError, RunDirError
 from ._agents import AGENT_KINDS, EpisodeStart, LiveAgent
@@ -195,7 +195,7 @@ def run_header(
         run_id=options.run_id or options.out.resolve().name,
         model=options.model or agent.model,
         agent_kind=agent_kind,  # type: ignore[arg-type]
-        lam=options.lam if options.lam is not None else replay.DEFAULT_LAMBDA,
+        lam=replay.run_lambda(options.lam),
         meta=meta,
     )
 
@@ -226,7 +226,7 @@ def _replayed_success(bench: replay.Benchmark, log: replay.EpisodeLog, lam: floa
     session = replay.EpisodeSession(
         bench.machine(task.device_id),
         task,
-        lam=episode_lambda(task, lam),
+        lam=replay.episode_lambda(task, lam),
         run_id="",
         model="",
         agent_kind="vlm",

@@ -7,14 +7,16 @@ from collections.abc import Mapping, Sequence
 from fractions import Fraction
 from typing import Any
 
+import replay
+from replay import DASHBOARD, DISPLAY_NAMES, SCALE
+
 from .._errors import PlayError
 
-SCALE = 1000
-"""The agent's coordinate scale: 0..1000 on both axes of a view (PROTOCOL §1.2)."""
-DASHBOARD = "dashboard"
-"""The view a large device's control panel is zoomed in on, locked at first (PROTOCOL §3.1)."""
-INTERACTIONS = ("Press", "Rotate", "Push", "Pull", "Grasp")
-CLICK_ACTIONS = (*INTERACTIONS, "Switch_view")
+INTERACTIONS = tuple(DISPLAY_NAMES[a] for a in replay.INTERACTIONS)
+"""The interactions as a log writes them (`Press`, ...)."""
+SWITCH_VIEW = DISPLAY_NAMES[replay.SWITCH_VIEW]
+TIMED_WAIT = DISPLAY_NAMES[replay.TIMED_WAIT]
+CLICK_ACTIONS = (*INTERACTIONS, SWITCH_VIEW)
 """What a click on the image can do (a `Switch_view` with a point unlocks the dashboard
 when the point is on its panel, PROTOCOL §3.2)."""
 
@@ -90,8 +92,8 @@ def action(
 def click_action(type_: str, point: tuple[int, int], params_text: str, view: str) -> dict:
     """The action a click at `point` carries out: an interaction with the typed parameters,
     or a `Switch_view` to `view` with the point (how the dashboard is unlocked)."""
-    if type_ == "Switch_view":
-        return action("Switch_view", point, [view])
+    if type_ == SWITCH_VIEW:
+        return action(SWITCH_VIEW, point, [view])
     if type_ not in INTERACTIONS:
         raise PlayError(f"a click cannot carry out {type_!r}; one of {', '.join(CLICK_ACTIONS)}")
     return action(type_, point, parse_params(params_text))
@@ -114,6 +116,8 @@ __all__ = [
     "INTERACTIONS",
     "PARAM_HINTS",
     "SCALE",
+    "SWITCH_VIEW",
+    "TIMED_WAIT",
     "action",
     "action_text",
     "click_action",

@@ -13,6 +13,8 @@ from ._clicks import (
     CLICK_ACTIONS,
     DASHBOARD,
     PARAM_HINTS,
+    SWITCH_VIEW,
+    TIMED_WAIT,
     action,
     click_action,
     click_id,
@@ -134,10 +136,10 @@ class PlayState:
         return DASHBOARD if DASHBOARD in views else views[0]
 
     def switch_view(self, view: str) -> None:
-        self.act(action("Switch_view", None, [view]))
+        self.act(action(SWITCH_VIEW, None, [view]))
 
     def wait(self) -> None:
-        self.act(action("Timed_wait"))
+        self.act(action(TIMED_WAIT))
 
     def act(self, chosen: Mapping[str, Any]) -> None:
         game = self.game()
@@ -188,7 +190,7 @@ class PlayState:
 
 def click_hint(type_: str, view: str) -> str:
     """What a click on the image will do, in words."""
-    if type_ == "Switch_view":
+    if type_ == SWITCH_VIEW:
         return f"Click on it to switch to the {view} view with that point."
     return f"Click on it to {type_.lower()} there."
 

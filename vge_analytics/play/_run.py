@@ -19,7 +19,7 @@ import numpy as np
 import orjson
 
 import replay
-from replay.env import DeviceEnv, episode_lambda
+from replay.env import DeviceEnv
 
 from .._durable import append_record, fsync_dir, truncate, write_all, write_atomic
 from .._errors import PlayConflictError, PlayError
@@ -318,7 +318,7 @@ class HumanRun:
             self.bench.machine(task.device_id),
             task,
             log,
-            lam=episode_lambda(task, self.header.lam),
+            lam=replay.episode_lambda(task, self.header.lam),
             run_id=self.header.run_id,
             model=self.header.model,
             agent_kind=self.header.agent_kind,

@@ -4,7 +4,7 @@ simulated agents (docs/SYNTHETIC.md).
 `generate` is what `vge synth` runs; the other names are its parts, for tests and tools.
 """
 
-from ._agent import AgentStep, BudgetTracker, StepPlayer, play_episode
+from ._agent import AgentStep, StepPlayer, play_episode
 from ._build import SCALES, Scale, Summary, SynthError, generate, plan_devices
 from ._catalog import (
     PAPER_DEVICE_COUNTS,
@@ -32,7 +32,6 @@ __all__ = [
     "PROFILES",
     "SCALES",
     "AgentStep",
-    "BudgetTracker",
     "Catalog",
     "ComponentSpec",
     "Profile",

@@ -17,6 +17,7 @@ from collections import deque
 from dataclasses import dataclass
 
 import replay
+from replay import AXONOMETRIC_VIEWS, DASHBOARD, INTERACTIONS, SCALE
 
 from ._catalog import Catalog
 from ._profiles import Profile
@@ -30,13 +31,10 @@ from ._thinking import (
     verb_phrase,
 )
 
-AXONOMETRIC = ("front_top", "back_bottom")
 RESAMPLE = 0.02
 """Chance that the agent reconsiders a standing belief without feedback telling it to."""
 STALE_STATE = 0.85
 """Without history: chance of planning from the state the goal started in, not the current one."""
-DASHBOARD = "dashboard"
-INTERACTIONS = ("press", "rotate", "push", "pull", "grasp")
 KIND_ACTIONS: dict[str, tuple[str, ...]] = {
     "button": ("press", "push"),
     "touch_pad": ("press",),
@@ -109,38 +107,6 @@ class AgentStep:
     outcome: replay.Outcome
     view: str
     state: str
-
-
-class BudgetTracker:
-    """PROTOCOL §3 budgets and goal completion, step by step, by the rules the replay applies
-    (`replay.goals_reached`, `refreshed_budget`, `termination_after`): a simulated log ends
-    exactly where its replay ends."""
-
-    def __init__(self, c_opt: tuple[int, ...], goals: tuple[int, ...], lam: float) -> None:
-        self.c_opt = c_opt
-        self.goals = goals
-        self.lam = float(lam)
-        self.global_budget = self.lam * sum(c_opt)
-        self.local = self.lam * c_opt[0]
-        self.taken = 0
-        self.current = 0
-        self.termination: str | None = None
-
-    def advance(self, entered: tuple[int, ...]) -> int:
-        """Account one step; returns the number of goals it completed."""
-        goal_index = self.current
-        self.current = replay.goals_reached(entered, self.goals, goal_index)
-        completed = self.current - goal_index
-        self.taken += 1
-        self.local -= 1
-        if completed:
-            self.local = replay.refreshed_budget(
-                self.local, self.lam, self.c_opt, goal_index, self.current
-            )
-        self.termination = replay.termination_after(
-            self.current, len(self.goals), self.taken, self.global_budget, self.local
-        )
-        return completed
 
 
 class Agent:
@@ -241,7 +207,7 @@ class Agent:
         sigma = self.p.sigma * (self.p.reground**misses)
         x = cx + rng.gauss(0.0, sigma)
         y = cy + rng.gauss(0.0, sigma)
-        return float(min(1000, max(0, round(x)))), float(min(1000, max(0, round(y))))
+        return float(min(SCALE, max(0, round(x)))), float(min(SCALE, max(0, round(y))))
 
     def _params_for(self, action_type: str, rng: random.Random) -> tuple[str, ...]:
         if action_type == "press":
@@ -304,7 +270,7 @@ class Agent:
                 "last operation. I will wait.",
             )
 
-        if view in AXONOMETRIC:
+        if view in AXONOMETRIC_VIEWS:
             axo_seen = any(
                 e.kind == "invalid_action" and e.view == view and e.action.type in INTERACTIONS
                 for e in recent
@@ -426,7 +392,7 @@ class Agent:
         p = self.p
         view = sim.view
         target_views = sorted(
-            {w for t in real for w in t.rects if w not in AXONOMETRIC},
+            {w for t in real for w in t.rects if w not in AXONOMETRIC_VIEWS},
             key=lambda w: replay.VIEW_ORDER.index(w) if w in replay.VIEW_ORDER else 99,
         )
         here = view.replace("_", " ")
@@ -719,21 +685,26 @@ def play_episode(
     profile: Profile,
     task: TaskRecord,
     rng: random.Random,
-    lam: float = replay.DEFAULT_LAMBDA,
+    run_lambda: float | None = None,
 ) -> list[AgentStep]:
-    """Run the agent until the episode terminates (success or a budget)."""
-    setup = replay.setup_episode(machine, task.to_task())
+    """Run the agent until the episode terminates (success or a budget), under the λ its
+    replay will use (`replay.episode_lambda`) and the replay's own budget rules
+    (`replay.Budget`), so the replay of the log ends exactly at its last step."""
+    plain = task.to_task()
+    setup = replay.setup_episode(machine, plain)
     sim, _ = replay.reset(machine, setup.initial_state, setup.initial_view)
-    tracker = BudgetTracker(setup.plan.c_opt, setup.goals, lam)
+    budget = replay.Budget(setup.plan.c_opt, replay.episode_lambda(plain, run_lambda))
     player = StepPlayer(machine, catalog, profile, task, rng)
     steps: list[AgentStep] = []
-    while tracker.termination is None:
-        goal_index = tracker.current
+    goal_index = 0
+    while budget.termination is None:
         output, record, parsed, decision = player.act(sim, goal_index, setup.goals[goal_index])
         before = sim
         sim, outcome = replay.step(machine, sim, parsed)
-        completed = tracker.advance(outcome.entered)
-        player.observe(before, sim, outcome, completed)
+        current = replay.goals_reached(outcome.entered, setup.goals, goal_index)
+        budget.spend(goal_index, current)
+        player.observe(before, sim, outcome, current - goal_index)
+        goal_index = current
         steps.append(
             AgentStep(decision, output, record, outcome, sim.view, machine.states[sim.state])
         )
@@ -747,7 +718,7 @@ def _format(
     action = decision.action
     if profile.agent_kind == "human":
         record = {
-            "type": _DISPLAY[action.type],
+            "type": replay.DISPLAY_NAMES[action.type],
             "coord": [round(action.coord[0]), round(action.coord[1])] if action.coord else None,
             "params": list(action.params),
         }
@@ -762,15 +733,6 @@ def _format(
     return text, None, replay.parse_action(text)
 
 
-_DISPLAY = {
-    "press": "Press",
-    "rotate": "Rotate",
-    "push": "Push",
-    "pull": "Pull",
-    "grasp": "Grasp",
-    "switch_view": "Switch_view",
-    "timed_wait": "Timed_wait",
-}
 
 
 def think_seconds(profile: Profile, rng: random.Random) -> float:

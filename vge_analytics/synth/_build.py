@@ -36,7 +36,7 @@ from ._agent import play_episode
 from ._catalog import PAPER_DEVICE_COUNTS, UCSM_DIR, available_categories, load_catalog
 from ._instantiate import dashboard_probability, dump_ssm, instantiate_device
 from ._rng import rng_for
-from ._runs import RunSpec, agent_rng, episode_line, in_run, run_specs
+from ._runs import LAMBDA, RunSpec, agent_rng, episode_line, in_run, run_specs
 from ._tasks import sample_tasks
 
 SYNTH_VERSION = 1
@@ -173,7 +173,7 @@ def build_device(job: DeviceJob, ctx: _Context) -> DeviceResult:
             if not in_run(spec, ctx.seed, task.episode_id):
                 continue
             rng = agent_rng(ctx.seed, spec.run_id, task.episode_id)
-            steps = play_episode(machine, catalog, spec.profile, task, rng)
+            steps = play_episode(machine, catalog, spec.profile, task, rng, LAMBDA)
             lines.append(episode_line(task.episode_id, steps, spec.profile, ctx.seed, spec.run_id))
         run_lines[spec.run_id] = lines
     task_lines = [

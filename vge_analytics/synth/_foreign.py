@@ -6,8 +6,16 @@ from __future__ import annotations
 
 from PIL import Image, ImageDraw
 
+from replay import AXONOMETRIC_VIEWS as AXO
+from replay import DASHBOARD
+
 from ._catalog import ComponentSpec, load_catalog
-from ._geometry import AXO, DASHBOARD, Box3, Palette, Part, Style
+from ._geometry import (
+    Box3,
+    Palette,
+    Part,
+    Style,
+)
 from ._paint import centered_text, paint_part
 from ._rng import derive_seed
 from ._shapes import ACCENT_COLORS, darker, ink_on

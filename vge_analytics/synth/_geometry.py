@@ -25,12 +25,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ._catalog import ComponentSpec
+from replay import DASHBOARD
 
-ORTHO = ("front", "back", "left", "right", "top", "bottom")
-AXO = ("front_top", "back_bottom")
-DASHBOARD = "dashboard"
-STANDARD_VIEWS = ORTHO + AXO
+from ._catalog import ComponentSpec
 
 # Outward normal of each face.
 FACE_NORMALS: dict[str, tuple[int, int, int]] = {

@@ -13,8 +13,12 @@ import json
 import random
 from dataclasses import dataclass
 
+from replay import DASHBOARD, STANDARD_VIEWS
+
 from ._catalog import PAPER_DEVICE_COUNTS, available_categories, load_catalog
-from ._geometry import DASHBOARD, STANDARD_VIEWS, Geometry
+from ._geometry import (
+    Geometry,
+)
 from ._layout import LayoutError, LayoutInput, layout, logical_form
 from ._logic import NON_COMPONENTS, DeviceLogic, instantiate_logic
 from ._rng import rng_for

@@ -19,14 +19,15 @@ import math
 import random
 from dataclasses import dataclass
 
+from replay import AXONOMETRIC_VIEWS as AXO
+from replay import DASHBOARD
+from replay import ORTHOGRAPHIC_VIEWS as ORTHO
+
 from ._catalog import Catalog, ComponentSpec, load_catalog
 from ._geometry import (
-    AXO,
-    DASHBOARD,
     FACE_AXIS,
     FACE_IS_MAX,
     OPPOSITE,
-    ORTHO,
     AxoFrame,
     Box3,
     Dims,

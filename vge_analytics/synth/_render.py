@@ -13,11 +13,12 @@ import math
 
 from PIL import Image, ImageDraw
 
+from replay import AXONOMETRIC_VIEWS as AXO
+from replay import DASHBOARD
+from replay import ORTHOGRAPHIC_VIEWS as ORTHO
+
 from ._geometry import (
-    AXO,
-    DASHBOARD,
     FACE_NORMALS,
-    ORTHO,
     AxoFrame,
     Box3,
     Geometry,
