@@ -237,7 +237,7 @@ def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
         buf = io.BytesIO()
         t0 = time.perf_counter()
         replay.write_episode_mcap(
-            buf, machine, result, ssm_bytes=ssm, image=cache.get, library="bench"
+            buf, machine, result, ssm_bytes=ssm, image=cache.get
         )
         total += time.perf_counter() - t0
         count += 1

@@ -23,6 +23,15 @@ from ._errors import (
 from ._version import ENGINE_VERSION
 from .io._executor import Executor, in_order, make_executor
 from .io._fs import Location, is_uri, location
+from .io._images import (
+    MAX_IMAGE_BYTES,
+    BenchImages,
+    ImageSource,
+    ViewImage,
+    as_view_image,
+    bench_image,
+    decode_view_image,
+)
 from .io._lambdas import LambdaBatch, LambdaTask, replay_lambdas
 
 # Input and output: loading and validating, the runner (`vge replay`), manifest, quarantine, MCAP,
@@ -40,7 +49,13 @@ from .io._load import (
     validate_run,
 )
 from .io._manifest import Manifest, ManifestFile, RunEntry, read_manifest
-from .io._mcap import BenchImages, ImageSource, write_episode_mcap
+from .io._mcap import (
+    MCAP_LIBRARY,
+    attached_ssm,
+    episode_mcap_path,
+    mcap_file_name,
+    write_episode_mcap,
+)
 from .io._quarantine import QUARANTINE_KINDS, QuarantineRecord
 from .io._runner import replay_runs
 from .io._schemas import schema_documents, write_schemas
@@ -135,6 +150,8 @@ __all__ = [
     "FEEDBACK_KINDS",
     "INPUT_RECORDS",
     "INTERACTIONS",
+    "MAX_IMAGE_BYTES",
+    "MCAP_LIBRARY",
     "ORTHOGRAPHIC_VIEWS",
     "OUTPUT_RECORDS",
     "PARSE_DETAILS",
@@ -153,7 +170,10 @@ __all__ = [
     "ActionError",
     "ActionRecord",
     "arrow_schema",
+    "as_view_image",
+    "attached_ssm",
     "BBox",
+    "bench_image",
     "BenchImages",
     "Budget",
     "Benchmark",
@@ -166,8 +186,10 @@ __all__ = [
     "Dashboard",
     "DashboardRegion",
     "decode_state_machine",
+    "decode_view_image",
     "distances",
     "episode_lambda",
+    "episode_mcap_path",
     "EpisodeLog",
     "EpisodeResult",
     "EpisodeRow",
@@ -192,6 +214,7 @@ __all__ = [
     "Machine",
     "make_executor",
     "Manifest",
+    "mcap_file_name",
     "ManifestFile",
     "normalize_param",
     "normalize_params",
@@ -239,6 +262,7 @@ __all__ = [
     "validate_machine",
     "validate_run",
     "VGEError",
+    "ViewImage",
     "WorkerError",
     "write_episode_mcap",
     "write_schemas",

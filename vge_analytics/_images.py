@@ -1,10 +1,11 @@
 """The view images of a device, wherever they come from.
 
-`view_image` looks, in order, at `BENCH/images/<device_id>/<view>.png|jpg` (PROTOCOL §1.1), at the
-SSM's `images` extension, and finally, for devices of the synthetic categories, renders the view
-(`vge_analytics.synth`) and caches the PNG on disk. The cache lives under `$VGE_CACHE_DIR`, else
-`$XDG_CACHE_HOME/vge-analytics`, else `~/.cache/vge-analytics`, keyed by a hash of the SSM, the
-renderer and the category data; files are written to a temporary name and renamed, so
+`image_source(bench)` is the one image source of the analytics, the CLI, the dashboard and
+the live tools: the benchmark's own pictures by the replay's resolver (`replay.BenchImages`,
+PROTOCOL §1.1), else, for devices of the synthetic categories, a rendering of the view
+(`vge_analytics.synth`), cached as PNG on disk. The cache lives under `$VGE_CACHE_DIR`, else
+`$XDG_CACHE_HOME/vge-analytics`, else `~/.cache/vge-analytics`, keyed by a hash of the SSM,
+the renderer and the category data; files are written to a temporary name and renamed, so
 concurrent processes never read a half-written image.
 """
 
@@ -15,26 +16,13 @@ import io
 import os
 import tempfile
 import threading
-from dataclasses import dataclass
 from pathlib import Path
 
 import msgspec
 from PIL import Image
 
 import replay
-
-_FORMATS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg"}
-
-
-@dataclass(frozen=True, slots=True)
-class ViewImage:
-    """One view of a device as an encoded image."""
-
-    data: bytes
-    format: str
-    """`png` or `jpeg`."""
-    width: int
-    height: int
+from replay import ViewImage
 
 
 def cache_dir() -> Path:
@@ -47,41 +35,17 @@ def cache_dir() -> Path:
     return base / "vge-analytics"
 
 
-def _from_file(path: Path | replay.Location) -> ViewImage | None:
-    try:
-        data = path.read_bytes()
-    except OSError:
-        return None
-    try:
-        with Image.open(io.BytesIO(data)) as img:
-            width, height = img.size
-            fmt = (img.format or "").lower()
-    except (OSError, ValueError):
-        return None
-    fmt = {"jpeg": "jpeg", "png": "png"}.get(fmt, _FORMATS.get(path.suffix.lower(), fmt))
-    return ViewImage(data, fmt, width, height)
+def image_source(bench: str | Path | replay.Location) -> replay.BenchImages:
+    """The pictures of a benchmark's views (a path or a URI): its own, else the rendered
+    synthetic ones (picklable, for `replay_runs` with workers)."""
+    return replay.BenchImages(str(bench), fallback=synthetic_view)
 
 
 def view_image(
-    bench_root: str | Path | replay.Location, machine: replay.Machine, view: str
+    bench: str | Path | replay.Location, machine: replay.Machine, view: str
 ) -> ViewImage | None:
-    """The image of `view` for this device (the benchmark a path or a URI), or None when
-    there is none."""
-    view = view.lower()
-    root = replay.location(bench_root)
-    folder = root / "images" / machine.device_id
-    for ext in (".png", ".jpg", ".jpeg"):
-        path = folder / f"{view}{ext}"
-        if path.is_file():
-            found = _from_file(path)
-            if found is not None:
-                return found
-    ref = machine.images.get(view)
-    if ref is not None:
-        found = _from_file(root / ref[0])
-        if found is not None:
-            return found
-    return synthetic_view(machine, view)
+    """The picture of `view` for this device, or None when there is none."""
+    return image_source(bench)(machine, view)
 
 
 def synthetic_view(machine: replay.Machine, view: str) -> ViewImage | None:
@@ -94,7 +58,7 @@ def synthetic_view(machine: replay.Machine, view: str) -> ViewImage | None:
     key = _cache_key(machine)
     path = cache_dir() / "views" / key[:2] / key / f"{view}.png"
     if path.is_file():
-        found = _from_file(path)
+        found = replay.decode_view_image(path.read_bytes())
         if found is not None:
             return found
     data = _render_png(machine, view, key)
@@ -169,4 +133,4 @@ def _store(path: Path, data: bytes) -> None:
         return
 
 
-__all__ = ["ViewImage", "cache_dir", "synthetic_view", "view_image"]
+__all__ = ["cache_dir", "image_source", "synthetic_view", "view_image"]

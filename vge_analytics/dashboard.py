@@ -25,6 +25,7 @@ import polars as pl
 import replay
 
 from ._errors import OutputDirError, UnknownRunError
+from ._images import image_source
 from ._isolated import IsolatedResult, run_isolated
 from ._limits import SqlLimits, format_size
 from ._metric_set import MetricSet, MetricsSource, fingerprint, metric_set
@@ -370,38 +371,13 @@ class ViewPicture:
     """False when the benchmark has no image for the view (a blank canvas stands in)."""
 
 
-ImageTuple = tuple[bytes, str, int, int]
-
-
-def _as_tuple(got: object) -> ImageTuple | None:
-    """(data, format, width, height) of a `ViewImage` or of such a tuple."""
-    if got is None:
-        return None
-    if isinstance(got, tuple):
-        data, fmt, width, height = got[:4]
-    else:
-        data, fmt, width, height = got.data, got.format, got.width, got.height  # type: ignore[attr-defined]
-    return bytes(data), str(fmt), int(width), int(height)
-
-
-def _image_source(bench: Path | replay.Location):
-    """`source(machine, view) -> ImageTuple | None`: the benchmark's images, or the rendered
-    synthetic views (`vge_analytics._images`) when that module is there."""
-    try:
-        from vge_analytics._images import view_image
-    except ImportError:  # pragma: no cover - the module ships with the package
-        files = replay.BenchImages(str(bench))
-        return lambda machine, view: _as_tuple(files(machine, view))
-    return lambda machine, view: _as_tuple(view_image(bench, machine, view))
-
-
 def view_picture(
     out: str | Path, device_id: str, view: str, run_id: str | None = None
 ) -> ViewPicture:
     """The image of a device view (rendered synthetic views included), or a blank canvas."""
     bench = bench_dir(out, run_id)
     machine = device_machine(out, device_id, run_id)
-    got = _image_source(bench)(machine, view)
+    got = image_source(bench)(machine, view)
     if got is not None:
         return ViewPicture(*got, rendered=True)
     from PIL import Image
@@ -477,11 +453,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     """The episode's MCAP: OUT's file when the replay wrote one, else made now by replaying
     that one episode from the inputs the manifest records (same options, same bytes as
     `vge replay --mcap` would write)."""
-    # The replay's file naming (not public): should it change, the file is not found and the
-    # episode is made on demand below, byte-identical, so only the speed depends on it.
-    from replay import safe_file_name
-
-    path = Path(out) / "mcap" / run_id / f"{safe_file_name(episode_id)}.mcap"
+    path = replay.episode_mcap_path(out, run_id, episode_id)
     if path.is_file():
         return path.read_bytes()
     entry = _run_entry(out, run_id)
@@ -503,19 +475,14 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
         model=header.model,
         agent_kind=header.agent_kind,
     )
-    source = _image_source(bench_root)
-    try:
-        ssm_bytes = replay.location(machine.source).read_bytes()
-    except OSError:
-        ssm_bytes = msgspec.json.encode(machine.ssm)
+    source = image_source(bench_root)
     buf = io.BytesIO()
     replay.write_episode_mcap(
         buf,
         machine,
         result,
-        ssm_bytes=ssm_bytes,
+        ssm_bytes=replay.attached_ssm(machine),
         image=lambda view: source(machine, view),
-        library=f"vge-analytics replay {replay.ENGINE_VERSION}",
     )
     return buf.getvalue()
 

@@ -3,7 +3,7 @@
 import gymnasium
 
 from ._env import STEP_FIELDS, DeviceEnv, log_step_of
-from ._images import default_image_source, no_images
+from ._images import no_images
 
 ENV_ID = "vge/Device-v0"
 """`gymnasium.make(ENV_ID, bench=PATH)` once this package is imported."""
@@ -16,7 +16,6 @@ __all__ = [
     "ENV_ID",
     "STEP_FIELDS",
     "DeviceEnv",
-    "default_image_source",
     "log_step_of",
     "no_images",
 ]

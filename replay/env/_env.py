@@ -20,14 +20,14 @@ from gymnasium.error import ResetNeeded
 
 from .._errors import ActionError, ConfigError, VGEError
 from ..io._load import Benchmark
-from ..io._mcap import ImageSource
+from ..io._images import BenchImages, ImageSource
 from ..semantics._budget import episode_lambda
 from ..semantics._episode import EpisodeSession
 from ..semantics._machine import Machine
 from ..semantics._records import ActionRecord, LogStep
 from ..semantics._rows import StepRow
 from ..semantics._vocab import DASHBOARD
-from ._images import ViewImages, default_image_source
+from ._images import ViewImages
 from ._spaces import action_space, observation_space
 
 STEP_FIELDS: tuple[str, ...] = tuple(StepRow.__struct_fields__)
@@ -60,7 +60,8 @@ class DeviceEnv(gymnasium.Env):
     `bench` is a benchmark directory (PROTOCOL §1.1) or an open `Benchmark`. `lam` is the
     run's λ (a task's own λ wins, PROTOCOL §3.5). `episodes` limits the episodes `reset` picks
     from when it is not given one. `image_source(machine, view)` supplies view images (default:
-    the benchmark's files and rendered synthetic views); every view is shown at
+    the benchmark's own, `replay.BenchImages`; `vge_analytics.image_source(bench)` also
+    renders the views of the synthetic categories); every view is shown at
     `image_width` x `image_height`. `run_id`, `model` and `agent_kind` fill the matching
     fields of `info`. docs/LIVE.md describes the observation.
     """
@@ -102,7 +103,7 @@ class DeviceEnv(gymnasium.Env):
         self.episode_pool: tuple[str, ...] = tuple(pool)
         self.observation_space = observation_space(image_width, image_height)
         self.action_space = action_space()
-        source = default_image_source(self.bench.root) if image_source is None else image_source
+        source = BenchImages(str(self.bench.root)) if image_source is None else image_source
         self._images = ViewImages(source, image_width, image_height)
         self._head = (run_id, model, agent_kind)
         self.session: EpisodeSession | None = None

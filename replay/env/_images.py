@@ -1,41 +1,24 @@
 """The current view as the environment shows it: a uint8 H x W x 3 array of a fixed size.
 
-Views come from an image source (`replay.ImageSource`): by default the benchmark's own
-images (PROTOCOL §1.1) and, for devices of the synthetic categories, the views
-`vge_analytics` renders on demand. Every view is resized to the environment's size, which
-keeps the 0..1000 scale of the view exactly (the scale is relative to width and height); a
-view without an image is a plain canvas naming it.
+Views come from an image source (`replay.ImageSource`), the caller's: by default the
+benchmark's own pictures (`replay.BenchImages`, PROTOCOL §1.1); the analytics package passes
+one that also renders the views of the synthetic categories. Every view is resized to the
+environment's size, which keeps the 0..1000 scale of the view exactly (the scale is relative
+to width and height); a view without an image is a plain canvas naming it.
 """
 
 from __future__ import annotations
 
-import importlib
 import io
-from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ..io._mcap import BenchImages, ImageSource
+from ..io._images import ImageSource, as_view_image
 from ..semantics._machine import Machine
 
 CANVAS = (236, 238, 242)
 """Colour of the stand-in for a view the benchmark has no image of."""
-
-
-def default_image_source(bench: Path) -> ImageSource:
-    """The benchmark's images, and the rendered synthetic views when `vge_analytics` (the
-    analytics package shipped beside the engine) is importable; else the files only."""
-    try:
-        images = importlib.import_module("vge_analytics._images")
-    except ImportError:
-        return BenchImages(str(bench))
-    view_image = images.view_image
-
-    def source(machine: Machine, view: str) -> object:
-        return view_image(bench, machine, view)
-
-    return source
 
 
 def no_images(machine: Machine, view: str) -> None:
@@ -64,15 +47,13 @@ class ViewImages:
         return got.copy()
 
     def _load(self, machine: Machine, view: str) -> np.ndarray:
-        found = self.source(machine, view)
+        found = as_view_image(self.source(machine, view))
         size = (self.width, self.height)
         if found is None:
             img = Image.new("RGB", size, CANVAS)
             ImageDraw.Draw(img).text((8, 8), f"no image of the {view} view", fill=(90, 90, 90))
         else:
-            # An `ImageTuple` (bytes first) or an object with `data` (`ViewImage`).
-            data = found[0] if isinstance(found, tuple) else found.data  # type: ignore[attr-defined]
-            with Image.open(io.BytesIO(data)) as raw:
+            with Image.open(io.BytesIO(found.data)) as raw:
                 img = raw.convert("RGB")
             if img.size != size:
                 img = img.resize(size, Image.Resampling.BILINEAR)
@@ -81,4 +62,4 @@ class ViewImages:
         return array
 
 
-__all__ = ["ViewImages", "default_image_source", "no_images"]
+__all__ = ["ViewImages", "no_images"]

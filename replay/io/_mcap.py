@@ -16,9 +16,7 @@ Everything is a function of the inputs: the same episode gives the same bytes.
 
 from __future__ import annotations
 
-import io
 from collections.abc import Callable
-from dataclasses import dataclass
 from functools import cache
 from typing import TYPE_CHECKING, BinaryIO
 
@@ -36,23 +34,20 @@ from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
+from .._version import ENGINE_VERSION
 from ..semantics._machine import Machine, Rect
 from ..semantics._plan import target_rects
 from ..semantics._rows import StepRow
 from ..semantics._vocab import SCALE
-from ._fs import location
+from ._fs import Location, location
+from ._images import ViewImage
+from ._task import safe_file_name
 
 if TYPE_CHECKING:
     from ..semantics._episode import EpisodeResult
 
-ImageTuple = tuple[bytes, str, int, int]
-"""(encoded image bytes, format `png`/`jpeg`, width, height)."""
-
-ImageSource = Callable[[Machine, str], object]
-"""`image_source(machine, view)`: the rendered view of a device as an `ImageTuple` (or an
-object with `data`, `format`, `width`, `height`), or None. Must be picklable
-(a module-level function, a `functools.partial` of one, or an instance like `BenchImages`)
-when `replay_runs` uses worker processes."""
+MCAP_LIBRARY = f"vge-analytics replay {ENGINE_VERSION}"
+"""The `library` field of every MCAP file: which engine wrote it."""
 
 TOPICS = ("/camera", "/annotations", "/model", "/feedback", "/step")
 """Channel topics, in the order they are registered."""
@@ -83,38 +78,25 @@ _CLICK = Color(r=0.9, g=0.1, b=0.1, a=1.0)
 _CLICK_FILL = Color(r=0.9, g=0.1, b=0.1, a=0.35)
 _LABEL_BG = Color(r=0.0, g=0.0, b=0.0, a=0.6)
 _WHITE = Color(r=1.0, g=1.0, b=1.0, a=1.0)
-_FORMATS = {"png": "png", "jpg": "jpeg", "jpeg": "jpeg", "webp": "webp"}
 
 
-@dataclass(frozen=True)
-class BenchImages:
-    """Image source reading a benchmark directory (a path or a URI; PROTOCOL §1.1): the SSM's
-    `images` extension if it names the view, else `BENCH/images/<device_id>/<view>.png|jpg|jpeg`."""
-
-    root: str
-
-    def __call__(self, machine: Machine, view: str) -> ImageTuple | None:
-        root = location(self.root)
-        ref = machine.images.get(view)
-        candidates = [root / ref[0]] if ref else []
-        base = root / "images" / machine.device_id
-        candidates += [base / f"{view}.{ext}" for ext in ("png", "jpg", "jpeg")]
-        for path in candidates:
-            if path.is_file():
-                data = path.read_bytes()
-                fmt = _FORMATS.get(path.suffix.lower().lstrip("."), "png")
-                if ref and path == root / ref[0]:
-                    return data, fmt, ref[1], ref[2]
-                width, height = _image_size(data)
-                return data, fmt, width, height
-        return None
+def mcap_file_name(episode_id: str) -> str:
+    """The file name of an episode's MCAP in `OUT/mcap/<run_id>/` (PROTOCOL §7.8)."""
+    return f"{safe_file_name(episode_id)}.mcap"
 
 
-def _image_size(data: bytes) -> tuple[int, int]:
-    from PIL import Image  # only needed when an image file lacks a declared size
+def episode_mcap_path(out: str | Location, run_id: str, episode_id: str) -> Location:
+    """Where `vge replay --mcap` writes an episode's MCAP file."""
+    return location(out) / "mcap" / run_id / mcap_file_name(episode_id)
 
-    with Image.open(io.BytesIO(data)) as img:
-        return img.size
+
+def attached_ssm(machine: Machine) -> bytes:
+    """The SSM attached to an episode's MCAP: its file as it is, else its record as JSON
+    (a machine built in memory has no file)."""
+    try:
+        return location(machine.source).read_bytes()
+    except OSError:
+        return msgspec.json.encode(machine.ssm)
 
 
 @cache
@@ -244,8 +226,7 @@ def write_episode_mcap(
     result: EpisodeResult,
     *,
     ssm_bytes: bytes,
-    image: Callable[[str], ImageTuple | None],
-    library: str,
+    image: Callable[[str], ViewImage | None],
 ) -> None:
     """Write the MCAP of one replayed episode to a binary stream.
 
@@ -253,7 +234,7 @@ def write_episode_mcap(
     image size the SSM declares for the view, else on the 0..1000 agent scale).
     """
     writer = Writer(out, chunk_size=4 * 1024 * 1024, compression=CompressionType.ZSTD)
-    writer.start(profile="", library=library)
+    writer.start(profile="", library=MCAP_LIBRARY)
     channels = _Channels(writer)
     steps = result.steps
     times = step_times_ns(steps)

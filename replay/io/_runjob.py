@@ -14,6 +14,7 @@ from .._version import ENGINE_VERSION
 from ..semantics._tables import TABLE_ROWS, arrow_schema
 from ._files import STATE_DIR, commit_dir, remove_dir, write_part
 from ._fs import Location
+from ._images import ImageSource
 from ._load import Benchmark
 from ._manifest import (
     Divergence,
@@ -24,7 +25,7 @@ from ._manifest import (
     RunOptions,
     RunOutputs,
 )
-from ._mcap import ImageSource
+from ._mcap import mcap_file_name
 from ._quarantine import QuarantineRecord, encode_record
 from ._reading import RunInput
 from ._task import (
@@ -35,7 +36,6 @@ from ._task import (
     BatchTask,
     RunContext,
     part_name,
-    safe_file_name,
 )
 
 DIVERGENCE_FIELDS = ("feedback", "state", "view")
@@ -54,7 +54,6 @@ class RunJob:
         out: Location,
         options: RunOptions,
         image_source: ImageSource | None,
-        library: str,
         row_group_rows: int,
     ) -> None:
         self.run = run
@@ -84,7 +83,6 @@ class RunJob:
                 None if options.mcap_episodes is None else frozenset(options.mcap_episodes)
             ),
             image_source=image_source,
-            library=library,
         )
         self.parts: dict[str, list[str]] = {name: [] for name in TABLE_ROWS}
         self.seen: dict[str, int] = {}
@@ -161,7 +159,7 @@ class RunJob:
                 if o.mcap_tmp is not None:
                     self.counts.mcap_files += 1
                     (self.staging / "mcap" / o.mcap_tmp).replace(
-                        self.staging / "mcap" / f"{safe_file_name(o.episode_id or '')}.mcap"
+                        self.staging / "mcap" / mcap_file_name(o.episode_id or "")
                     )
             else:
                 self.quarantine(o.line, o.episode_id, o.kind, o.reason or "")

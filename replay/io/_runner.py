@@ -19,14 +19,13 @@ from typing import TYPE_CHECKING
 import msgspec
 
 from .._errors import ConfigError, InputError
-from .._version import ENGINE_VERSION
 from . import _files
 from ._executor import Executor, InProcess, in_order, make_executor
 from ._files import STATE_DIR
 from ._fs import Location, location
+from ._images import ImageSource
 from ._load import Benchmark
 from ._manifest import Hasher, Manifest, RunEntry, RunOptions, read_manifest
-from ._mcap import ImageSource
 from ._outdir import OutputLock, publish, run_inputs, up_to_date
 from ._reading import LineReader, RunInput, read_runs
 from ._runjob import RunJob
@@ -216,7 +215,6 @@ def _replay_all(
 ) -> Iterator[_Job]:
     """Replay the runs, yielding each run's job once it is committed (in order);
     `withdraw(run_id)` is called just before a run's commit."""
-    library = f"vge-analytics replay {ENGINE_VERSION}"
     open_jobs: list[_Job] = []
     bars: dict[str, TaskID] = {}
 
@@ -224,7 +222,7 @@ def _replay_all(
         for run in runs:
             hasher(run.episodes)  # hash what is about to be read
             job = _Job(
-                run, bench, bench_given, out, options, image_source, library,
+                run, bench, bench_given, out, options, image_source,
                 _files.ROW_GROUP_ROWS,
             )  # fmt: skip
             job.reader = LineReader(run.episodes, BATCH_LINES)

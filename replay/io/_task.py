@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, NamedTuple
 from urllib.parse import quote
 
 if TYPE_CHECKING:
-    from ._mcap import ImageSource
+    from ._images import ImageSource
 
 _SAFE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9._+@-]{0,199}$")
 
@@ -45,7 +45,6 @@ class RunContext:
     mcap: bool = False
     mcap_episodes: frozenset[str] | None = None
     image_source: ImageSource | None = None
-    library: str = ""
 
     def wants_mcap(self, episode_id: str) -> bool:
         return self.mcap and (self.mcap_episodes is None or episode_id in self.mcap_episodes)

@@ -27,8 +27,9 @@ from ..semantics._rows import EpisodeRow, GoalRow, StepRow
 from ..semantics._tables import TABLE_ROWS, rows_to_table
 from ._files import write_part
 from ._fs import location
+from ._images import ImageSource, ViewImage, as_view_image
 from ._load import Benchmark, episode_decoder
-from ._mcap import ImageSource, ImageTuple, write_episode_mcap
+from ._mcap import attached_ssm, mcap_file_name, write_episode_mcap
 from ._quarantine import classify_decode_error, one_line
 from ._task import (
     SKIPPED,
@@ -39,7 +40,6 @@ from ._task import (
     LineOutcome,
     RunContext,
     part_name,
-    safe_file_name,
 )
 
 KERNEL = os.environ.get("VGE_REPLAY_ENGINE", "kernel") != "reference"
@@ -67,7 +67,7 @@ class WorkerState:
     bench: Benchmark
     setups: dict[str, EpisodeSetup | TaskError] = field(default_factory=dict)
     ssm_bytes: dict[str, bytes] = field(default_factory=dict)
-    images: dict[tuple[str, str], ImageTuple | None] = field(default_factory=dict)
+    images: dict[tuple[str, str], ViewImage | None] = field(default_factory=dict)
 
     def setup(self, machine: Machine, task: Task) -> EpisodeSetup:
         got = self.setups.get(task.episode_id)
@@ -81,19 +81,16 @@ class WorkerState:
             raise got
         return got
 
-    def image(self, source: ImageSource, machine: Machine, view: str) -> ImageTuple | None:
+    def image(self, source: ImageSource, machine: Machine, view: str) -> ViewImage | None:
         key = (machine.device_id, view)
         if key not in self.images:
-            _remember(self.images, key, as_image_tuple(source(machine, view)), _IMAGE_CACHE_SIZE)
+            _remember(self.images, key, as_view_image(source(machine, view)), _IMAGE_CACHE_SIZE)
         return self.images[key]
 
     def ssm(self, machine: Machine) -> bytes:
         got = self.ssm_bytes.get(machine.device_id)
         if got is None:
-            try:
-                got = location(machine.source).read_bytes()
-            except OSError:
-                got = msgspec.json.encode(machine.ssm)
+            got = attached_ssm(machine)
             _remember(self.ssm_bytes, machine.device_id, got, _SSM_CACHE_SIZE)
         return got
 
@@ -113,14 +110,6 @@ def worker_state(bench: str) -> WorkerState:
 def adopt(state: WorkerState, bench: str) -> None:
     """Use an already opened benchmark for `bench` in this process (the runner's own)."""
     _remember(_states, bench, state, _BENCHES)
-
-
-def as_image_tuple(got: object) -> ImageTuple | None:
-    """An image source's answer as `(bytes, format, width, height)`: a tuple, or an object
-    with `data`, `format`, `width`, `height` attributes (like `vge_analytics._images.ViewImage`)."""
-    if got is None or isinstance(got, tuple):
-        return got  # type: ignore[return-value]
-    return (got.data, got.format, got.width, got.height)  # type: ignore[attr-defined]
 
 
 def replay_batch(task: BatchTask) -> BatchReport | BatchFailure:
@@ -256,15 +245,15 @@ def _replay_reference(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeR
 def _write_mcap(
     state: WorkerState, ctx: RunContext, number: int, machine: Machine, result: EpisodeResult
 ) -> str:
-    mcap_tmp = f"{safe_file_name(result.episode.episode_id)}.L{number}.mcap.tmp"
+    mcap_tmp = f"{mcap_file_name(result.episode.episode_id)}.L{number}.tmp"
     source = ctx.image_source
 
-    def image(view: str, m: Machine = machine) -> ImageTuple | None:
+    def image(view: str, m: Machine = machine) -> ViewImage | None:
         return None if source is None else state.image(source, m, view)
 
     with (location(ctx.staging) / "mcap" / mcap_tmp).writer(sync=False) as fh:
         write_episode_mcap(
-            fh, machine, result, ssm_bytes=state.ssm(machine), image=image, library=ctx.library
+            fh, machine, result, ssm_bytes=state.ssm(machine), image=image
         )
     return mcap_tmp
 
@@ -317,5 +306,5 @@ def _prepare_line(
     outcomes.append(None)
 
 
-__all__ = ["WorkerState", "adopt", "as_image_tuple", "replay_batch", "worker_state"]
+__all__ = ["WorkerState", "adopt", "replay_batch", "worker_state"]
 

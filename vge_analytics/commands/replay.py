@@ -6,30 +6,16 @@ Exit codes: 0 every record replayed; 2 something was quarantined (see OUT/quaran
 
 from __future__ import annotations
 
-import functools
-import inspect
-
 import typer
 from rich import box
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from replay import BenchImages, ImageSource, Manifest, location, replay_runs
+from replay import Manifest, location, replay_runs
 
+from .._images import image_source
 from ._options import episode_ids
-
-
-def image_source(bench: str) -> ImageSource:
-    """`vge_analytics._images.view_image` bound to the benchmark when available, else the
-    plain file lookup `BENCH/images/<device_id>/<view>.png|jpg` (PROTOCOL §1.1)."""
-    try:
-        from vge_analytics._images import view_image  # type: ignore[import-not-found]
-    except ImportError:
-        return BenchImages(bench)
-    if len(inspect.signature(view_image).parameters) == 3:
-        return functools.partial(view_image, bench)
-    return BenchImages(bench)
 
 
 def _summary(manifest: Manifest) -> Table:

@@ -25,6 +25,7 @@ import replay
 from replay.env import DeviceEnv, log_step_of, no_images
 
 from .._errors import AgentError, InfrastructureError, RunDirError
+from .._images import image_source
 from ._agents import AGENT_KINDS, EpisodeStart, LiveAgent
 from ._rundir import FailureRecord, RunDir
 
@@ -252,7 +253,7 @@ class _Worker:
         self.env = DeviceEnv(
             bench,
             lam=header.lam,
-            image_source=None if agent.looks else no_images,
+            image_source=image_source(bench.root) if agent.looks else no_images,
             run_id=header.run_id,
             model=header.model,
             agent_kind=header.agent_kind,

@@ -23,6 +23,7 @@ from replay.env import DeviceEnv
 
 from .._durable import append_record, fsync_dir, truncate, write_all, write_atomic
 from .._errors import PlayConflictError, PlayError
+from .._images import image_source as default_images
 from ._clicks import action_text
 from ._files import journal_header, journal_steps
 
@@ -395,7 +396,7 @@ class EpisodePlay:
             lam=header.lam,
             image_width=run.image_size[0],
             image_height=run.image_size[1],
-            image_source=run.image_source,
+            image_source=run.image_source or default_images(run.bench.root),
             run_id=header.run_id,
             model=header.model,
             agent_kind=header.agent_kind,
