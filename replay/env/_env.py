@@ -19,8 +19,8 @@ import numpy as np
 from gymnasium.error import ResetNeeded
 
 from .._errors import ActionError, ConfigError, VGEError
-from ..io._load import Benchmark
 from ..io._images import BenchImages, ImageSource
+from ..io._load import Benchmark
 from ..semantics._budget import episode_lambda
 from ..semantics._episode import EpisodeSession
 from ..semantics._machine import Machine

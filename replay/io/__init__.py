@@ -1,1 +1,21 @@
-"""Input and output: loading benchmarks and logs, batches, Parquet parts, manifest, quarantine, MCAP, the runner."""
+"""Input and output: loading benchmarks and logs, batches, Parquet parts, manifest, quarantine,
+MCAP, the runner, and the one run-directory writer with its crash-safe file primitives.
+
+The names below are public for the tools that write run directories (`vge run`, `vge play`,
+`vge synth`); the rest of the layer is reached through `replay`'s own exports.
+"""
+
+from ._durable import append_record, fsync_dir, truncate, write_all, write_atomic
+from ._rundir import EPISODES, RUN_JSON, RunDirectory, keep_aside
+
+__all__ = [
+    "EPISODES",
+    "RUN_JSON",
+    "RunDirectory",
+    "append_record",
+    "fsync_dir",
+    "keep_aside",
+    "truncate",
+    "write_all",
+    "write_atomic",
+]

@@ -334,7 +334,7 @@ def run_live(
     if options.resume:
         # Episodes that failed before are not finished: they are played again.
         _check_resume(rundir.read_header(), header)
-        finished = rundir.read_finished()
+        finished = rundir.finished()
         outside = [e for e in finished if e not in set(selection)]
         if outside:
             raise RunDirError(
@@ -375,7 +375,7 @@ def run_live(
             for future in done:
                 result = future.result()
                 if isinstance(result, _Finished):
-                    rundir.append_episode(result.line)
+                    rundir.append(result.line)
                     finished[result.episode_id] = result.line
                     counters.add(result.log, result.success)
                 elif isinstance(result, _Failed):
@@ -397,7 +397,7 @@ def run_live(
         raise
     pool.shutdown(wait=True)
 
-    rundir.rewrite(selection, finished, latest_failures)
+    rundir.rewrite_in_order(selection, finished, latest_failures)
     final = run_header(agent, options, len(selection), counters)
     rundir.write_header(final)
     kept = [latest_failures[e] for e in selection if e in latest_failures]

@@ -1,5 +1,5 @@
 """Reading a human run's journals back up to their last whole line (they are written with
-`vge_analytics._durable`: whole records in one write and `fsync`, so a crash loses nothing
+`replay.io`'s crash-safe writes: whole records in one write and `fsync`, so a crash loses nothing
 shown)."""
 
 from __future__ import annotations

@@ -20,8 +20,17 @@ import orjson
 
 import replay
 from replay.env import DeviceEnv
+from replay.io import (
+    EPISODES,
+    RUN_JSON,
+    RunDirectory,
+    append_record,
+    fsync_dir,
+    keep_aside,
+    truncate,
+    write_all,
+)
 
-from .._durable import append_record, fsync_dir, truncate, write_all, write_atomic
 from .._errors import PlayConflictError, PlayError
 from .._images import image_source as default_images
 from ._clicks import action_text
@@ -38,7 +47,6 @@ IMAGE_SIZE = 768
 """Side of the square image the environment renders each view at (the scale is relative to
 width and height, so resizing keeps it exact)."""
 
-EPISODES_FILE = "episodes.jsonl"
 JOURNAL_DIR = "playing"
 DISCARDED_DIR = "discarded"
 LOCK_FILE = ".lock"
@@ -105,6 +113,8 @@ class HumanRun:
         image_size: tuple[int, int],
     ) -> None:
         self.root = root
+        self.files = RunDirectory(root, aside=root / JOURNAL_DIR / DISCARDED_DIR)
+        """The run.json and episodes file, written by the replay's one writer."""
         self.bench = bench
         self.header = header
         self.clock = clock
@@ -137,7 +147,7 @@ class HumanRun:
             bench = replay.Benchmark.open(bench)
         if root.exists() and not root.is_dir():
             raise PlayError(f"{root} exists and is not a directory")
-        header_path = root / "run.json"
+        header_path = root / RUN_JSON
         if header_path.exists():
             header = replay.read_run_header(root)
             if header.agent_kind != "human":
@@ -153,24 +163,22 @@ class HumanRun:
                         f"{header_path} has {key} {have[key]!r}, not {value!r}: a run keeps "
                         "the settings it was created with (give another --out)"
                     )
-            if (root / f"{EPISODES_FILE}.gz").exists():
+            if (root / f"{EPISODES}.gz").exists():
                 raise PlayError(
-                    f"{root} holds {EPISODES_FILE}.gz: `vge play` appends to a plain "
-                    f"{EPISODES_FILE} (give another --out)"
+                    f"{root} holds {EPISODES}.gz: `vge play` appends to a plain "
+                    f"{EPISODES} (give another --out)"
                 )
         else:
             root.mkdir(parents=True, exist_ok=True)
-            document: dict[str, Any] = {
-                "run_id": run_id or root.resolve().name,
-                "model": model or DEFAULT_MODEL,
-                "agent_kind": "human",
-            }
-            if lam is not None:
-                document["lambda"] = float(lam)
-            document["meta"] = {"interface": "vge play"}
-            write_atomic(header_path, replay.run_header_bytes(document))
-            header = replay.read_run_header(root)
-        (root / EPISODES_FILE).touch()
+            header = replay.RunHeader(
+                run_id=run_id or root.resolve().name,
+                model=model or DEFAULT_MODEL,
+                agent_kind="human",
+                lam=None if lam is None else float(lam),
+                meta={"interface": "vge play"},
+            )
+            RunDirectory(root).write_header(header)
+        (root / EPISODES).touch()
         (root / JOURNAL_DIR).mkdir(exist_ok=True)
         run = cls(
             root, bench, header, clock=clock, image_source=image_source, image_size=image_size
@@ -191,24 +199,7 @@ class HumanRun:
 
     def _repair(self) -> None:
         """Undo what a crash in the middle of a write left (caller holds the lock)."""
-        path = self.episodes_path
-        data = path.read_bytes()
-        if data and not data.endswith(b"\n"):
-            start = data.rfind(b"\n") + 1
-            try:
-                msgspec.json.decode(data[start:], type=replay.EpisodeLog)
-                tail = b"\n"  # a complete line that only lacks its newline (hand-written)
-            except msgspec.DecodeError:
-                tail = None  # torn by a crash: its journal still holds these steps
-                self._set_aside(data[start:], "episodes-tail")
-            with open(path, "r+b") as fh:
-                if tail is None:
-                    fh.truncate(start)
-                else:
-                    fh.seek(0, os.SEEK_END)
-                    fh.write(tail)
-                fh.flush()
-                os.fsync(fh.fileno())
+        self.files.repair()  # a torn episode line: its journal still holds these steps
         finished = self._finished_logs()
         for path in sorted((self.root / JOURNAL_DIR).glob("*.jsonl")):
             episode_id = journal_header(path)
@@ -217,33 +208,18 @@ class HumanRun:
             elif episode_id in finished:
                 path.unlink()  # ended, but the app died before removing it
 
-    def _set_aside(self, data: bytes, stem: str) -> Path:
-        """Keep `data` in `playing/discarded/<stem>.<n>.jsonl` (never read again)."""
-        folder = self.root / JOURNAL_DIR / DISCARDED_DIR
-        folder.mkdir(exist_ok=True)
-        n = 1
-        while (target := folder / f"{stem}.{n}.jsonl").exists():
-            n += 1
-        write_atomic(target, data)
-        return target
-
     # ------------------------------------------------------------------ reading
 
     @property
     def episodes_path(self) -> Path:
-        return self.root / EPISODES_FILE
+        return self.files.episodes_path
 
     def _finished_logs(self) -> dict[str, list[dict]]:
-        """{episode id: its steps} of the complete lines of the episodes file."""
-        out: dict[str, list[dict]] = {}
-        for raw in self.episodes_path.read_bytes().split(b"\n"):
-            try:
-                line = orjson.loads(raw)
-            except orjson.JSONDecodeError:
-                continue  # blank, or a torn tail not yet repaired
-            if isinstance(line, dict) and isinstance(line.get("episode_id"), str):
-                out.setdefault(line["episode_id"], list(line.get("steps") or []))
-        return out
+        """{episode id: its steps} of the episodes file (its lines are episode records)."""
+        return {
+            episode_id: list(orjson.loads(line).get("steps") or [])
+            for episode_id, line in self.files.finished().items()
+        }
 
     def _journals(self) -> dict[str, Path]:
         """{episode id: journal path} of the episodes being played."""
@@ -362,7 +338,7 @@ class HumanRun:
             path = self._journals().get(episode_id)
             if path is None:
                 raise PlayError(f"episode {episode_id!r} has no unfinished steps to discard")
-            target = self._set_aside(path.read_bytes(), path.stem)
+            target = keep_aside(path.parent / DISCARDED_DIR, path.stem, path.read_bytes())
             path.unlink()
             fsync_dir(path.parent)
             return target
@@ -374,8 +350,7 @@ class HumanRun:
                 f"episode {episode_id!r} was ended in another window; it is already in the run"
             )
         self._repair()
-        line = orjson.dumps({"episode_id": episode_id, "steps": steps}) + b"\n"
-        append_record(self.episodes_path, line)
+        self.files.append(orjson.dumps({"episode_id": episode_id, "steps": steps}) + b"\n")
 
 
 class EpisodePlay:

@@ -18,7 +18,7 @@ place at the end.
 
 from __future__ import annotations
 
-import gzip
+import contextlib
 import json
 import os
 import shutil
@@ -31,6 +31,7 @@ from pathlib import Path
 import msgspec
 
 import replay
+from replay.io import RunDirectory
 
 from ._agent import play_episode
 from ._catalog import PAPER_DEVICE_COUNTS, UCSM_DIR, available_categories, load_catalog
@@ -264,29 +265,24 @@ def generate(
         (bench / "ucsm").mkdir()
         for cat in categories:
             shutil.copyfile(UCSM_DIR / f"{cat}.json", bench / "ucsm" / f"{cat}.json")
-        writers = {}
-        for spec in runs:
-            run_dir = tmp / "runs" / spec.run_id
-            run_dir.mkdir(parents=True)
-            (run_dir / "run.json").write_bytes(replay.run_header_bytes(spec.header(seed, scale)))
-            raw = open(run_dir / "episodes.jsonl.gz", "wb")  # noqa: SIM115 (closed below)
-            gz = gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0, compresslevel=6)
-            writers[spec.run_id] = (raw, gz)
         stats: dict[str, int] = {}
-        with open(bench / "tasks.jsonl", "wb") as tasks_fh:
+        with contextlib.ExitStack() as stack:
+            writers = {}
+            for spec in runs:
+                run_dir = RunDirectory(tmp / "runs" / spec.run_id)
+                writers[spec.run_id] = stack.enter_context(run_dir.stream(compress=True))
+                run_dir.write_header(spec.header(seed, scale))
+            tasks_fh = stack.enter_context(open(bench / "tasks.jsonl", "wb"))
             for k, res in enumerate(_results(jobs, ctx, workers), start=1):
                 (bench / "ssm" / f"{res.device_id}.json").write_text(res.ssm_text, encoding="utf-8")
                 tasks_fh.writelines(res.task_lines)
                 for run_id, lines in res.run_lines.items():
-                    writers[run_id][1].writelines(lines)
+                    writers[run_id].writelines(lines)
                     summary.runs[run_id] = summary.runs.get(run_id, 0) + len(lines)
                 for key, value in res.stats.items():
                     stats[key] = stats.get(key, 0) + value
                 if progress is not None:
                     progress(k, len(jobs))
-        for raw, gz in writers.values():
-            gz.close()
-            raw.close()
         summary.statistics = stats
         (tmp / "synth.json").write_text(
             json.dumps(summary.to_json(), indent=2, sort_keys=False) + "\n", encoding="utf-8"
