@@ -21,7 +21,7 @@ from ._instantiate import (
     instantiate_device,
     scene_of,
 )
-from ._measure import RunMeasures, measure_output, measure_run
+from ._measure import RunMeasures, measure_output
 from ._profiles import PROFILES, Profile
 from ._render import png_bytes, render_view
 from ._runs import RunSpec, run_specs
@@ -51,7 +51,6 @@ __all__ = [
     "load_catalog",
     "load_ucsm",
     "measure_output",
-    "measure_run",
     "play_episode",
     "plan_devices",
     "png_bytes",
