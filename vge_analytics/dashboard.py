@@ -25,7 +25,6 @@ import polars as pl
 import replay
 
 from ._errors import OutputDirError, UnknownRunError
-from ._images import image_source
 from ._isolated import IsolatedResult, run_isolated
 from ._limits import SqlLimits, format_size
 from ._metric_set import MetricSet, MetricsSource, fingerprint, metric_set
@@ -33,6 +32,7 @@ from ._registry import Metric
 from ._rescore import Rescore, group_label
 from ._scope import Filters, build_scope, check_columns
 from ._store import open_store, quote_ident, resolve_input
+from .synth import image_source
 
 DEFAULT_OUT = "logs-replayed"
 """Where `vge demo` writes the replayed bundled sample; `vge app` opens it by default."""
@@ -1016,8 +1016,8 @@ def sweep_size(out: str | Path, runs: Sequence[str], lambdas: Sequence[float]) -
 def _sweep_cache_file(
     out: str | Path, runs: Sequence[str], lambdas: Sequence[float], metrics_dir: MetricsSource
 ) -> Path:
-    from ._images import cache_dir
     from ._sweep import DEFAULT_SWEEP_METRICS
+    from .synth import cache_dir
 
     chosen = metric_set(metrics_dir).resolve(list(DEFAULT_SWEEP_METRICS))
     key = json.dumps(

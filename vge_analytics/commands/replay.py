@@ -14,7 +14,7 @@ from rich.table import Table
 
 from replay import Manifest, location, replay_runs
 
-from .._images import image_source
+from ..synth import image_source
 from ._options import episode_ids
 
 

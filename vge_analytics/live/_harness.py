@@ -25,7 +25,7 @@ import replay
 from replay.env import DeviceEnv, log_step_of, no_images
 
 from .._errors import AgentError, InfrastructureError, RunDirError
-from .._images import image_source
+from ..synth import image_source
 from ._agents import AGENT_KINDS, EpisodeStart, LiveAgent
 from ._rundir import FailureRecord, RunDir
 

@@ -14,9 +14,16 @@ from typing import Any
 import replay
 
 from .._errors import AgentError
-from ..synth import PROFILES, Catalog, Profile, StepPlayer, TaskRecord
-from ..synth._catalog import is_known_category, load_catalog
-from ..synth._runs import agent_rng
+from ..synth import (
+    PROFILES,
+    Catalog,
+    Profile,
+    StepPlayer,
+    TaskRecord,
+    agent_rng,
+    is_known_category,
+    load_catalog,
+)
 from ._agents import AgentOptions, EpisodeStart, Reply, history_text
 
 

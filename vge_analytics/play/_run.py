@@ -32,7 +32,7 @@ from replay.io import (
 )
 
 from .._errors import PlayConflictError, PlayError
-from .._images import image_source as default_images
+from ..synth import image_source as default_images
 from ._clicks import action_text
 from ._files import journal_header, journal_steps
 

@@ -11,6 +11,7 @@ from ._catalog import (
     Catalog,
     ComponentSpec,
     available_categories,
+    is_known_category,
     load_catalog,
     load_ucsm,
 )
@@ -24,8 +25,9 @@ from ._instantiate import (
 from ._measure import RunMeasures, measure_output
 from ._profiles import PROFILES, Profile
 from ._render import png_bytes, render_view
-from ._runs import RunSpec, run_specs
+from ._runs import RunSpec, agent_rng, run_specs
 from ._tasks import TaskRecord, sample_tasks
+from ._views import cache_dir, image_source, synthetic_view, view_image
 
 __all__ = [
     "PAPER_DEVICE_COUNTS",
@@ -43,11 +45,15 @@ __all__ = [
     "StepPlayer",
     "SyntheticDevice",
     "TaskRecord",
+    "agent_rng",
     "available_categories",
+    "cache_dir",
     "device_logic",
     "dump_ssm",
     "generate",
+    "image_source",
     "instantiate_device",
+    "is_known_category",
     "load_catalog",
     "load_ucsm",
     "measure_output",
@@ -58,4 +64,6 @@ __all__ = [
     "run_specs",
     "sample_tasks",
     "scene_of",
+    "synthetic_view",
+    "view_image",
 ]

@@ -1,5 +1,5 @@
 """Rendered views: deterministic, every component drawn inside its bbox, one image per view at
-the SSM's size, and the image lookup order of `vge_analytics._images.view_image`."""
+the SSM's size, and the image lookup order of `vge_analytics.synth.view_image`."""
 
 from __future__ import annotations
 
@@ -12,8 +12,7 @@ import pytest
 from PIL import Image, ImageChops
 
 import replay
-from vge_analytics._images import view_image
-from vge_analytics.synth import instantiate_device
+from vge_analytics.synth import instantiate_device, view_image
 from vge_analytics.synth._render import png_bytes, render_view
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -3,7 +3,7 @@
 `image_source(bench)` is the one image source of the analytics, the CLI, the dashboard and
 the live tools: the benchmark's own pictures by the replay's resolver (`replay.BenchImages`,
 PROTOCOL §1.1), else, for devices of the synthetic categories, a rendering of the view
-(`vge_analytics.synth`), cached as PNG on disk. The cache lives under `$VGE_CACHE_DIR`, else
+(this package's renderer), cached as PNG on disk. The cache lives under `$VGE_CACHE_DIR`, else
 `$XDG_CACHE_HOME/vge-analytics`, else `~/.cache/vge-analytics`, keyed by a hash of the SSM,
 the renderer and the category data; files are written to a temporary name and renamed, so
 concurrent processes never read a half-written image.
@@ -23,6 +23,12 @@ from PIL import Image
 
 import replay
 from replay import ViewImage
+
+from ._catalog import data_digest, is_known_category
+from ._foreign import render_foreign
+from ._instantiate import scene_of
+from ._layout import LAYOUT_VERSION
+from ._render import RENDER_VERSION, png_bytes, render_view
 
 
 def cache_dir() -> Path:
@@ -50,10 +56,8 @@ def view_image(
 
 def synthetic_view(machine: replay.Machine, view: str) -> ViewImage | None:
     """A rendering of the view when the device belongs to a synthetic category (cached)."""
-    from vge_analytics.synth import _catalog
-
     view = view.lower()
-    if view not in machine.views or not _catalog.is_known_category(machine.category):
+    if view not in machine.views or not is_known_category(machine.category):
         return None
     key = _cache_key(machine)
     path = cache_dir() / "views" / key[:2] / key / f"{view}.png"
@@ -69,15 +73,13 @@ def synthetic_view(machine: replay.Machine, view: str) -> ViewImage | None:
 
 
 def _cache_key(machine: replay.Machine) -> str:
-    from vge_analytics.synth import _catalog, _layout, _render
-
     h = hashlib.sha256()
     for part in (
-        _render.RENDER_VERSION,
-        _layout.LAYOUT_VERSION,
+        RENDER_VERSION,
+        LAYOUT_VERSION,
         machine.device_id,
         machine.category,
-        _catalog.data_digest(machine.category),
+        data_digest(machine.category),
     ):
         h.update(part.encode("utf-8"))
         h.update(b"\0")
@@ -96,8 +98,6 @@ def _scene(key: str, machine: replay.Machine):
     with _SCENES_LOCK:
         if key in _SCENES:
             return _SCENES[key]
-    from vge_analytics.synth._instantiate import scene_of
-
     geometry = scene_of(machine.ssm, machine.device_id)
     with _SCENES_LOCK:
         if len(_SCENES) >= _SCENES_MAX:
@@ -107,14 +107,12 @@ def _scene(key: str, machine: replay.Machine):
 
 
 def _render_png(machine: replay.Machine, view: str, key: str) -> bytes:
-    from vge_analytics.synth import _foreign, _render
-
     geometry = _scene(key, machine)
     if geometry is not None:
-        img = _render.render_view(geometry, view)
+        img = render_view(geometry, view)
     else:
-        img = _foreign.render_foreign(machine.ssm, machine.category, view)
-    return _render.png_bytes(img)
+        img = render_foreign(machine.ssm, machine.category, view)
+    return png_bytes(img)
 
 
 def _store(path: Path, data: bytes) -> None:
