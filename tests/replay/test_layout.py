@@ -20,8 +20,45 @@ def _module(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
+def _imported_names(tree: ast.AST, skip: frozenset[int] = frozenset()) -> list[tuple[int, str]]:
+    """Every module a file names for import, as (level, name): relative and absolute
+    imports, and the string given to `importlib.import_module` or `__import__` (a hidden
+    import is still an arrow). Nodes whose id is in `skip` are left out."""
+    found: list[tuple[int, str]] = []
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.ImportFrom):
+            found.append((node.level, node.module or ""))
+            if node.level == 0 and node.module:
+                found.extend((0, f"{node.module}.{a.name}") for a in node.names)
+        elif isinstance(node, ast.Import):
+            found.extend((0, a.name) for a in node.names)
+        elif isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant):
+            func = node.func
+            name = getattr(func, "attr", None) or getattr(func, "id", None)
+            if name in ("import_module", "__import__") and isinstance(node.args[0].value, str):
+                found.append((0, node.args[0].value))
+    return found
+
+
+def test_replay_never_names_the_analytics() -> None:
+    """The lower room never imports the higher one, openly or through importlib: what the
+    engine needs from the analytics (an image source, say) is passed in by the caller."""
+    for path in [*REPLAY.rglob("*.py"), *REPLAY.rglob("*.pyx")]:
+        text = path.read_text()
+        if path.suffix == ".pyx":
+            assert "vge_analytics" not in text, path
+            continue
+        for level, name in _imported_names(ast.parse(text)):
+            assert not (level == 0 and name.split(".")[0] in ("vge_analytics", "app")), (
+                f"{path.relative_to(REPLAY.parent)} imports {name}"
+            )
+
+
 def _runtime_imports(path: Path) -> set[str]:
-    """Modules of `replay` imported at run time (not under `if TYPE_CHECKING:`)."""
+    """Modules of `replay` imported at run time (not under `if TYPE_CHECKING:`), relative or
+    absolute."""
     package = _module(path) if path.name == "__init__.py" else _module(path).rsplit(".", 1)[0]
 
     def resolve(level: int, name: str) -> str:
@@ -33,17 +70,21 @@ def _runtime_imports(path: Path) -> set[str]:
     if path.suffix == ".pyx":
         return {resolve(len(m.group(1)), m.group(2)) for m in _PYX_IMPORT.finditer(text)}
     tree = ast.parse(text)
-    typing_only = {
+    typing_only = frozenset(
         id(sub)
         for node in ast.walk(tree)
         if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING"
         for sub in ast.walk(node)
-    }
+    )
     found = set()
+    for level, name in _imported_names(tree, typing_only):
+        if level:
+            found.add(resolve(level, name))
+        elif name.split(".")[0] == "replay":
+            found.add(name)
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom) and id(node) not in typing_only and node.level:
             target = resolve(node.level, node.module or "")
-            found.add(target)
             found.update(f"{target}.{a.name}" for a in node.names)
     return found
 
