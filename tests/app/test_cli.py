@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from app import _ui
 from vge_analytics import dashboard as dash
 from vge_analytics._limits import SqlLimits
 from vge_analytics.cli import main
@@ -51,8 +52,6 @@ def test_streamlit_command(tiny_out):
         "--sql-max-rows",
         "50",
     ]
-    from app import _ui
-
     assert _ui.sql_settings(script_args) == (limits, 50)
     default_limits, rows = _ui.sql_settings([])
     assert (default_limits.timeout, rows) == (30.0, 10_000)
@@ -74,8 +73,6 @@ def test_loopback_hosts():
 
 
 def test_out_argument_precedence(monkeypatch):
-    from app import _ui
-
     monkeypatch.setenv("VGE_APP_OUT", "/from/env")
     assert _ui.out_argument(["--out", "/from/args"]) == "/from/args"
     assert _ui.out_argument(["--out=/x"]) == "/x"
@@ -87,8 +84,6 @@ def test_out_argument_precedence(monkeypatch):
 def test_metrics_dir_is_checked_then_passed_on(tiny_out, metrics_folder, tmp_path, capsys):
     cmd = streamlit_command(tiny_out, port=1, headless=True, metrics_dir=metrics_folder)
     assert cmd[-2:] == ["--metrics-dir", str(metrics_folder)]
-    from app import _ui
-
     assert _ui.metrics_dir(cmd[cmd.index("--") + 1 :]) == str(metrics_folder)
     (tmp_path / "x.sql").write_text(SR_MULTI.replace("-- grain: episodes", "-- grain: runs"))
     # A problem in a metric file stops `vge app` with its line, before any server starts.
@@ -98,8 +93,6 @@ def test_metrics_dir_is_checked_then_passed_on(tiny_out, metrics_folder, tmp_pat
 
 
 def test_metrics_dir_precedence(monkeypatch):
-    from app import _ui
-
     monkeypatch.setenv("VGE_METRICS_DIR", "/from/env")
     assert _ui.metrics_dir(["--metrics-dir", "/from/args"]) == "/from/args"
     assert _ui.metrics_dir([]) == "/from/env"
@@ -119,8 +112,6 @@ def test_play_command(tiny_out, tmp_path):
     assert cmd[cmd.index("--server.address") + 1] == "0.0.0.0"
     script_args = cmd[cmd.index("--") + 1 :]
     assert script_args[-2:] == ["--image-width", "480"]
-    from app import _ui
-
     assert _ui.play_target(script_args) == _ui.PlayTarget(str(bench), str(run), 480)
     assert _ui.play_target(["--bench", "B"]) == _ui.PlayTarget("B", "human-run", None)
     # `vge app OUT` has no benchmark: the dashboard, without the Play page.

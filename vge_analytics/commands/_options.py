@@ -8,6 +8,7 @@ from replay import ConfigError
 
 from .._limits import CLI_TIMEOUT
 from .._metric_set import METRICS_DIR_ENV
+from .._output import FORMAT_HELP
 
 METRICS_DIR_HELP = (
     "A folder of metric files (.sql, in the format of the built-in metrics; see "
@@ -18,6 +19,34 @@ METRICS_DIR_HELP = (
 def metrics_dir_option(help: str = METRICS_DIR_HELP) -> str | None:
     """`--metrics-dir DIR`, defaulting to $VGE_METRICS_DIR (a typer option default)."""
     return typer.Option(None, "--metrics-dir", envvar=METRICS_DIR_ENV, show_envvar=True, help=help)
+
+
+def out_argument() -> str:
+    """OUT, the replay output directory the analytics read (a typer argument default)."""
+    return typer.Argument(
+        ..., help="Replay output directory (a path, or a URI such as s3://bucket/out)."
+    )
+
+
+def format_option() -> str:
+    """`--format/-f`: how a table is printed (a typer option default)."""
+    return typer.Option("table", "--format", "-f", help=FORMAT_HELP)
+
+
+def where_option() -> list[str]:
+    """`--where COLUMN=VALUE[,VALUE...]`, repeatable (a typer option default)."""
+    return typer.Option(None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable).")
+
+
+def memory_limit_option(name: str = "--memory-limit", what: str = "the query") -> str | None:
+    """A DuckDB memory limit, `512MB` or `4GB` (a typer option default)."""
+    return typer.Option(
+        None,
+        name,
+        help=f"Memory {what} may use, e.g. 512MB or 4GB (default: a quarter of this machine's "
+        "memory); past it the query spills up to twice as much to a temporary directory, "
+        "then stops.",
+    )
 
 
 def timeout_option() -> float:
@@ -42,4 +71,13 @@ def episode_ids(text: str | None, option: str) -> tuple[str, ...] | None:
     return ids
 
 
-__all__ = ["METRICS_DIR_HELP", "episode_ids", "metrics_dir_option", "timeout_option"]
+__all__ = [
+    "METRICS_DIR_HELP",
+    "episode_ids",
+    "format_option",
+    "memory_limit_option",
+    "metrics_dir_option",
+    "out_argument",
+    "timeout_option",
+    "where_option",
+]

@@ -32,7 +32,7 @@ from vge_analytics._limits import (
 from vge_analytics._metric_set import load_metrics
 from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
 
-from ._options import metrics_dir_option
+from ._options import memory_limit_option, metrics_dir_option
 
 LOOPBACK = "127.0.0.1"
 
@@ -151,12 +151,7 @@ def app(
     sql_timeout: float = typer.Option(
         APP_TIMEOUT, "--sql-timeout", help="The SQL page stops a query after this many seconds."
     ),
-    sql_memory_limit: str = typer.Option(
-        None,
-        "--sql-memory-limit",
-        help="Memory a query of the SQL page may use, e.g. 1GB (default: a quarter of this "
-        "machine's memory).",
-    ),
+    sql_memory_limit: str = memory_limit_option("--sql-memory-limit", "a query of the SQL page"),
     sql_max_rows: int = typer.Option(
         APP_MAX_ROWS, "--sql-max-rows", min=1, help="Rows the SQL page shows and downloads."
     ),

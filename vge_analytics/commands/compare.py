@@ -7,20 +7,20 @@ import typer
 from .._compare import DEFAULT_RESAMPLES, DEFAULT_SEED
 from .._compare import compare as compute_compare
 from .._format import check_format
-from .._output import FORMAT_HELP, emit_sections
+from .._output import emit_sections
 from .._sql import query_time_limit
-from ._options import metrics_dir_option, timeout_option
+from ._options import format_option, metrics_dir_option, out_argument, timeout_option
 
 
 def compare(
-    out: str = typer.Argument(..., help="Replay output directory (a path, or a URI such as s3://bucket/out)."),
+    out: str = out_argument(),
     run_a: str = typer.Argument(..., help="Baseline run id (A)."),
     run_b: str = typer.Argument(..., help="Compared run id (B); differences are B - A."),
     metric_names: str = typer.Option(None, "--metrics", help="Metrics (default: all)."),
     seed: int = typer.Option(DEFAULT_SEED, "--seed", help="Bootstrap seed."),
     resamples: int = typer.Option(DEFAULT_RESAMPLES, "--resamples", help="Bootstrap resamples."),
     metrics_dir: str = metrics_dir_option(),
-    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    fmt: str = format_option(),
     timeout: float = timeout_option(),
 ) -> None:
     """Paired comparison of two runs on the episodes both have.

@@ -6,11 +6,11 @@ import polars as pl
 import typer
 
 from .._format import check_format
-from .._output import FORMAT_HELP, emit_sections
+from .._output import emit_sections
 from .._scope import parse_by
 from .._sql import query_time_limit
 from .._taxonomy import ERROR_LABELS, error_distribution, groups_of, switch_classes
-from ._options import timeout_option
+from ._options import format_option, out_argument, timeout_option, where_option
 from .metrics import parse_where
 
 
@@ -27,10 +27,10 @@ def _wide(df: pl.DataFrame, by: list[str], index: list[str], value: str) -> pl.D
 
 
 def errors(
-    out: str = typer.Argument(..., help="Replay output directory (a path, or a URI such as s3://bucket/out)."),
+    out: str = out_argument(),
     by: str = typer.Option("run_id", "--by", help="Group by these columns (default: run_id)."),
-    where: list[str] = typer.Option(None, "--where", help="Filter COLUMN=VALUE[,VALUE...]."),
-    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    where: list[str] = where_option(),
+    fmt: str = format_option(),
     timeout: float = timeout_option(),
 ) -> None:
     """Error taxonomy (share of errors, counts) and switch classes per run.

@@ -12,11 +12,11 @@ from .._format import check_format
 from .._metric_set import MetricSet, load_metrics
 from .._metrics import metric_table
 from .._metrics import metrics as compute_metrics
-from .._output import FORMAT_HELP, emit
+from .._output import emit
 from .._registry import MAIN_TABLE
 from .._scope import DEFAULT_BY, parse_by
 from .._sql import query_time_limit
-from ._options import metrics_dir_option, timeout_option
+from ._options import format_option, metrics_dir_option, timeout_option, where_option
 
 LIST_COLUMNS: tuple[str, ...] = (
     "metric",
@@ -77,9 +77,7 @@ def metrics(
         "then those --metrics-dir adds); "
         "'main' = the paper's Table 2 (SR SSR SPL State-F1 EIR TIR VSPS GVPE EER).",
     ),
-    where: list[str] = typer.Option(
-        None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable)."
-    ),
+    where: list[str] = where_option(),
     metrics_dir: str = metrics_dir_option(),
     list_metrics: bool = typer.Option(
         False,
@@ -87,7 +85,7 @@ def metrics(
         help="List the metrics instead: name, title, version, direction, unit, grain, source "
         "(built-in, or the file that defines or overrides it) and definition.",
     ),
-    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    fmt: str = format_option(),
     timeout: float = timeout_option(),
 ) -> None:
     """The paper's main table: its twelve metrics per run or per any grouping.

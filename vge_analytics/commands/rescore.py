@@ -5,17 +5,17 @@ from __future__ import annotations
 import typer
 
 from .._format import check_format
-from .._output import FORMAT_HELP, emit, emit_sections
+from .._output import emit, emit_sections
 from .._rescore import DEFAULT_RESCORE_BY
 from .._rescore import rescore as compute_rescore
 from .._scope import parse_by
 from .._sql import query_time_limit
-from ._options import metrics_dir_option, timeout_option
+from ._options import format_option, metrics_dir_option, out_argument, timeout_option, where_option
 from .metrics import parse_where
 
 
 def rescore(
-    out: str = typer.Argument(..., help="Replay output directory (a path, or a URI such as s3://bucket/out)."),
+    out: str = out_argument(),
     metrics_dir: str = metrics_dir_option(
         "The folder of metric files whose changes are reported (required, or $VGE_METRICS_DIR)."
     ),
@@ -34,16 +34,14 @@ def rescore(
         "--metrics",
         help="Only these of the metrics the folder changes or adds (comma-separated).",
     ),
-    where: list[str] = typer.Option(
-        None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable)."
-    ),
+    where: list[str] = where_option(),
     summary: bool = typer.Option(
         False,
         "--summary",
         help="Print one row per metric instead (change, Kendall's tau-b between the rankings, "
         "the groups whose rank moved); in json a list of such objects.",
     ),
-    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    fmt: str = format_option(),
     timeout: float = timeout_option(),
 ) -> None:
     """What the metrics of a folder change: per run, each changed or added metric before and

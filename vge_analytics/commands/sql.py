@@ -8,8 +8,9 @@ import typer
 from .._errors import QueryLimitError
 from .._format import check_format
 from .._limits import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap
-from .._output import FORMAT_HELP, emit, emit_stream
+from .._output import emit, emit_stream
 from .._sql import sql_head, stream
+from ._options import format_option, memory_limit_option, out_argument
 
 _HINTS = {
     "time": "--timeout sets the limit",
@@ -19,19 +20,13 @@ _HINTS = {
 
 
 def sql(
-    out: str = typer.Argument(..., help="Replay output directory (a path, or a URI such as s3://bucket/out)."),
+    out: str = out_argument(),
     query: str = typer.Argument(..., help="One SELECT query over steps, episodes, goals, runs."),
-    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    fmt: str = format_option(),
     timeout: float = typer.Option(
         CLI_TIMEOUT, "--timeout", help="Stop the query after this many seconds (0: no limit)."
     ),
-    memory_limit: str = typer.Option(
-        None,
-        "--memory-limit",
-        help="Memory the query may use, e.g. 512MB or 4GB (default: a quarter of this "
-        "machine's memory); past it the query spills up to twice as much to a temporary "
-        "directory, then stops.",
-    ),
+    memory_limit: str = memory_limit_option(),
     max_rows: int = typer.Option(
         CLI_MAX_ROWS,
         "--max-rows",

@@ -5,11 +5,11 @@ from __future__ import annotations
 import typer
 
 from .._format import check_format
-from .._output import FORMAT_HELP, emit
+from .._output import emit
 from .._sql import query_time_limit
 from .._sweep import DEFAULT_SWEEP_METRICS
 from .._sweep import sweep as compute_sweep
-from ._options import metrics_dir_option, timeout_option
+from ._options import format_option, metrics_dir_option, timeout_option
 
 
 def sweep(
@@ -29,7 +29,7 @@ def sweep(
         help="Replay on a Ray cluster instead of local workers (as vge replay --ray).",
     ),
     metrics_dir: str = metrics_dir_option(),
-    fmt: str = typer.Option("table", "--format", "-f", help=FORMAT_HELP),
+    fmt: str = format_option(),
     timeout: float = timeout_option(),
 ) -> None:
     """SR and SSR per run at each lambda, by re-replaying the logs.
