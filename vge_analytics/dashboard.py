@@ -776,6 +776,7 @@ TERMINATION_LABELS: dict[str, str] = {
     "budget_global": "global budget out",
     "budget_local": "local budget out",
     "log_ended": "log ended",
+    "context_exceeded": "context window full",
 }
 
 

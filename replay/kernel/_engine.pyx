@@ -41,6 +41,7 @@ from ..semantics._vocab import (
     FEEDBACK_KINDS,
     ORTHOGRAPHIC_VIEWS,
     ERROR_DETAILS,
+    TERMINATIONS,
     VIEW_ORDER,
     normalize_param,
 )
@@ -1325,7 +1326,11 @@ cdef class Episode:
         out.e_n_goals[e] = n_goals
         out.e_goals_completed[e] = self.current
         out.e_success[e] = success
-        out.e_termination[e] = self.termination if self.termination >= 0 else 3
+        if self.termination >= 0:
+            out.e_termination[e] = self.termination
+        else:  # the log ran out first: log_ended, or how the harness ended it (`ended`)
+            ended = self.ep.log.ended
+            out.e_termination[e] = TERMINATIONS.index(ended) if ended is not None else 3
         out.e_l_opt[e] = self.l_opt
         out.e_l_act[e] = l_act
         if success:

@@ -339,10 +339,11 @@ class EpisodeSession:
 
     # ------------------------------------------------------------------ the end
 
-    def finish(self) -> EpisodeResult:
-        """The step, episode and goal rows; an episode not terminated ends as `log_ended`."""
+    def finish(self, ended: str | None = None) -> EpisodeResult:
+        """The step, episode and goal rows. An episode not terminated by its steps ends as
+        `ended` says (the log's `ended`, PROTOCOL §1.4), else as `log_ended`."""
         if self.termination is None:
-            self.termination = "log_ended"
+            self.termination = ended or "log_ended"
         machine = self.machine
         names = machine.states
         setup = self.setup
@@ -443,7 +444,7 @@ def replay_episode(
     advance = session.advance
     for log_step in log.steps:
         advance(log_step)
-    return session.finish()
+    return session.finish(log.ended)
 
 
 __all__ = [

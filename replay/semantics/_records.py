@@ -176,6 +176,13 @@ class EpisodeLog(msgspec.Struct):
 
     episode_id: Annotated[str, _doc("Episode this log plays (tasks.jsonl)")]
     steps: Annotated[list[LogStep], _doc("Agent responses in order")] = []
+    ended: Annotated[
+        Literal["context_exceeded"] | None,
+        _doc(
+            "Why the harness ended the log before any other termination: context_exceeded "
+            "(the model refused the next request as longer than its context window)"
+        ),
+    ] = None
 
 
 INPUT_RECORDS: dict[str, type] = {

@@ -109,7 +109,9 @@ class EpisodeRow(msgspec.Struct, kw_only=True):
     n_goals: Annotated[int, _d("Number of goals")]
     goals_completed: Annotated[int, _d("Goals completed")]
     success: Annotated[bool, _d("All goals completed")]
-    termination: Annotated[str, _d("success, budget_global, budget_local or log_ended")]
+    termination: Annotated[
+        str, _d("success, budget_global, budget_local, log_ended or context_exceeded")
+    ]
     L_opt: Annotated[int, _d("sum of C_opt over goals")]
     L_act: Annotated[int, _d("Scored steps")]
     spl: Annotated[float, _d("S * L_opt / max(L_act, L_opt); S if L_opt = 0")]

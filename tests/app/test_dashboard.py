@@ -17,6 +17,7 @@ import vge_analytics as va
 from vge_analytics import OutputDirError, compare, error_distribution, sql, switch_classes
 from vge_analytics import dashboard as dash
 from vge_analytics._limits import SqlLimits
+from vge_analytics.play._page import RESULT_HEADLINES
 
 from ..vge_analytics.metric_files import SR_MULTI, write_folder
 
@@ -385,6 +386,10 @@ def test_step_text(tiny_out):
     table = dash.step_classification(row)
     assert table["field"].to_list() == list(dash.CLASSIFICATION_FIELDS)
     assert dash.termination_label("budget_local") == "local budget out"
+    assert dash.termination_label("context_exceeded") == "context window full"
+    # Every termination has its words, here and on the Play page.
+    assert list(dash.TERMINATION_LABELS) == list(replay.TERMINATIONS)
+    assert list(RESULT_HEADLINES) == list(replay.TERMINATIONS)
 
 
 def test_episode_labels(tiny_out):

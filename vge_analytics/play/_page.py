@@ -208,14 +208,19 @@ def budget_left(value: Any) -> str:
     return f"{float(value):g}"
 
 
+RESULT_HEADLINES: dict[str, str] = {
+    "success": "Success",
+    "budget_global": "Ended: the episode's step budget ran out",
+    "budget_local": "Ended: the step budget of the current goal ran out",
+    "log_ended": "Ended by the player",
+    "context_exceeded": "Ended: the model's context window was full",
+}
+"""How an episode that ended this way (PROTOCOL §3.5) reads, one per termination."""
+
+
 def result_text(row: replay.EpisodeRow) -> str:
     """How an ended episode reads."""
-    how = {
-        "success": "Success",
-        "budget_global": "Ended: the episode's step budget ran out",
-        "budget_local": "Ended: the step budget of the current goal ran out",
-        "log_ended": "Ended by the player",
-    }.get(row.termination, row.termination)
+    how = RESULT_HEADLINES.get(row.termination, row.termination)
     return (
         f"**{how}.** {row.goals_completed} of {counted(row.n_goals, 'goal')} completed in "
         f"{counted(row.L_act, 'step')} (the shortest way takes {row.L_opt}); SPL {row.spl:.2f}."
