@@ -71,6 +71,34 @@ class InfrastructureError(AnalyticsError):
     infrastructure failure, apart from the agent's errors, and never scores it."""
 
 
+class ServerUnreachableError(AgentError):
+    """`vge run` cannot reach the model server when it checks it before the first episode
+    (nothing listening, an unknown host, a timeout): nothing is played or written."""
+
+
+class RequestRefusedError(AgentError):
+    """The model server refused a request for good: a 4xx other than 408, 409 and 429 that
+    is not a context-length refusal (a refused key, an unknown model, a parameter it does not
+    take). Every request would be refused alike, so the run stops; the episodes written stay
+    and `--resume` continues."""
+
+    def __init__(self, message: str, *, status: int) -> None:
+        self.status = status
+        """The HTTP status of the refusal."""
+        super().__init__(message)
+
+
+class ContextExceededError(AnalyticsError):
+    """The model refused a request as longer than its context window. Not a failure of the
+    run: `vge run` ends the episode there, with the termination `context_exceeded`
+    (PROTOCOL §3.5), an outcome of the agent's settings."""
+
+
+class RunStoppedError(AnalyticsError):
+    """`vge run` stopped before the end of its selection after too many consecutive
+    infrastructure failures (exit 2): the episodes written stay, `--resume` continues."""
+
+
 class RunDirError(AnalyticsError):
     """RUN_DIR of `vge run` cannot be started or resumed as asked."""
 
@@ -94,6 +122,7 @@ class SweepInputError(AnalyticsError):
 __all__ = [
     "AgentError",
     "AnalyticsError",
+    "ContextExceededError",
     "InfrastructureError",
     "MetricFileError",
     "OutputDirError",
@@ -102,7 +131,10 @@ __all__ = [
     "QueryError",
     "QueryLimitError",
     "QueryRefused",
+    "RequestRefusedError",
     "RunDirError",
+    "RunStoppedError",
+    "ServerUnreachableError",
     "SweepInputError",
     "SweepRefused",
     "UnknownColumnError",

@@ -2,7 +2,10 @@
 is what `vge replay` reads (docs/LIVE.md).
 
 Exit codes: 0 every selected episode was played; 2 some ended on an infrastructure failure
-(see RUN_DIR/failures.jsonl; `--resume` plays them again); 1 fatal error.
+(see RUN_DIR/failures.jsonl; `--resume` plays them again), or the run stopped after
+`--max-consecutive-failures` of them in a row (`--resume` continues); 1 fatal error (the
+server checked before the first episode cannot serve the run, a request refused for good,
+bad options), in one line.
 """
 
 from __future__ import annotations
@@ -72,7 +75,9 @@ def run_command(
         None, "--agent-kind", help="vlm, human or scripted (default: from the agent)."
     ),
     resume: bool = typer.Option(
-        False, "--resume", help="Complete the run in RUN_DIR (same options as it was started)."
+        False,
+        "--resume",
+        help="Complete the run in RUN_DIR (same options as it was started).",
     ),
     seed: int = typer.Option(0, "--seed", help="Seed of sim: agents."),
     base_url: str | None = typer.Option(
@@ -94,9 +99,17 @@ def run_command(
     completion_price: float | None = typer.Option(
         None, "--completion-price", min=0.0, help="USD per million completion tokens."
     ),
+    max_consecutive_failures: int = typer.Option(
+        10,
+        "--max-consecutive-failures",
+        min=0,
+        help="Stop the run (exit 2, --resume continues) after N infrastructure failures in a "
+        "row; 0: never.",
+    ),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
 ) -> None:
     """Play the benchmark with an agent and write a run directory that `vge replay` reads."""
+    from vge_analytics._errors import RunStoppedError
     from vge_analytics.live import (
         AgentOptions,
         ClientSettings,
@@ -134,6 +147,7 @@ def run_command(
         resume=resume,
         prompt_price=prompt_price,
         completion_price=completion_price,
+        max_consecutive_failures=max_consecutive_failures,
     )
     console = Console(stderr=True, highlight=False)
     bar = Progress(
@@ -171,6 +185,9 @@ def run_command(
             soft_wrap=True,
         )
         raise typer.Exit(130) from None
+    except RunStoppedError as exc:
+        console.print(escape(str(exc)), soft_wrap=True)
+        raise typer.Exit(2) from None
     c = summary.counters
     h = summary.header
     out_console = Console(highlight=False)
@@ -180,6 +197,8 @@ def run_command(
         line += f", {c.prompt_tokens} prompt + {c.completion_tokens} completion tokens"
     if c.cost_usd is not None:
         line += f", ${c.cost_usd:,.4f}"
+    if c.context_exceeded:
+        line += f", {c.context_exceeded} ended by the model's context window (context_exceeded)"
     out_console.print(escape(line), soft_wrap=True)
     for reason in summary.skipped:
         out_console.print(f"[yellow]not playable[/]: {escape(reason)}", soft_wrap=True)

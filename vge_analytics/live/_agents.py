@@ -2,12 +2,14 @@
 
 An agent gives, per episode, a *player*: `act(obs) -> Reply` answers one observation of
 `vge/Device-v0`; `observe(obs, info)` hears what the step did (the next observation and the
-step's row). The three kinds: `module:callable` (`_module.py`), `sim:PROFILE` (`_sim.py`)
-and `openai:MODEL` (`_vlm.py`); `load_agent` (`_load.py`) reads the AGENT argument.
+step's row). `check()` runs once, before the first episode. The three kinds:
+`module:callable` (`_module.py`), `sim:PROFILE` (`_sim.py`) and `openai:MODEL` (`_vlm.py`);
+`load_agent` (`_load.py`) reads the AGENT argument.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -43,6 +45,8 @@ class EpisodeStart:
     env: DeviceEnv
     """The environment, for agents that play from privileged knowledge (`sim:`) only."""
     run_id: str
+    stop: threading.Event | None = None
+    """Set when the run is stopping: an agent waiting to retry a request stops waiting."""
 
 
 class Player(Protocol):
@@ -65,6 +69,12 @@ class LiveAgent(Protocol):
 
     def settings(self) -> dict[str, Any]:
         """What decides its behaviour, for run.json's meta (compared on `--resume`)."""
+        ...
+
+    def check(self) -> None:
+        """Called once before the first episode, before anything is written: raises when
+        the agent cannot play at all (a model server it cannot reach, that refuses its key
+        or does not know its model)."""
         ...
 
     def start(self, episode: EpisodeStart) -> Player: ...

@@ -37,6 +37,9 @@ class ModuleAgent:
     def settings(self) -> dict[str, Any]:
         return {"agent": self.spec}
 
+    def check(self) -> None:
+        """Nothing to reach: importing the callable was the check."""
+
     def _own_target(self) -> Callable[..., Any]:
         """This thread's agent: the original for the first thread, a copy for the others."""
         if not self._stateful:

@@ -1,27 +1,50 @@
 """A chat-completions client for any server that speaks the OpenAI API (hosted APIs, vLLM,
-SGLang, Ollama, ...), with the one retry policy of `vge run`.
+SGLang, Ollama, ...), with the one retry policy of `vge run` (PROTOCOL §10.3).
 
-Every request has a timeout. A rate limit (429), a server error (5xx), a timeout, a lost
-connection or an answer that cannot be read is retried, up to `retries` more times, waiting
-about `retry_wait` seconds and doubling each time (or what the server's `Retry-After` asks,
-when longer). Each wait is drawn between half and all of its doubled value ("equal jitter"),
-so the threads of `--concurrency N`, refused together, do not all come back together. A request that still fails raises `InfrastructureError`: the harness ends that
-episode as an infrastructure failure, never as the agent's. A key, model or address the
-service refuses (401, 403, 404) raises `AgentError` at once: every request would fail alike.
+`check` asks the server once before the first episode: its list of models, and one minimal
+request when the model is not listed there (aliases and wildcard routes are not always
+listed). A server that cannot be reached, a refused key or an unknown model fail there, in
+one line, before anything is played.
+
+Every request has a timeout. A server error (5xx), a rate limit (429), a request timeout
+(408), a conflict (409), a lost connection or an answer that cannot be read is retried, up
+to `retries` more times, waiting about `retry_wait` seconds and doubling each time (or what
+the server's `Retry-After` asks, when longer). Each wait is drawn between half and all of
+its doubled value ("equal jitter"), so the threads of `--concurrency N`, refused together,
+do not all come back together; a run that is stopping cuts the wait short. A request that
+still fails raises `InfrastructureError`: the harness ends that episode as an infrastructure
+failure, never as the agent's. Any other 4xx is never retried (`_refusal.py`): a request
+longer than the model's context window raises `ContextExceededError` (the episode ends
+there), anything else `RequestRefusedError` (every request would be refused alike).
 """
 
 from __future__ import annotations
 
 import os
 import random
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import msgspec
 import openai
 
-from .._errors import AgentError, InfrastructureError
+from .._errors import (
+    AgentError,
+    ContextExceededError,
+    InfrastructureError,
+    RequestRefusedError,
+    ServerUnreachableError,
+)
+from ._refusal import Refusal, error_message, refusal
+
+CHECK_TIMEOUT = 10.0
+"""Seconds the list of models may take when the server is checked (a request's own timeout
+when that is shorter): a server that answers nothing is not waited for as long as a model."""
+CHECK_MESSAGE = "Reply with the word OK."
+"""The minimal request of `check`, sent with the run's own parameters."""
 
 
 class ClientSettings(msgspec.Struct, frozen=True):
@@ -72,12 +95,14 @@ class ChatClient:
         model: str,
         settings: ClientSettings,
         *,
-        sleep: Callable[[float], None] = time.sleep,
+        sleep: Callable[[float], None] | None = None,
         jitter: Callable[[], float] = random.random,
     ) -> None:
         self.model = model
         self.settings = settings
         self._sleep = sleep
+        """What waits between attempts (tests record the waits); None: a real wait, cut
+        short when the run stops."""
         self._jitter = jitter
         """A number in [0, 1) per wait (tests fix it)."""
         # Retries are ours (one policy, counted here), so the library makes one attempt.
@@ -88,15 +113,60 @@ class ChatClient:
             max_retries=0,
         )
 
-    def complete(self, messages: list[dict]) -> Completion:
-        """The model's answer to `messages`; raises `InfrastructureError` when every attempt
-        failed, `AgentError` when the service refuses the request for good."""
+    @property
+    def where(self) -> str:
+        return self.settings.base_url or "the OpenAI API"
+
+    def _parameters(self) -> dict[str, Any]:
         s = self.settings
-        extra: dict = {}
+        extra: dict[str, Any] = {}
         if s.temperature is not None:
             extra["temperature"] = s.temperature
         if s.max_tokens is not None:
             extra["max_tokens"] = s.max_tokens
+        return extra
+
+    def check(self) -> None:
+        """Fail fast, before the first episode: raises `ServerUnreachableError` when the
+        server cannot be reached, `RequestRefusedError` when it refuses the key, does not
+        know the model or refuses the run's parameters. One attempt each, no retries; a
+        server that is reachable but busy (5xx, 429) passes: the run's retries deal with it."""
+        listed: list[str] | None = None
+        quick = self._client.with_options(timeout=min(self.settings.timeout, CHECK_TIMEOUT))
+        try:
+            listed = [m.id for m in quick.models.list().data]
+        except openai.APIConnectionError as exc:  # timeouts included
+            raise self._unreachable(exc) from None
+        except openai.APIStatusError as exc:
+            if refusal(exc) == "key":
+                raise self._refused("key", exc) from None
+            # No list here (404 on a server without one, 5xx): the request below decides.
+        except (openai.APIError, ValueError):
+            pass  # a list that cannot be read: likewise
+        if listed is not None and self.model in listed:
+            return
+        try:
+            self._client.chat.completions.create(
+                model=self.model,
+                messages=[{"role": "user", "content": CHECK_MESSAGE}],
+                **self._parameters(),
+            )
+        except openai.APIConnectionError as exc:
+            raise self._unreachable(exc) from None
+        except openai.APIStatusError as exc:
+            kind = refusal(exc)
+            if kind != "retry":
+                raise self._refused(kind, exc, listed) from None
+        except (openai.APIError, ValueError):
+            pass  # it answered: reachable, and the run's retries deal with the rest
+
+    def complete(self, messages: list[dict], *, stop: threading.Event | None = None) -> Completion:
+        """The model's answer to `messages`. Raises `InfrastructureError` when every attempt
+        failed (or `stop` was set while waiting to retry), `ContextExceededError` when the
+        request is longer than the model's context window, `RequestRefusedError` when the
+        service refuses it for good."""
+        s = self.settings
+        extra = self._parameters()
         reasons: list[str] = []
         for attempt in range(s.retries + 1):
             asked = 0.0  # what the server's Retry-After asks
@@ -107,32 +177,55 @@ class ChatClient:
                 )
                 latency = time.perf_counter() - started
                 completion = _read(response, latency)
-            except (openai.AuthenticationError, openai.PermissionDeniedError) as exc:
-                raise AgentError(
-                    f"openai agent: the service refused the key: {_say(exc)}"
-                ) from None
-            except openai.NotFoundError as exc:
-                raise AgentError(
-                    f"openai agent: no model {self.model!r} at {s.base_url or 'the OpenAI API'}: "
-                    f"{_say(exc)}"
-                ) from None
-            except (openai.RateLimitError, openai.InternalServerError) as exc:
+            except openai.APIStatusError as exc:
+                kind = refusal(exc)
+                if kind != "retry":
+                    raise self._refused(kind, exc) from None
                 reasons.append(_say(exc))
                 asked = _retry_after(exc)
             except openai.APIConnectionError as exc:  # timeouts included
                 reasons.append(_say(exc))
-            except openai.APIStatusError as exc:  # another 4xx: this request will not pass
-                raise InfrastructureError(f"request refused: {_say(exc)}") from None
             except (openai.APIError, _Unreadable, ValueError) as exc:  # a body that is not JSON
                 reasons.append(f"unreadable answer: {_say(exc)}")
             else:
                 return completion
             if attempt < s.retries:
                 wait = s.retry_wait * (2**attempt) * (1.0 + self._jitter()) / 2.0
-                self._sleep(max(wait, asked))
+                self._wait(max(wait, asked), stop)
         raise InfrastructureError(
             f"no answer after {s.retries + 1} attempt(s); last: {reasons[-1]}"
         )
+
+    def _wait(self, seconds: float, stop: threading.Event | None) -> None:
+        if self._sleep is not None:
+            self._sleep(seconds)
+        elif stop is not None:
+            stop.wait(seconds)
+        else:
+            time.sleep(seconds)
+        if stop is not None and stop.is_set():
+            raise InfrastructureError("the run is stopping")
+
+    def _unreachable(self, exc: openai.APIConnectionError) -> ServerUnreachableError:
+        return ServerUnreachableError(f"openai agent: cannot reach {self.where}: {_say(exc)}")
+
+    def _refused(
+        self, kind: Refusal, exc: openai.APIStatusError, listed: list[str] | None = None
+    ) -> ContextExceededError | RequestRefusedError:
+        said = _say(exc)
+        if kind == "context":
+            return ContextExceededError(f"the request is longer than the model's context: {said}")
+        if kind == "key":
+            message = f"openai agent: the service refused the key: {said}"
+        elif kind == "model":
+            serves = f" (it serves {', '.join(map(repr, listed[:5]))})" if listed else ""
+            message = f"openai agent: no model {self.model!r} at {self.where}{serves}: {said}"
+        else:
+            message = (
+                f"openai agent: {self.where} refused the request, and would refuse every "
+                f"request alike: {said}"
+            )
+        return RequestRefusedError(message, status=exc.status_code)
 
 
 class _Unreadable(Exception):
@@ -163,10 +256,17 @@ def _retry_after(exc: openai.APIStatusError) -> float:
 
 
 def _say(exc: Exception) -> str:
-    """One line for people: the status when there is one, then the message."""
+    """One line for people: the status and the server's message when there is one, else
+    the error and what caused it (`Connection refused`, a name that does not resolve)."""
     status = getattr(exc, "status_code", None)
-    text = " ".join(str(exc).split())[:300]
-    return f"HTTP {status}: {text}" if status is not None else f"{type(exc).__name__}: {text}"
+    if isinstance(exc, openai.APIStatusError):
+        text = error_message(exc) or str(exc)
+    else:
+        text = f"{type(exc).__name__}: {exc}"
+        if exc.__cause__ is not None:
+            text += f" ({exc.__cause__})"
+    text = " ".join(text.split())[:300]
+    return f"HTTP {status}: {text}" if status is not None else text
 
 
 __all__ = ["ChatClient", "ClientSettings", "Completion", "api_key"]

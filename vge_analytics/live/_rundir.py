@@ -46,8 +46,8 @@ class RunDir(RunDirectory):
         super().__init__(root)
         self.failures_path = self.root / FAILURES
 
-    def create(self) -> None:
-        """A new run: RUN_DIR must not hold one already."""
+    def check_new(self) -> None:
+        """A new run may go here: RUN_DIR does not exist or is an empty directory."""
         if self.root.exists() and not self.root.is_dir():
             raise RunDirError(f"{self.root}: not a directory")
         if self.root.is_dir() and any(self.root.iterdir()):
@@ -55,6 +55,10 @@ class RunDir(RunDirectory):
                 f"{self.root} is not empty: --resume completes the run it holds, or choose "
                 "another --out"
             )
+
+    def create(self) -> None:
+        """A new run: RUN_DIR must not hold one already."""
+        self.check_new()
         self.root.mkdir(parents=True, exist_ok=True)
 
     def read_header(self) -> replay.RunHeader:

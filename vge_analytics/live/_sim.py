@@ -68,6 +68,9 @@ class SimAgent:
             "seed": self.seed,
         }
 
+    def check(self) -> None:
+        """Nothing to reach: the profile plays in this process."""
+
     def start(self, episode: EpisodeStart) -> _SimPlayer:
         session = episode.env.session
         assert session is not None

@@ -5,6 +5,7 @@ by default every step kept keeps its picture, as in a chat that shows the whole 
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 import replay
@@ -42,15 +43,26 @@ class OpenAIAgent:
             out["max_tokens"] = s.max_tokens
         return out
 
+    def check(self) -> None:
+        """The server answers, takes the key and knows the model (`ChatClient.check`)."""
+        self.client.check()
+
     def start(self, episode: EpisodeStart) -> _VLMPlayer:
-        return _VLMPlayer(self.client, self.history, self.history_images)
+        return _VLMPlayer(self.client, self.history, self.history_images, episode.stop)
 
 
 class _VLMPlayer:
-    def __init__(self, client: ChatClient, history: int | None, images: int | None) -> None:
+    def __init__(
+        self,
+        client: ChatClient,
+        history: int | None,
+        images: int | None,
+        stop: threading.Event | None,
+    ) -> None:
         self.client = client
         self.history = history
         self.images = images
+        self.stop = stop
         self.turns: list[Turn] = []
         self.last_action: str | None = None
         self._pending: Turn | None = None
@@ -62,7 +74,9 @@ class _VLMPlayer:
         else:
             kept = self.turns[len(self.turns) - self.history :] if self.history else []
         picture = png_data_url(obs["image"])
-        answer = self.client.complete(build_messages(kept, said, picture, images=self.images))
+        answer = self.client.complete(
+            build_messages(kept, said, picture, images=self.images), stop=self.stop
+        )
         self._pending = Turn(said, picture, answer.text)
         return Reply(
             answer.text,

@@ -1,5 +1,7 @@
 """A scripted OpenAI-compatible chat server on 127.0.0.1 (stdlib `http.server` in a thread):
-each POST to `/v1/chat/completions` gets the next scripted reply, and the requests are kept."""
+each POST to `/v1/chat/completions` gets the next scripted reply, and the requests are kept.
+GET `/v1/models` lists the models given (or answers the reply given instead: a refusal, or
+404 as a server without that endpoint does)."""
 
 from __future__ import annotations
 
@@ -48,28 +50,56 @@ def error(status: int, message: str) -> Scripted:
 
 NOT_JSON = Scripted(200, b"<html>upstream hiccup</html>")
 """A 200 whose body is not a chat completion."""
+_NOT_FOUND = Scripted(404, b'{"detail": "Not Found"}')
+"""What FastAPI servers (vLLM, LiteLLM) answer on a path they do not serve."""
+
+
+def model_list(*names: str) -> Scripted:
+    """What `GET /v1/models` answers: the models `names`."""
+    body = {
+        "object": "list",
+        "data": [{"id": n, "object": "model", "owned_by": "test"} for n in names],
+    }
+    return Scripted(200, json.dumps(body).encode())
+
+
+SERVED = model_list("scripted-vlm")
+"""The model every test asks for."""
 
 
 @dataclass
 class Server:
     url: str
     replies: list[Scripted]
+    models: Scripted
     requests: list[dict] = field(default_factory=list)
+    """The chat requests (POST), in order."""
+    listings: int = 0
+    """GET /v1/models requests."""
 
 
 @contextmanager
-def chat_server(replies: list[Scripted]) -> Iterator[Server]:
-    """Serve `replies` in order (an exhausted script answers 500)."""
+def chat_server(replies: list[Scripted], models: Scripted = SERVED) -> Iterator[Server]:
+    """Serve `replies` in order (an exhausted script answers 500); `models` to GET
+    /v1/models."""
     lock = threading.Lock()
     state: Server
 
     class Handler(BaseHTTPRequestHandler):
+        def do_GET(self) -> None:  # noqa: N802 - http.server's name
+            with lock:
+                state.listings += 1
+            self._send(state.models if self.path.rstrip("/").endswith("/models") else _NOT_FOUND)
+
         def do_POST(self) -> None:  # noqa: N802 - http.server's name
             length = int(self.headers.get("Content-Length", "0"))
             request = json.loads(self.rfile.read(length) or b"{}")
             with lock:
                 state.requests.append({"path": self.path, "body": request})
                 reply = state.replies.pop(0) if state.replies else error(500, "script ended")
+            self._send(reply)
+
+        def _send(self, reply: Scripted) -> None:
             self.send_response(reply.status)
             self.send_header("Content-Type", "application/json")
             self.send_header("Content-Length", str(len(reply.body)))
@@ -82,7 +112,7 @@ def chat_server(replies: list[Scripted]) -> Iterator[Server]:
             return None
 
     httpd = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
-    state = Server(f"http://127.0.0.1:{httpd.server_address[1]}/v1", list(replies))
+    state = Server(f"http://127.0.0.1:{httpd.server_address[1]}/v1", list(replies), models)
     thread = threading.Thread(target=httpd.serve_forever, daemon=True)
     thread.start()
     try:

@@ -1,4 +1,5 @@
-"""A two-task kettle benchmark for the live runs (tests/data/kettle_ssm.json, no images).
+"""A two-task kettle benchmark for the live runs (tests/data/kettle_ssm.json, no images), and
+the same with 24 episodes (`many_tasks`).
 
 `open-lid` (goal LidOpen, from the right view) needs one step: push the lid release button,
 which the right view shows at x 427.48..534.35, y 73.05..109.99 on the 0..1000 scale.
@@ -49,3 +50,16 @@ def kettle_bench(tmp_path: Path) -> Path:
     shutil.copy(DATA / "kettle_ssm.json", bench / "ssm" / "kettle.json")
     (bench / "tasks.jsonl").write_text("".join(json.dumps(t) + "\n" for t in TASKS))
     return bench
+
+
+@pytest.fixture
+def many_tasks(kettle_bench: Path) -> Path:
+    """24 episodes: 12 copies of each kettle task, interleaved (`open-lid-00`, `boil-00`,
+    `open-lid-01`, ...)."""
+    lines = [
+        json.dumps({**task, "episode_id": f"{task['episode_id']}-{k:02d}"})
+        for k in range(12)
+        for task in TASKS
+    ]
+    (kettle_bench / "tasks.jsonl").write_text("\n".join(lines) + "\n")
+    return kettle_bench

@@ -11,12 +11,11 @@ import sys
 import time
 from pathlib import Path
 
+import pyarrow.parquet as pq
 import pytest
 
 import replay
 from vge_analytics.cli import main
-
-from .conftest import TASKS
 
 # A deterministic agent: its answer depends on the observation only. `AGENT_SLEEP` slows it
 # down (for the run that gets killed); it never changes what it answers.
@@ -57,6 +56,15 @@ def bad_action(obs):
 
 def raises(obs):
     raise RuntimeError("the model\\nfell over")
+
+
+def long_context(obs):
+    # Wraps a model of its own, whose context window is full after one step.
+    from vge_analytics import ContextExceededError
+
+    if obs["step"] >= 1:
+        raise ContextExceededError("8192 tokens at most")
+    return "Thinking: the power.\\nAction: Push(coord=[780, 725], params=[0])"
 """
 
 
@@ -71,18 +79,6 @@ def agent_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     monkeypatch.chdir(folder)
     monkeypatch.delitem(sys.modules, "liveagent", raising=False)
     return folder
-
-
-@pytest.fixture
-def many_tasks(kettle_bench: Path) -> Path:
-    """24 episodes: 12 copies of each kettle task, interleaved."""
-    lines = [
-        json.dumps({**task, "episode_id": f"{task['episode_id']}-{k:02d}"})
-        for k in range(12)
-        for task in TASKS
-    ]
-    (kettle_bench / "tasks.jsonl").write_text("\n".join(lines) + "\n")
-    return kettle_bench
 
 
 def _args(bench: Path, out: Path, *extra: str) -> list[str]:
@@ -141,6 +137,25 @@ def test_a_killed_run_resumed_is_byte_identical_to_an_uninterrupted_one(
     # The run replays with zero divergence.
     counts = replay.replay_runs([whole], many_tasks, tmp_path / "out", progress=False).run("r")
     assert (counts.counts.replayed, counts.counts.diverged_steps) == (24, 0)
+
+
+def test_a_module_agent_may_end_an_episode_on_its_context_window(
+    kettle_bench: Path, agent_dir: Path, tmp_path: Path
+) -> None:
+    """A callable that raises `ContextExceededError` ends its episode as `context_exceeded`
+    (after the step it answered), as an `openai:` agent does on a context-length refusal."""
+    run = tmp_path / "run"
+    assert main(["run", str(kettle_bench), "--agent", "liveagent:long_context", "--out", str(run),
+                 "--no-progress"]) == 0  # fmt: skip
+    lines = [json.loads(line) for line in (run / "episodes.jsonl").read_text().splitlines()]
+    assert [(e["episode_id"], len(e["steps"]), e.get("ended")) for e in lines] == [
+        ("open-lid", 1, "context_exceeded"),
+        ("boil", 1, "context_exceeded"),
+    ]
+    out = tmp_path / "out"
+    replay.replay_runs([run], kettle_bench, out, progress=False)
+    episodes = pq.read_table(out / "episodes", partitioning=None)
+    assert episodes["termination"].to_pylist() == ["context_exceeded"] * 2
 
 
 @pytest.mark.parametrize(

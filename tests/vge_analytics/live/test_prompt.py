@@ -36,7 +36,7 @@ class _Recorder:
         self.answers = list(answers)
         self.sent: list[list[dict]] = []
 
-    def complete(self, messages: list[dict]) -> Completion:
+    def complete(self, messages: list[dict], *, stop: object = None) -> Completion:
         self.sent.append(messages)
         return Completion(self.answers.pop(0), 10, 2, 0.5, 1.8e9)
 

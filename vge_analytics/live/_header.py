@@ -1,0 +1,163 @@
+"""What `vge run` was asked and what it has done: its options, its running totals, and the
+run.json header made of both (PROTOCOL §10.2), with the rule of `--resume` (the settings of
+the run must stay; its totals and how the model is reached may change)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import msgspec
+
+import replay
+
+from .._errors import RunDirError
+from ._agents import AGENT_KINDS, LiveAgent
+
+TOTAL_KEYS = (
+    "episodes",
+    "infrastructure_failures",
+    "tasks_skipped",
+    "complete",
+    "steps",
+    "prompt_tokens",
+    "completion_tokens",
+    "latency_seconds",
+    "cost_usd",
+)
+"""Keys of run.json's meta that count what the run did (the others are its settings)."""
+CONNECTION_KEYS = ("base_url", "request_timeout_seconds", "retries")
+"""Settings of how the model is reached, which `--resume` may change (a server on a new
+address); every other setting must stay as the run was started."""
+
+
+class RunOptions(msgspec.Struct, frozen=True):
+    """Everything `vge run` was asked, besides the agent."""
+
+    bench: Path
+    out: Path
+    run_id: str | None = None
+    """None: the name of `out`."""
+    model: str | None = None
+    """None: the agent's own name for its model."""
+    agent_kind: str | None = None
+    """None: the agent's kind (openai: vlm, sim: the profile's, module: scripted)."""
+    lam: float | None = None
+    """The run's λ (None: 5); a task's own λ wins (PROTOCOL §3.5)."""
+    episodes: tuple[str, ...] | None = None
+    limit: int | None = None
+    concurrency: int = 1
+    resume: bool = False
+    prompt_price: float | None = None
+    """USD per million prompt tokens."""
+    completion_price: float | None = None
+    """USD per million completion tokens."""
+    max_consecutive_failures: int = 10
+    """Infrastructure failures in a row (across episodes) that stop the run; 0: never."""
+
+
+@dataclass(slots=True)
+class Counters:
+    """What the run has done so far (the progress bar's figures)."""
+
+    selected: int = 0
+    finished: int = 0
+    succeeded: int = 0
+    context_exceeded: int = 0
+    """Finished episodes the model's context window ended (`context_exceeded`)."""
+    failures: int = 0
+    skipped: int = 0
+    steps: int = 0
+    prompt_tokens: int = 0
+    completion_tokens: int = 0
+    latency_seconds: float = 0.0
+    has_usage: bool = False
+    prices: tuple[float | None, float | None] = (None, None)
+
+    @property
+    def cost_usd(self) -> float | None:
+        prompt_price, completion_price = self.prices
+        if not self.has_usage or (prompt_price is None and completion_price is None):
+            return None
+        return (
+            self.prompt_tokens * (prompt_price or 0.0)
+            + self.completion_tokens * (completion_price or 0.0)
+        ) / 1e6
+
+    def add(self, log: replay.EpisodeLog, success: bool) -> None:
+        self.finished += 1
+        self.succeeded += success
+        self.context_exceeded += log.ended == "context_exceeded"
+        self.steps += len(log.steps)
+        for s in log.steps:
+            if s.prompt_tokens is not None or s.completion_tokens is not None:
+                self.has_usage = True
+            self.prompt_tokens += s.prompt_tokens or 0
+            self.completion_tokens += s.completion_tokens or 0
+            self.latency_seconds += s.latency_seconds or 0.0
+
+
+def run_header(agent: LiveAgent, options: RunOptions, counters: Counters) -> replay.RunHeader:
+    agent_kind = options.agent_kind or agent.agent_kind
+    if agent_kind not in AGENT_KINDS:
+        raise RunDirError(f"--agent-kind must be one of {', '.join(AGENT_KINDS)}")
+    selected = counters.selected
+    meta: dict[str, Any] = dict(agent.settings())
+    meta["episodes_selected"] = selected
+    if options.prompt_price is not None:
+        meta["prompt_price_per_mtok"] = options.prompt_price
+    if options.completion_price is not None:
+        meta["completion_price_per_mtok"] = options.completion_price
+    meta |= {
+        "episodes": counters.finished,
+        "infrastructure_failures": counters.failures,
+        "tasks_skipped": counters.skipped,
+        "complete": counters.finished + counters.skipped == selected,
+        "steps": counters.steps,
+    }
+    if counters.has_usage:
+        meta["prompt_tokens"] = counters.prompt_tokens
+        meta["completion_tokens"] = counters.completion_tokens
+        meta["latency_seconds"] = round(counters.latency_seconds, 3)
+        if counters.cost_usd is not None:
+            meta["cost_usd"] = round(counters.cost_usd, 6)
+    return replay.RunHeader(
+        run_id=options.run_id or options.out.resolve().name,
+        model=options.model or agent.model,
+        agent_kind=agent_kind,  # type: ignore[arg-type]
+        lam=replay.run_lambda(options.lam),
+        meta=meta,
+    )
+
+
+def _settings(header: replay.RunHeader) -> dict[str, Any]:
+    return {
+        "run_id": header.run_id,
+        "model": header.model,
+        "agent_kind": header.agent_kind,
+        "lambda": header.lam,
+        **{
+            k: v for k, v in header.meta.items() if k not in TOTAL_KEYS and k not in CONNECTION_KEYS
+        },
+    }
+
+
+def check_resume(old: replay.RunHeader, new: replay.RunHeader) -> None:
+    """`--resume` keeps the settings the run was started with (one line naming each one
+    that differs)."""
+    before, now = _settings(old), _settings(new)
+    changed = sorted(k for k in before.keys() | now.keys() if before.get(k) != now.get(k))
+    if changed:
+        said = "; ".join(f"{k}: {before.get(k)!r} then, {now.get(k)!r} now" for k in changed)
+        raise RunDirError(f"--resume with other settings than the run was started with ({said})")
+
+
+__all__ = [
+    "CONNECTION_KEYS",
+    "TOTAL_KEYS",
+    "Counters",
+    "RunOptions",
+    "check_resume",
+    "run_header",
+]
