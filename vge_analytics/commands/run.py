@@ -77,7 +77,8 @@ def run_command(
     resume: bool = typer.Option(
         False,
         "--resume",
-        help="Complete the run in RUN_DIR (same options as it was started).",
+        help="Complete the run in RUN_DIR (same settings as it was started), or extend it with "
+        "more episodes (--limit, --episodes).",
     ),
     seed: int = typer.Option(0, "--seed", help="Seed of sim: agents."),
     base_url: str | None = typer.Option(
@@ -199,6 +200,8 @@ def run_command(
         line += f", ${c.cost_usd:,.4f}"
     if c.context_exceeded:
         line += f", {c.context_exceeded} ended by the model's context window (context_exceeded)"
+    if summary.extended_from is not None:
+        line += f" (extended from {summary.extended_from} selected)"
     out_console.print(escape(line), soft_wrap=True)
     for reason in summary.skipped:
         out_console.print(f"[yellow]not playable[/]: {escape(reason)}", soft_wrap=True)

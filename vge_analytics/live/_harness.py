@@ -44,6 +44,8 @@ class RunSummary:
     failures: list[FailureRecord]
     skipped: list[str] = field(default_factory=list)
     """Tasks that cannot be played, each with its reason."""
+    extended_from: int | None = None
+    """The episodes the run had selected before `--resume` extended it (None: not extended)."""
 
     @property
     def complete(self) -> bool:
@@ -152,7 +154,8 @@ def run_live(
         outside = [e for e in run.finished if e not in chosen]
         if outside:
             raise RunDirError(
-                f"{rundir.episodes_path} holds episode {outside[0]!r}, which is not selected"
+                f"{rundir.episodes_path} holds episode {outside[0]!r}, which is not selected "
+                "(--resume may add episodes to a run, not take them away)"
             )
         decoder = msgspec.json.Decoder(replay.EpisodeLog)
         for line in run.finished.values():
@@ -177,7 +180,14 @@ def run_live(
     final = run_header(agent, options, counters)
     rundir.write_header(final)
     kept = [run.failures[e] for e in selection if e in run.failures]
-    return RunSummary(options.out, final, counters, kept, run.skipped)
+    return RunSummary(
+        options.out, final, counters, kept, run.skipped, extended_from=_extended(before, counters)
+    )
+
+
+def _extended(before: replay.RunHeader | None, counters: Counters) -> int | None:
+    was = before.meta.get("episodes_selected") if before is not None else None
+    return was if isinstance(was, int) and was < counters.selected else None
 
 
 def _play(

@@ -1,6 +1,6 @@
 """What `vge run` was asked and what it has done: its options, its running totals, and the
 run.json header made of both (PROTOCOL §10.2), with the rule of `--resume` (the settings of
-the run must stay; its totals and how the model is reached may change)."""
+the run must stay; its totals, its selection and how the model is reached may change)."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from .._errors import RunDirError
 from ._agents import AGENT_KINDS, LiveAgent
 
 TOTAL_KEYS = (
+    "episodes_selected",
     "episodes",
     "infrastructure_failures",
     "tasks_skipped",
@@ -26,7 +27,8 @@ TOTAL_KEYS = (
     "latency_seconds",
     "cost_usd",
 )
-"""Keys of run.json's meta that count what the run did (the others are its settings)."""
+"""Keys of run.json's meta that count what the run did or was asked to play (the others are
+its settings). The selection is one of them: `--resume` may extend it."""
 CONNECTION_KEYS = ("base_url", "request_timeout_seconds", "retries")
 """Settings of how the model is reached, which `--resume` may change (a server on a new
 address); every other setting must stay as the run was started."""

@@ -8,7 +8,8 @@ HTTP server on 127.0.0.1 with scripted answers (PROTOCOL §10.3):
 - infrastructure failures in a row stop the run (exit 2) instead of failing every episode
   left; a finished episode starts the count again;
 - a context-length refusal (OpenAI's, vLLM's, LiteLLM's) ends its episode as
-  `context_exceeded`, scored as a failure and never an infrastructure failure.
+  `context_exceeded`, scored as a failure and never an infrastructure failure;
+- `--resume` may extend a run with more episodes.
 
 Request counts say where retries happened and where none were due; wall times bound how
 fast it fails.
@@ -394,3 +395,56 @@ def test_a_context_refusal_ends_the_episode_as_context_exceeded(
     assert episodes["success"].to_list() == [False, True]
     m = vge_analytics.metrics(out).row(0, named=True)
     assert (m["SR"], m["SPL"]) == (50.0, 50.0)  # boil failed; open-lid in 1 step for C_opt 1
+
+
+# ------------------------------------------------------------------ extending a run
+
+
+def test_resume_extends_a_run_with_limit(
+    kettle_bench: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = tmp_path / "run"
+    with chat_server(_script(["open-lid"])) as server:
+        assert _vge_run(kettle_bench, run, server.url, "--limit", "1") == 0
+    meta = replay.read_run_header(run).meta
+    assert (meta["episodes_selected"], meta["episodes"], meta["complete"]) == (1, 1, True)
+    capsys.readouterr()
+
+    with chat_server(_script(["boil"])) as server:
+        assert _vge_run(kettle_bench, run, server.url, "--limit", "2", "--resume") == 0
+    assert len(server.requests) == 2  # boil only
+    assert (
+        "2/2 episodes" in (out := capsys.readouterr().out) and "(extended from 1 selected)" in out
+    )
+    assert _ids(run / "episodes.jsonl") == ["open-lid", "boil"]
+    meta = replay.read_run_header(run).meta
+    assert (meta["episodes_selected"], meta["episodes"], meta["complete"]) == (2, 2, True)
+    assert (meta["steps"], meta["prompt_tokens"]) == (3, 3000)
+
+    # A run is extended, never cut down; other settings stay refused.
+    before = _files(run)
+    with chat_server([]) as server:
+        assert _vge_run(kettle_bench, run, server.url, "--limit", "1", "--resume") == 1
+        assert _one_line(capsys) == (
+            f"error: {run / 'episodes.jsonl'} holds episode 'boil', which is not selected "
+            "(--resume may add episodes to a run, not take them away)"
+        )
+        assert _vge_run(kettle_bench, run, server.url, "--resume", "--history", "1") == 1
+        assert _one_line(capsys) == (
+            "error: --resume with other settings than the run was started with "
+            "(history_length: 'unlimited' then, '1' now)"
+        )
+    assert _files(run) == before
+
+
+def test_resume_extends_a_run_with_episodes_in_selection_order(
+    kettle_bench: Path, tmp_path: Path
+) -> None:
+    run = tmp_path / "run"
+    with chat_server(_script(["boil"])) as server:
+        assert _vge_run(kettle_bench, run, server.url, "--episodes", "boil") == 0
+    with chat_server(_script(["open-lid"])) as server:
+        assert _vge_run(kettle_bench, run, server.url, "--resume") == 0  # every task
+    assert len(server.requests) == 1
+    assert _ids(run / "episodes.jsonl") == ["open-lid", "boil"]  # tasks.jsonl's order
+    assert replay.read_run_header(run).meta["episodes_selected"] == 2

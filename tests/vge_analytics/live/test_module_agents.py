@@ -139,6 +139,28 @@ def test_a_killed_run_resumed_is_byte_identical_to_an_uninterrupted_one(
     assert (counts.counts.replayed, counts.counts.diverged_steps) == (24, 0)
 
 
+def test_a_run_extended_by_resume_is_byte_identical_to_one_run_of_the_whole_selection(
+    many_tasks: Path, agent_dir: Path, tmp_path: Path
+) -> None:
+    """`--resume` with a larger selection (`--limit`, `--episodes`) plays the new episodes
+    only; the files are in the order of the last selection, as if it had been played at once."""
+    whole = tmp_path / "whole"
+    assert main(_args(many_tasks, whole)) == 0
+    ids = list(replay.Benchmark.open(many_tasks).tasks)
+    grown = tmp_path / "grown"
+    assert main(_args(many_tasks, grown, "--limit", "5")) == 0
+    meta = replay.read_run_header(grown).meta
+    assert (meta["episodes_selected"], meta["episodes"], meta["complete"]) == (5, 5, True)
+    middle = ids[12:16] + ids[:5]  # 4 more, another order
+    assert main(_args(many_tasks, grown, "--resume", "--episodes", ",".join(middle))) == 0
+    lines = (grown / "episodes.jsonl").read_text().splitlines()
+    assert [json.loads(line)["episode_id"] for line in lines] == middle
+    meta = replay.read_run_header(grown).meta
+    assert (meta["episodes_selected"], meta["episodes"], meta["complete"]) == (9, 9, True)
+    assert main(_args(many_tasks, grown, "--resume", "--concurrency", "3")) == 0
+    assert _files(grown) == _files(whole)
+
+
 def test_a_module_agent_may_end_an_episode_on_its_context_window(
     kettle_bench: Path, agent_dir: Path, tmp_path: Path
 ) -> None:
