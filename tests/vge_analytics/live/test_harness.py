@@ -7,7 +7,7 @@ HTTP server on 127.0.0.1 with scripted answers (PROTOCOL §10.3):
   episodes written stay; `--resume` continues);
 - infrastructure failures in a row stop the run (exit 2) instead of failing every episode
   left; a finished episode starts the count again;
-- a context-length refusal (OpenAI's, vLLM's, LiteLLM's) ends its episode as
+- a context-length refusal (OpenAI's, vLLM's, SGLang's, LiteLLM's) ends its episode as
   `context_exceeded`, scored as a failure and never an infrastructure failure;
 - `--resume` may extend a run with more episodes.
 
@@ -353,6 +353,14 @@ CONTEXT_REFUSALS = {
         "400",
         "BadRequestError",
     ),
+    "sglang": {
+        "object": "error",
+        "message": "The input (5131 tokens) is longer than the model's context length "
+        "(4096 tokens).",
+        "type": "BadRequestError",
+        "param": None,
+        "code": 400,
+    },
     "litellm": _body(
         "litellm.ContextWindowExceededError: litellm.BadRequestError: AnthropicException - "
         "prompt is too long: 209303 tokens > 200000 maximum\nReceived Model Group=scripted-vlm"
