@@ -4,8 +4,8 @@ The public API, by layer: `semantics` holds the rules as a readable reference (r
 action grammar, compiled machine, pure step function, planner, classification, episode
 replay; PROTOCOL §1-§5), `kernel` the fast batch engine proven identical to it, `io` the
 loaders, the runner behind `vge replay` and its outputs (PROTOCOL §7). `replay.env`, imported
-on its own (it needs Gymnasium), is the live environment `vge/Device-v0` over the same episode
-(PROTOCOL §10). Everything not named here is private.
+on its own (it needs Gymnasium), holds the live environments `vge/Device-v0` and
+`vge/DeviceRL-v0` over the same episode (PROTOCOL §10). Everything not named here is private.
 """
 
 # The rules (the readable reference engine): records, grammar, machine, step, planner,

@@ -1,21 +1,51 @@
-"""The live environment: `vge/Device-v0`, a Gymnasium wrapper over the episode the replay plays."""
+"""The live environments, Gymnasium wrappers over the episode the replay plays:
+`vge/Device-v0` (text in and out, as a model sees the benchmark) and `vge/DeviceRL-v0`
+(numbers in and out, for reinforcement learning).
+
+Importing the package registers both ids with the benchmark's own pictures as their image
+source, unless they are registered already: `vge_analytics.envs` registers them with the
+analytics' pictures (the rendered synthetic views too) and replaces these registrations.
+"""
 
 import gymnasium
 
-from ._env import STEP_FIELDS, DeviceEnv, log_step_of
+from ._actions import ACTION_TYPES, CHOICES, DEFAULT_GRID, PARAMETERS, cell_centre
+from ._bounds import BenchBounds, bench_bounds
+from ._env import STEP_FIELDS, DeviceEnv, log_step_of, step_info
 from ._images import no_images
+from ._rl import RL_IMAGE_SIZE, DeviceRLEnv
 
 ENV_ID = "vge/Device-v0"
 """`gymnasium.make(ENV_ID, bench=PATH)` once this package is imported."""
+RL_ENV_ID = "vge/DeviceRL-v0"
+"""`gymnasium.make(RL_ENV_ID, bench=PATH)` once this package is imported."""
 
-# Importing the package registers the environment, as Gymnasium's own packages do.
-if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="replay.env._env:DeviceEnv")
+ENTRY_POINTS = {
+    ENV_ID: "replay.env._env:DeviceEnv",
+    RL_ENV_ID: "replay.env._rl:DeviceRLEnv",
+}
+"""The entry points this package registers (another package may register the ids first)."""
+
+for _env_id, _entry_point in ENTRY_POINTS.items():
+    if _env_id not in gymnasium.registry:
+        gymnasium.register(id=_env_id, entry_point=_entry_point)
 
 __all__ = [
+    "ACTION_TYPES",
+    "CHOICES",
+    "DEFAULT_GRID",
+    "ENTRY_POINTS",
     "ENV_ID",
+    "PARAMETERS",
+    "RL_ENV_ID",
+    "RL_IMAGE_SIZE",
     "STEP_FIELDS",
+    "BenchBounds",
     "DeviceEnv",
+    "DeviceRLEnv",
+    "bench_bounds",
+    "cell_centre",
     "log_step_of",
     "no_images",
+    "step_info",
 ]

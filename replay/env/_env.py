@@ -10,6 +10,7 @@ choice is which episode `reset` picks when it is not told, from the seeded `np_r
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -27,16 +28,24 @@ from ..semantics._machine import Machine
 from ..semantics._records import ActionRecord, LogStep
 from ..semantics._rows import StepRow
 from ..semantics._vocab import DASHBOARD
+from ._bounds import BenchBounds, bench_bounds
 from ._images import ViewImages
 from ._spaces import action_space, observation_space
 
 STEP_FIELDS: tuple[str, ...] = tuple(StepRow.__struct_fields__)
-"""The keys of a step's `info`: the columns of the steps table (PROTOCOL §7.2)."""
+"""The keys a step's `info` may hold: the columns of the steps table (PROTOCOL §7.2)."""
 
 TERMINATED = "success"
 TRUNCATED = ("budget_global", "budget_local")
 
 _RESET_OPTIONS = ("episode_id",)
+
+
+def step_info(row: Sequence[Any]) -> dict[str, Any]:
+    """A step's `info`: its row of the steps table without the null columns. Gymnasium's vector
+    envs batch each key into an array typed by the first value they see, so a null after a
+    number fails (or turns False); an absent key is marked in `infos["_<key>"]` instead."""
+    return {key: value for key, value in zip(STEP_FIELDS, row, strict=True) if value is not None}
 
 
 def log_step_of(action: str | Mapping[str, Any]) -> LogStep:
@@ -64,6 +73,9 @@ class DeviceEnv(gymnasium.Env):
     renders the views of the synthetic categories); every view is shown at
     `image_width` x `image_height`. `run_id`, `model` and `agent_kind` fill the matching
     fields of `info`. docs/LIVE.md describes the observation.
+
+    The observation space is bounded by the benchmark (`bounds`), which plans every task: it
+    is built when first read, so the live tools, which never read it, do not pay for it.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 1}
@@ -101,7 +113,7 @@ class DeviceEnv(gymnasium.Env):
         if not pool:
             raise ConfigError(f"{self.bench.tasks_path}: no episode to play")
         self.episode_pool: tuple[str, ...] = tuple(pool)
-        self.observation_space = observation_space(image_width, image_height)
+        self.image_size = (image_width, image_height)
         self.action_space = action_space()
         source = BenchImages(str(self.bench.root)) if image_source is None else image_source
         self._images = ViewImages(source, image_width, image_height)
@@ -110,6 +122,15 @@ class DeviceEnv(gymnasium.Env):
         """The episode being played (the same object `replay_episode` drives)."""
         self.machine: Machine | None = None
         self._feedback = ("", "")
+
+    @cached_property
+    def bounds(self) -> BenchBounds:
+        """The benchmark's maxima under this environment's λ (they bound the spaces)."""
+        return bench_bounds(self.bench, self.lam)
+
+    @cached_property
+    def observation_space(self) -> gymnasium.spaces.Dict:  # type: ignore[override]
+        return observation_space(*self.image_size, self.bounds)
 
     # ------------------------------------------------------------------ Gymnasium API
 
@@ -143,7 +164,7 @@ class DeviceEnv(gymnasium.Env):
         if session.done:
             raise ResetNeeded(f"the episode ended ({session.termination}); call reset()")
         row = session.advance(log_step_of(action))
-        info = dict(zip(STEP_FIELDS, row, strict=True))
+        info = step_info(row)
         self._feedback = (info["feedback_text"], info["feedback_kind"])
         termination = session.termination
         return (
@@ -194,6 +215,10 @@ class DeviceEnv(gymnasium.Env):
         assert self.session is not None and self.machine is not None
         return self._images.array(self.machine, self.session.sim.view)
 
+    def _dashboard_unlocked(self) -> int:
+        assert self.session is not None and self.machine is not None
+        return int(self.session.sim.unlocked and DASHBOARD in self.machine.views)
+
     def _observation(self) -> dict[str, Any]:
         session = self.session
         assert session is not None and self.machine is not None
@@ -205,7 +230,7 @@ class DeviceEnv(gymnasium.Env):
             "image": self._image(),
             "view": sim.view,
             "views": tuple(self.machine.views),
-            "dashboard_unlocked": int(sim.unlocked and DASHBOARD in self.machine.views),
+            "dashboard_unlocked": self._dashboard_unlocked(),
             "instruction": session.instruction,
             "goal_index": session.current,
             "n_goals": session.n_goals,
@@ -230,4 +255,4 @@ class DeviceEnv(gymnasium.Env):
         }
 
 
-__all__ = ["STEP_FIELDS", "DeviceEnv", "log_step_of"]
+__all__ = ["STEP_FIELDS", "DeviceEnv", "log_step_of", "step_info"]

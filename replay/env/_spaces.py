@@ -1,45 +1,51 @@
-"""The observation and action spaces of `vge/Device-v0` (docs/LIVE.md lists the fields)."""
+"""The observation and action spaces of `vge/Device-v0` (docs/LIVE.md lists the fields).
+
+Every space is bounded by the benchmark (`BenchBounds`) or the vocabulary, and every one can
+be laid out in shared memory (`_textspaces`), so an async vector env works with its defaults.
+"""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from gymnasium import spaces
 
-MAX_TEXT = 100_000
-"""Longest text an observation field may hold (instructions, feedback)."""
+from ..semantics._vocab import FEEDBACK_KINDS, VIEW_ORDER
+from ._textspaces import AnyText, ViewNames
+
+if TYPE_CHECKING:  # the spaces read the bounds; computing them is `_bounds`'s job
+    from ._bounds import BenchBounds
+
+MAX_FEEDBACK = 100_000
+"""Longest feedback text (it quotes the SSM's descriptions, which are free text)."""
 MAX_ACTION_TEXT = 4_096
 """Length bound of the action space's samples (longer model texts are still accepted)."""
-MAX_COUNT = 1 << 31
-"""Bound of the step and goal counters."""
 
 
-class AnyText(spaces.Text):
-    """Any Unicode text up to `max_length` characters (instructions and feedback come from the
-    benchmark, in any script). Samples draw from the base class's character set."""
+def budget_space(
+    bounds: BenchBounds, shape: tuple[int, ...], dtype: type[np.floating]
+) -> spaces.Box:
+    """Budgets left: each at most the largest `B_global`, and above -1 after the step that
+    exhausts it (PROTOCOL §3.5)."""
+    return spaces.Box(-1.0, bounds.budget, shape=shape, dtype=dtype)
 
-    def contains(self, x: Any) -> bool:
-        return isinstance(x, str) and self.min_length <= len(x) <= self.max_length
 
-
-def observation_space(width: int, height: int) -> spaces.Dict:
-    text = AnyText(MAX_TEXT, min_length=0)
-    # A budget is above -1 after the step that exhausts it (PROTOCOL §3.5).
-    budget = spaces.Box(-1.0, float(MAX_COUNT), shape=(), dtype=np.float64)
+def observation_space(width: int, height: int, bounds: BenchBounds) -> spaces.Dict:
+    budget = budget_space(bounds, (), np.float64)
     return spaces.Dict(
         {
-            "episode_id": text,
-            "step": spaces.Discrete(MAX_COUNT),
+            "episode_id": AnyText(bounds.episode_id, min_length=0),
+            "step": spaces.Discrete(bounds.steps + 1),
             "image": spaces.Box(0, 255, shape=(height, width, 3), dtype=np.uint8),
-            "view": text,
-            "views": spaces.Sequence(text),
+            "view": AnyText(max(map(len, VIEW_ORDER)), min_length=0),
+            "views": ViewNames(),
             "dashboard_unlocked": spaces.Discrete(2),
-            "instruction": text,
-            "goal_index": spaces.Discrete(MAX_COUNT),
-            "n_goals": spaces.Discrete(MAX_COUNT),
-            "feedback": text,
-            "feedback_kind": text,
+            "instruction": AnyText(bounds.instruction, min_length=0),
+            "goal_index": spaces.Discrete(bounds.goals + 1),
+            "n_goals": spaces.Discrete(bounds.goals, start=1),
+            "feedback": AnyText(MAX_FEEDBACK, min_length=0),
+            "feedback_kind": AnyText(max(map(len, FEEDBACK_KINDS)), min_length=0),
             "budget_global_left": budget,
             "budget_local_left": budget,
         }
@@ -52,4 +58,4 @@ def action_space() -> spaces.Text:
     return AnyText(MAX_ACTION_TEXT, min_length=0)
 
 
-__all__ = ["AnyText", "action_space", "observation_space"]
+__all__ = ["AnyText", "action_space", "budget_space", "observation_space"]
