@@ -15,6 +15,7 @@ from ._errors import (
     ConfigError,
     InputError,
     Problem,
+    RecordTooLarge,
     SSMError,
     TaskError,
     VGEError,
@@ -27,11 +28,11 @@ from .io._lambdas import LambdaBatch, LambdaTask, replay_lambdas
 
 # Input and output: loading and validating, the runner (`vge replay`), manifest, quarantine, MCAP,
 # JSON Schemas.
+from .io._lines import MAX_RECORD_BYTES, iter_lines
 from .io._load import (
     Benchmark,
     decode_state_machine,
     episodes_file,
-    iter_lines,
     load_machine,
     load_ssm,
     read_run_header,
@@ -121,6 +122,7 @@ __all__ = [
     "ERROR_TYPES",
     "FEEDBACK_KINDS",
     "INPUT_RECORDS",
+    "MAX_RECORD_BYTES",
     "ORTHOGRAPHIC_VIEWS",
     "OUTPUT_RECORDS",
     "PARSE_DETAILS",
@@ -186,6 +188,7 @@ __all__ = [
     "Problem",
     "progressing",
     "QuarantineRecord",
+    "RecordTooLarge",
     "read_manifest",
     "read_run_header",
     "rect_contains",

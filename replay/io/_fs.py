@@ -23,6 +23,7 @@ import io
 import os
 import re
 import shutil
+import stat
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
@@ -147,8 +148,13 @@ class Location:
         return self._info().type == pafs.FileType.File
 
     def open_read(self) -> BinaryIO:
-        """The file's bytes as a stream (never decompressed on the way)."""
+        """The file's bytes as a stream (never decompressed on the way). On the local disk
+        only a regular file: a device or a pipe may never end, and is read once only."""
         if self.local is not None:
+            if not stat.S_ISREG(os.stat(self.local).st_mode):
+                raise InputError(
+                    str(self), "not a regular file (a device, a pipe or a directory is no input)"
+                )
             return open(self.local, "rb")  # noqa: SIM115
         return self.fs.open_input_stream(self.path, compression=None)  # type: ignore[union-attr,return-value]
 

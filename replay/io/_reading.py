@@ -11,7 +11,8 @@ from queue import Full, Queue
 from .._errors import ConfigError, InputError
 from ..semantics._records import RunHeader
 from ._fs import Location, location
-from ._load import episodes_file, iter_lines, read_run_header
+from ._lines import iter_lines
+from ._load import episodes_file, read_run_header
 
 
 @dataclass(frozen=True)
@@ -62,14 +63,21 @@ _END = object()
 
 
 class LineReader:
-    """Lines of an episodes file in batches; a read error ends the file (kept in `error`).
+    """Lines of an episodes file in batches of at most `batch_lines` lines, cut as well once
+    they hold `batch_bytes` bytes (so the batches in memory stay bounded whatever the line
+    sizes); a read error or a line longer than `max_record_bytes` ends the file (kept in
+    `error`).
 
     A thread reads ahead (`READ_AHEAD` batches): inflating gzip releases the GIL, so the
     reading overlaps the replay of the batches already read."""
 
-    def __init__(self, path: Location, batch_lines: int) -> None:
+    def __init__(
+        self, path: Location, batch_lines: int, batch_bytes: int, max_record_bytes: int
+    ) -> None:
         self.path = path
         self.batch_lines = batch_lines
+        self.batch_bytes = batch_bytes
+        self.max_record_bytes = max_record_bytes
         self.last_line = 0
         self.error: InputError | None = None
 
@@ -112,7 +120,8 @@ class LineReader:
 
     def _read(self) -> Iterator[list[tuple[int, bytes]]]:
         batch: list[tuple[int, bytes]] = []
-        lines = iter_lines(self.path)
+        size = 0
+        lines = iter_lines(self.path, max_record_bytes=self.max_record_bytes)
         while True:
             try:
                 item = next(lines)
@@ -123,8 +132,9 @@ class LineReader:
                 break
             self.last_line = item[0]
             batch.append(item)
-            if len(batch) >= self.batch_lines:
+            size += len(item[1])
+            if len(batch) >= self.batch_lines or size >= self.batch_bytes:
                 yield batch
-                batch = []
+                batch, size = [], 0
         if batch:
             yield batch

@@ -15,7 +15,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from replay import BenchImages, ImageSource, Manifest, location, replay_runs
+from replay import MAX_RECORD_BYTES, BenchImages, ImageSource, Manifest, location, replay_runs
 
 from ._options import episode_ids
 
@@ -30,6 +30,18 @@ def image_source(bench: str) -> ImageSource:
     if len(inspect.signature(view_image).parameters) == 3:
         return functools.partial(view_image, bench)
     return BenchImages(bench)
+
+
+def max_record_bytes_option(outcome: str = "is quarantined as record_too_large") -> int:
+    """`--max-record-bytes N` (a typer option default; `vge validate` takes it too)."""
+    return typer.Option(
+        MAX_RECORD_BYTES,
+        "--max-record-bytes",
+        min=1,
+        metavar="BYTES",
+        help=f"The longest episode line read (64 MiB by default): a longer one {outcome} and "
+        "the rest of its file is not read.",
+    )
 
 
 def _summary(manifest: Manifest) -> Table:
@@ -86,6 +98,7 @@ def replay_command(
         "address. Needs pip install 'vge-analytics[ray]'.",
     ),
     force: bool = typer.Option(False, "--force", help="Replay runs even when up to date."),
+    max_record_bytes: int = max_record_bytes_option(),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
 ) -> None:
     """Replay logged episodes against the SSMs and write the steps, episodes, goals and runs tables
@@ -108,6 +121,7 @@ def replay_command(
         progress=progress,
         image_source=image_source(bench),
         ray=ray,
+        max_record_bytes=max_record_bytes,
     )
     console.print(_summary(manifest))
     for run_id in manifest.skipped:

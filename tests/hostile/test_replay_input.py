@@ -1,0 +1,328 @@
+"""Hostile input to the replay (PROTOCOL §1.5): every input replays or is refused, in bounded
+time and memory, with one clear line; the good records are replayed.
+
+Inputs are generated (`replay_inputs`), at sizes smaller than docs/REPLAY.md's figures
+("Hostile input", measured by benchmarks/bench_hostile.py) but through the same mechanisms
+(a lower `--max-record-bytes`, smaller blocks). What could eat memory runs as a real `vge`
+process under an address-space bound (`tests.bounded`), and its peak is judged against the
+same command on three good records.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import replay
+from replay.io import _lines
+from tests.bounded import run_bounded
+
+from .replay_inputs import (
+    append_gzip,
+    episode,
+    line_ssm,
+    padded,
+    task,
+    write_bench,
+    write_run,
+    zeros,
+)
+
+VGE = [sys.executable, "-m", "vge_analytics.cli"]
+MiB = 1 << 20
+GOOD = 2000
+"""Tasks e0 ... e1999 on the two-state device `press` (one press reaches the goal)."""
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("bench")
+    return write_bench(
+        root, {"press": line_ssm(2)}, [task(f"e{i}", "press", "S1") for i in range(GOOD)]
+    )
+
+
+def vge_bounded(*args: str | Path, timeout: float = 60.0):
+    return run_bounded([*VGE, *map(str, args)], timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def baseline(bench: Path, tmp_path_factory: pytest.TempPathFactory):
+    """`vge replay` of three good records: the process's own size and start-up time."""
+    root = tmp_path_factory.mktemp("baseline")
+    run = write_run(root / "run", [episode(f"e{i}") for i in range(3)])
+    done = vge_bounded("replay", run, "--bench", bench, "--out", root / "out")
+    assert done.returncode == 0, done.stderr
+    return done
+
+
+def quarantine(out: Path) -> list[tuple[int, str]]:
+    lines = (out / "quarantine.jsonl").read_text().splitlines()
+    return [(r["line"], r["kind"]) for r in map(json.loads, lines)]
+
+
+def counts(out: Path) -> replay.io._manifest.RunCounts:
+    manifest = replay.read_manifest(out)
+    assert manifest is not None
+    return manifest.runs[0].counts
+
+
+def one_line_error(stderr: str) -> str:
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), stderr
+    return lines[0]
+
+
+# ------------------------------------------------------------------- limits in bytes
+
+
+def test_records_of_100_kb_replay_in_bounded_memory(bench, baseline, tmp_path) -> None:
+    # 2,000 records of 100 KB: 200 MB in one batch of lines, cut by bytes into 32 MiB ones.
+    # Batches of lines only made this run peak at 1.3 GB (4,096 such lines: 3.2 GB).
+    run = write_run(tmp_path / "run", (padded(f"e{i}", 100_000) for i in range(GOOD)), gz=True)
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out")
+    assert done.returncode == 0, done.stderr
+    assert counts(tmp_path / "out").replayed == GOOD
+    # 336 lines make a batch of 32 MiB or more: five of them, and 320 lines
+    assert len(list((tmp_path / "out" / "steps" / "run_id=run").iterdir())) == 6
+    assert done.peak_memory < baseline.peak_memory + 600 * MiB, done.peak_memory
+    assert done.seconds < baseline.seconds + 30
+
+
+def test_batches_are_cut_by_bytes(tmp_path) -> None:
+    lines = [padded(f"e{i}", 10_000) for i in range(100)]
+    path = write_run(tmp_path, lines) / "episodes.jsonl"
+    reader = replay.io._reading.LineReader(replay.location(path), 30, 45_000, MiB)
+    sizes = [(len(b), sum(len(raw) for _, raw in b)) for b in reader.batches()]
+    # Cut once a batch holds 45,000 bytes (the fifth line of 10,000), else at 30 lines.
+    assert sizes == [(5, 50_000)] * 20
+    reader = replay.io._reading.LineReader(replay.location(path), 30, 10 * MiB, MiB)
+    assert [len(b) for b in reader.batches()] == [30, 30, 30, 10]
+
+
+def test_a_line_too_long_is_quarantined_without_being_held(bench, baseline, tmp_path) -> None:
+    """Three good records, one line of 64 MiB with no newline (a 64 KB .gz), one more good
+    record: the long one is quarantined at its line after 1 MiB is read, the reading of the
+    file stops there, and nothing near its size is ever in memory."""
+    run = tmp_path / "run"
+    write_run(run, [episode(f"e{i}") for i in range(3)], gz=True)
+    append_gzip(run / "episodes.jsonl.gz", b"0" * MiB, 64)
+    append_gzip(run / "episodes.jsonl.gz", b"\n" + episode("e3") + b"\n", 1)
+    out = tmp_path / "out"
+    done = vge_bounded("replay", run, "--bench", bench, "--out", out, "--max-record-bytes", MiB)
+    assert done.returncode == 2, done.stderr
+    assert quarantine(out) == [(4, "record_too_large")]
+    c = counts(out)
+    assert (c.lines_read, c.replayed, c.quarantined) == (4, 3, 1)
+    reason = json.loads((out / "quarantine.jsonl").read_text())["reason"]
+    assert reason.startswith("line longer than 1,048,576 bytes, the maximum size of a record")
+    assert done.peak_memory < baseline.peak_memory + 32 * MiB, done.peak_memory
+    assert done.seconds < baseline.seconds + 10
+
+
+def test_the_bound_is_an_option_of_the_run(bench, tmp_path, capsys) -> None:
+    """A run replayed with another bound is replayed again (its records may be judged
+    otherwise); the manifest names the bound unless it is the default; `vge validate` reads
+    the runs within the same bound."""
+    from vge_analytics.cli import main
+
+    run = write_run(tmp_path / "run", [episode("e0"), padded("e1", 5000), episode("e2")])
+    out = tmp_path / "out"
+    first = replay.replay_runs([run], bench, out, progress=False)
+    assert (first.replayed, first.exit_code) == (["run"], 0)
+    assert "max_record_bytes" not in (out / "manifest.json").read_text()
+    again = replay.replay_runs([run], bench, out, progress=False, max_record_bytes=4096)
+    assert (again.replayed, again.exit_code) == (["run"], 2)
+    assert quarantine(out) == [(2, "record_too_large")]
+    assert replay.read_manifest(out).runs[0].options.max_record_bytes == 4096
+    same = replay.replay_runs([run], bench, out, progress=False, max_record_bytes=4096)
+    assert (same.skipped, same.exit_code) == (["run"], 2)
+
+    assert main(["validate", str(bench), str(run)]) == 0
+    assert main(["validate", str(bench), str(run), "--max-record-bytes", "4096"]) == 1
+    shown = capsys.readouterr().out
+    assert f"error   {run / 'episodes.jsonl'}:2: line longer than 4,096 bytes" in shown
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "line"),
+    [
+        ("endless zeros", b"0", 3),  # one line that never ends
+        ("endless newlines", b"\n", 3),  # blank lines without end: a run from line 3
+        ("endless blank lines", b" \t\r\n", 3),
+    ],
+)
+def test_an_endless_input_is_read_up_to_the_bound(
+    bench, baseline, tmp_path, name, content, line
+) -> None:
+    run = tmp_path / "run"
+    write_run(run, [episode("e0"), episode("e1")], gz=True)
+    # 1 GiB inflated: the bound, not the end of the file, stops the reading
+    append_gzip(run / "episodes.jsonl.gz", content * (MiB // len(content)), 1024)
+    out = tmp_path / "out"
+    done = vge_bounded("replay", run, "--bench", bench, "--out", out, "--max-record-bytes", MiB)
+    assert done.returncode == 2, done.stderr
+    assert quarantine(out) == [(line, "record_too_large")]
+    assert counts(out).replayed == 2
+    assert done.peak_memory < baseline.peak_memory + 32 * MiB, done.peak_memory
+    assert done.seconds < baseline.seconds + 10, name
+
+
+def test_a_device_or_a_pipe_is_refused_in_one_line(bench, tmp_path) -> None:
+    run = write_run(tmp_path / "run", [])
+    (run / "episodes.jsonl").unlink()
+    (run / "episodes.jsonl").symlink_to("/dev/zero")
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out", timeout=20)
+    assert done.returncode == 1
+    assert one_line_error(done.stderr) == (
+        f"error: {run / 'episodes.jsonl'}: not a regular file "
+        "(a device, a pipe or a directory is no input)"
+    )
+    (run / "episodes.jsonl").unlink()
+    os.mkfifo(run / "episodes.jsonl")  # opening it would wait for a writer for ever
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out", timeout=20)
+    assert done.returncode == 1 and "episodes.jsonl: not a regular file" in done.stderr
+    (run / "run.json").unlink()
+    (run / "run.json").symlink_to("/dev/zero")
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out", timeout=20)
+    assert done.returncode == 1
+    assert one_line_error(done.stderr).endswith(
+        "run.json: not a regular file (a device, a pipe or a directory is no input)"
+    )
+
+
+def test_line_splitting_is_linear(tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # A 32 MiB line read in blocks of 4 KiB: 8,192 blocks. Joining the line again at every
+    # block (as the reader did) copies 137 GB; joined once, 32 MiB.
+    monkeypatch.setattr(_lines, "_BLOCK", 4096)
+    path = tmp_path / "episodes.jsonl.gz"
+    with gzip.open(path, "wb", compresslevel=1) as fh:
+        fh.write(b"{}\n")
+        for block in zeros(32 * MiB):
+            fh.write(block)
+        fh.write(b"\n{}")
+    started = time.monotonic()
+    got = [(n, len(raw)) for n, raw in replay.iter_lines(path)]
+    assert got == [(1, 2), (2, 32 * MiB), (3, 2)]
+    assert time.monotonic() - started < 5
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    data=st.lists(st.sampled_from([b"\n", b" ", b"\t", b"a", b"bc", b"\r\n"]), max_size=40).map(
+        b"".join
+    ),
+    limit=st.integers(1, 12),
+    block=st.integers(1, 8),
+)
+def test_block_boundaries_never_change_the_lines(data: bytes, limit: int, block: int) -> None:
+    """The reader's verdicts depend on the bytes only: read whole or in blocks of any size,
+    the same lines come out, and the same line too large or run of blank lines."""
+
+    def read(size: int) -> list[tuple[int, object]]:
+        lines = _lines._Lines("f", limit)
+        out: list[tuple[int, object]] = []
+        try:
+            for start in range(0, len(data), size):
+                out.extend(lines.split(data[start : start + size]))
+            out.extend(lines.end())
+        except replay.RecordTooLarge as exc:
+            out.append((exc.line or 0, exc.message.split(",")[0]))
+        return out
+
+    assert read(block) == read(len(data) + 1)
+
+
+# ------------------------------------------------------------------ appended bytes
+
+
+_TAIL = st.lists(
+    st.one_of(
+        st.binary(max_size=60),
+        st.sampled_from([b"\n", b"\r\n", b"{", b"}", b"[", b'"', b"\\", b"\x00", b"\xff"]),
+        st.builds(
+            lambda eid, steps: json.dumps({"episode_id": eid, "steps": steps}).encode(),
+            st.sampled_from(["e0", "e1", "e5", "e9", "zz"]),
+            st.lists(
+                st.one_of(
+                    st.fixed_dictionaries({"output": st.text(max_size=40)}),
+                    st.fixed_dictionaries(
+                        {
+                            "action": st.fixed_dictionaries(
+                                {
+                                    "type": st.sampled_from(["Press", "Switch_view", "Nope"]),
+                                    "coord": st.one_of(
+                                        st.none(),
+                                        st.lists(st.floats(-1e308, 1e308), max_size=3),
+                                    ),
+                                    "params": st.lists(st.text(max_size=5), max_size=2),
+                                }
+                            )
+                        }
+                    ),
+                    st.integers(),
+                ),
+                max_size=4,
+            ),
+        ),
+    ),
+    max_size=8,
+).map(b"".join)
+
+
+def _rows(out: Path, table: str) -> pa.Table:
+    parts = sorted((out / table / "run_id=run").iterdir())
+    return pa.concat_tables([pq.read_table(p) for p in parts])
+
+
+@pytest.fixture(scope="module")
+def valid_log(bench: Path, tmp_path_factory: pytest.TempPathFactory):
+    """Four valid records, each line with its newline, and their replay alone."""
+    root = tmp_path_factory.mktemp("valid")
+    lines = [
+        episode("e0"),
+        episode("e1", 3),
+        episode("e2", output="Action: Wait()"),
+        episode("e3", 0),
+    ]
+    data = b"".join(line + b"\n" for line in lines)
+    run = write_run(root / "run", [])
+    (run / "episodes.jsonl").write_bytes(data)
+    out = root / "out"
+    assert replay.replay_runs([run], bench, out, progress=False).exit_code == 0
+    return data, {t: _rows(out, t) for t in ("steps", "episodes", "goals")}
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(tail=_TAIL, gz=st.booleans())
+def test_appended_bytes_never_change_the_records_before_them(
+    bench, valid_log, tmp_path, tail: bytes, gz: bool
+) -> None:
+    """Whatever bytes follow a valid log (after the newline of its last line), the replay
+    ends with 0 or 2, never 1, and the records before them replay as they did alone: the
+    first rows of every table are theirs, unchanged, and no quarantine record names one of
+    their lines. (Appended to a .gz file, the bytes follow its compressed stream.) Without
+    that newline the bytes would extend the last valid line, which is then another line."""
+    data, alone = valid_log
+    run = write_run(tmp_path / "run", [], gz=gz)
+    name = "episodes.jsonl.gz" if gz else "episodes.jsonl"
+    (run / name).write_bytes((gzip.compress(data, mtime=0) if gz else data) + tail)
+    out = tmp_path / "out"
+    manifest = replay.replay_runs([run], bench, out, progress=False, max_record_bytes=4096)
+    assert manifest.exit_code in (0, 2)
+    for table, rows in alone.items():
+        got = _rows(out, table)
+        assert got.slice(0, rows.num_rows).equals(rows), table
+    assert all(line > 4 for line, _ in quarantine(out))
