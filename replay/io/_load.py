@@ -16,6 +16,7 @@ import msgspec
 from .._errors import InputError, Problem, SSMError, TaskError, VGEError, decode_error_message
 from ..semantics._machine import Machine, compile_machine, validate_machine
 from ..semantics._records import EpisodeLog, RunHeader, StateMachine, Task
+from ._decode import decode
 from ._fs import Location, location
 from ._lines import MAX_RECORD_BYTES, iter_lines, read_whole
 
@@ -38,7 +39,7 @@ def decode_state_machine(path: str | Path | Location) -> StateMachine:
     path = location(path)
     data = read_whole(path)
     try:
-        return _ssm_decoder.decode(data)
+        return decode(_ssm_decoder, data)
     except msgspec.DecodeError as exc:
         msg = decode_error_message(exc)
         raise InputError(str(path), msg, _line_of(data, msg)) from None
@@ -64,7 +65,7 @@ def read_run_header(run_dir: str | Path | Location) -> RunHeader:
     path = location(run_dir) / "run.json"
     data = read_whole(path)
     try:
-        header = _run_decoder.decode(data)
+        header = decode(_run_decoder, data)
     except msgspec.DecodeError as exc:
         msg = decode_error_message(exc)
         raise InputError(str(path), msg, _line_of(data, msg)) from None
@@ -124,7 +125,7 @@ class Benchmark:
             raise InputError(str(tasks_path), "file not found")
         for number, line in iter_lines(tasks_path):
             try:
-                task = _task_decoder.decode(line)
+                task = decode(_task_decoder, line)
             except msgspec.DecodeError as exc:
                 bench.task_problems.append(
                     Problem(f"{tasks_path}:{number}", "", decode_error_message(exc))
@@ -282,7 +283,7 @@ def validate_run(
         for number, line in iter_lines(path, max_record_bytes=max_record_bytes):
             where = f"{path}:{number}"
             try:
-                log = episode_decoder.decode(line)
+                log = decode(episode_decoder, line)
             except msgspec.DecodeError as exc:
                 problems.append(Problem(where, "", decode_error_message(exc)))
                 continue

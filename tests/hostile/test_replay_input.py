@@ -10,13 +10,16 @@ same command on three good records.
 
 from __future__ import annotations
 
+import functools
 import gzip
 import json
 import os
+import random
 import sys
 import time
 from pathlib import Path
 
+import msgspec
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
@@ -28,9 +31,12 @@ from replay.io import _lines
 from tests.bounded import run_bounded
 
 from .replay_inputs import (
+    PRESS,
     append_gzip,
+    chain_ssm,
     episode,
     line_ssm,
+    nested,
     padded,
     task,
     write_bench,
@@ -243,6 +249,235 @@ def test_block_boundaries_never_change_the_lines(data: bytes, limit: int, block:
     assert read(block) == read(len(data) + 1)
 
 
+# ------------------------------------------------------------------------------ depth
+
+
+def deep_step(episode_id: str, depth: int) -> bytes:
+    """A good record but for `depth` nested arrays in one step (its level 4 on)."""
+    doc = json.dumps({"episode_id": episode_id, "steps": [{"output": PRESS, "x": 0}]})
+    return doc.replace('"x": 0', '"x": ' + nested(depth)).encode()
+
+
+def test_a_deep_step_is_quarantined_and_the_rest_replayed(bench, tmp_path) -> None:
+    deep = deep_step("e1", 1000)
+    run = write_run(tmp_path / "run", [episode("e0"), deep, episode("e2"), episode("e3")])
+    out = tmp_path / "out"
+    done = vge_bounded("replay", run, "--bench", bench, "--out", out)
+    assert done.returncode == 2, done.stderr
+    assert quarantine(out) == [(2, "malformed_json")]
+    reason = json.loads((out / "quarantine.jsonl").read_text())["reason"]
+    at = deep.index(b"[[") + 253  # the record's object, steps and step are 3 levels
+    assert reason == f"not valid JSON: JSON is nested deeper than 256 levels (byte {at})"
+    assert counts(out).replayed == 3
+
+
+def test_the_depth_bound_is_the_same_in_every_process(
+    bench, tmp_path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """256 levels decode and 257 do not, in this process and in a worker process alike (the
+    decoder alone gives up where each one's stack does, deeper in a worker)."""
+    monkeypatch.setattr(replay.io._runner, "BATCH_LINES", 4)  # batch 1 goes to the worker
+    good = [episode(f"e{i}") for i in range(4)]
+    deep = [deep_step(f"e{4 + i}", depth) for i, depth in enumerate([252, 253, 254, 600])]
+    run = write_run(tmp_path / "run", good + deep)
+    tables = []
+    for workers in (1, 2):
+        out = tmp_path / f"out{workers}"
+        replay.replay_runs([run], bench, out, workers=workers, progress=False)
+        assert quarantine(out) == [(7, "malformed_json"), (8, "malformed_json")]
+        tables.append(pq.read_table(out / "episodes" / "run_id=run" / "part-00001.parquet"))
+    assert tables[0].column("episode_id").to_pylist() == ["e4", "e5"]
+    assert tables[0].equals(tables[1])
+
+
+def test_deep_headers_tasks_and_machines_name_their_file(bench, tmp_path) -> None:
+    header = {"run_id": "r", "model": "m", "agent_kind": "vlm", "meta": {"x": 0}}
+    text = json.dumps(header, indent=1).replace('"x": 0', '"x": ' + nested(300))
+    run = write_run(tmp_path / "run", [episode("e0")])
+    (run / "run.json").write_text(text)
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out")
+    assert done.returncode == 1
+    at = text.index("[[") + 254  # meta is the second level
+    assert one_line_error(done.stderr) == (
+        f"error: {run / 'run.json'}:6: JSON is nested deeper than 256 levels (byte {at})"
+    )
+
+    tasks = [json.dumps(task("t0", "press", "S1")), json.dumps(task("t1", "press", "S1"))]
+    tasks[1] = tasks[1][:-1] + ', "x": ' + nested(400) + "}"
+    ssm = json.dumps(line_ssm(2), indent=1).replace('"name": "Line"', '"x": ' + nested(300))
+    root = write_bench(tmp_path / "bench", {"press": line_ssm(2)}, [])
+    (root / "tasks.jsonl").write_text("\n".join(tasks) + "\n")
+    (root / "ssm" / "deep.json").write_text(ssm)
+    done = vge_bounded("validate", root)
+    assert done.returncode == 1
+    shown = done.stdout_head.decode().splitlines()
+    assert [line for line in shown if line.startswith("error")] == [
+        f"error   {root / 'ssm' / 'deep.json'}:2: JSON is nested deeper than 256 levels "
+        f"(byte {ssm.index('[[') + 255})",
+        f"error   {root / 'tasks.jsonl'}:2: JSON is nested deeper than 256 levels "
+        f"(byte {tasks[1].index('[[') + 255})",
+    ]
+
+
+# ---------------------------------------------------------------- long and wide machines
+
+
+@pytest.mark.parametrize(
+    ("ssm", "goal", "steps"),
+    [(line_ssm(1000), "S999", 999), (chain_ssm(4000), "C4000", 1)],
+    ids=["1000-state line", "4000-state immediate chain"],
+)
+def test_long_machines_validate_and_replay(ssm, goal, steps, tmp_path) -> None:
+    root = write_bench(tmp_path / "bench", {"dev": ssm}, [task("t", "dev", goal)])
+    run = write_run(tmp_path / "run", [episode("t", steps=steps)])
+    done = vge_bounded("validate", root, run)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout_head.decode().startswith("OK 1 SSM(s), 1 task(s), 1 run(s)")
+    done = vge_bounded("replay", run, "--bench", root, "--out", tmp_path / "out")
+    assert done.returncode == 0, done.stderr
+    episodes = pq.read_table(tmp_path / "out" / "episodes", partitioning=None).to_pylist()
+    assert [(e["success"], e["L_opt"], e["L_act"]) for e in episodes] == [(True, steps, steps)]
+    assert done.seconds < 30
+
+
+def test_a_machine_of_100000_states_validates_in_seconds() -> None:
+    for doc in (line_ssm(100_000), chain_ssm(100_000)):
+        ssm = msgspec.convert(doc, replay.StateMachine)
+        started = time.monotonic()
+        assert replay.validate_machine(ssm, "big.json") == []
+        assert time.monotonic() - started < 5
+
+
+def _cycles_by_walking_from_every_state(ssm: replay.StateMachine) -> list[str]:
+    """The cycle check as it was (a walk from every state, quadratic per state): the oracle."""
+    states = ssm.states
+    order = {name: i for i, name in enumerate(states)}
+    found = []
+    for start in states:
+        seen = [start]
+        current = start
+        while True:
+            imm = states[current].on.get("immediate") if current in states else None
+            if not imm:
+                break
+            nxt = imm[0].next_state
+            if nxt not in states:
+                break
+            if nxt in seen:
+                members = seen[seen.index(nxt) :]
+                if nxt == start and start == min(members, key=order.__getitem__):
+                    found.append(f"cycle of immediate transitions: {' -> '.join([*members, nxt])}")
+                break
+            seen.append(nxt)
+            current = nxt
+    return found
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(-1, 12), min_size=1, max_size=12), st.randoms(use_true_random=False))
+def test_cycle_check_matches_the_walk_from_every_state(successors, rng) -> None:
+    names = [f"S{i}" for i in range(len(successors))]
+    rng.shuffle(names)  # file order differs from the walk order
+    states = {}
+    for name, nxt in zip(names, successors, strict=True):
+        on = {}
+        if nxt >= 0:  # a successor past the last state dangles
+            on["immediate"] = [{"next_state": f"S{nxt}"}]
+        states[name] = {"on": on}
+    doc = {"name": "X", "initial_state": names[0], "states": states}
+    ssm = msgspec.convert(doc, replay.StateMachine)
+    got = [p.message for p in replay.validate_machine(ssm, "x") if "cycle" in p.message]
+    assert got == _cycles_by_walking_from_every_state(ssm)
+
+
+def _recursive_value(self, i: int, s: int, view: str, unlocked: bool) -> int:
+    """The planner's J(i, s, view, unlocked) as it was, recursive: the oracle."""
+    from replay.semantics._plan import INF, _advance, _options, progressing
+
+    goals = self.goals
+    if i >= len(goals):
+        return 0
+    key = (i, s, view, unlocked)
+    got = self.memo.get(key)
+    if got is not None:
+        return got
+    best = INF
+    if s == goals[i]:
+        self.memo[key] = best
+        return best
+    for tr in progressing(self.m, s, goals[i]):
+        j = _advance(goals, i, tr)
+        for opt in _options(self.m, tr, view, unlocked):
+            if opt.switches >= best:
+                continue
+            total = opt.switches + _recursive_value(self, j, tr.end, opt.view, opt.unlocked)
+            best = min(best, total)
+    self.memo[key] = best
+    return best
+
+
+VIEWS = ("front", "back", "left", "right", "top", "bottom", "dashboard")
+
+
+def _random_machine(rng: random.Random) -> dict:
+    """A small machine with boxes on random views (the dashboard's too), waits, immediate
+    transitions and error states: every kind of option the planner weighs."""
+    n = rng.randint(2, 7)
+    states: dict[str, dict] = {}
+    for k in range(n):
+        on: dict[str, list[dict]] = {}
+        for c in range(rng.randint(0, 3)):
+            boxes = [
+                {"coordinate": [100 * c, 100 * v, 90, 90, 1000, 1000], "view": view}
+                for v, view in enumerate(VIEWS)
+                if rng.random() < 0.35
+            ]
+            on[f"c{c}"] = [
+                {"next_state": f"S{rng.randrange(n)}", "atomic_action": "press", "bbox": boxes}
+                for _ in range(rng.randint(1, 2))
+            ]
+        if rng.random() < 0.2:
+            on["timed_wait"] = [{"next_state": f"S{rng.randrange(n)}"}]
+        if k > 0 and rng.random() < 0.2:  # to an earlier state: never a cycle
+            on["immediate"] = [{"next_state": f"S{rng.randrange(k)}"}]
+        states[f"S{k}"] = {"on": on, "is_error": rng.random() < 0.15}
+    region = {"view": rng.choice(VIEWS[:6]), "coordinate": [800, 800, 100, 100, 1000, 1000]}
+    return {
+        "name": "R",
+        "initial_state": "S0",
+        "states": states,
+        "dashboard": {"regions": [region]},
+    }
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_planner_matches_the_recursion(seed: int) -> None:
+    """Plans, C_opt and every value the solver memoised (in the same order) are those of
+    the recursive planner it replaces, tie-breaks included."""
+    from replay.semantics import _plan
+
+    rng = random.Random(seed)
+    doc = _random_machine(rng)
+    goals = tuple(rng.randrange(len(doc["states"])) for _ in range(rng.randint(1, 3)))
+    view = rng.choice(VIEWS[:6])
+    results = []
+    for value in (_plan._Solver.value, _recursive_value):
+        machine = replay.compile_machine(msgspec.convert(doc, replay.StateMachine))
+        solver = _plan._solver(machine, goals)
+        solver.value = functools.partial(value, solver)  # type: ignore[method-assign]
+        try:
+            plan: object = _plan.plan_goals(machine, 0, view, False, goals)
+        except replay.TaskError as exc:
+            plan = str(exc)
+        dyn = [
+            _plan.c_opt_dynamic(machine, s, view, False, goals[0])
+            for s in range(len(doc["states"]))
+        ]
+        results.append((plan, dyn, list(solver.memo.items())))
+    assert results[0] == results[1]
+
+
 # ------------------------------------------------------------------ appended bytes
 
 
@@ -326,3 +561,27 @@ def test_appended_bytes_never_change_the_records_before_them(
         got = _rows(out, table)
         assert got.slice(0, rows.num_rows).equals(rows), table
     assert all(line > 4 for line, _ in quarantine(out))
+
+
+# ---------------------------------------------------------------------- the responses
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "action:" * 300_000,
+        "-" * 2_000_000 + "action:" * 300_000,
+        ("x\n" + "action:" * 10) * 30_000,
+        "Thinking: " + " action" * 300_000 + "\nAction: Press(coord=[500, 500])",
+    ],
+    ids=["labels", "decorated labels", "labels on many lines", "label words"],
+)
+def test_responses_full_of_labels_parse_in_linear_time(text: str) -> None:
+    """Looking for the line of each `Action:` label from its start made the parsers
+    quadratic: 350 KB of labels took 86 s in the reference and 3 s in the kernel."""
+    from replay.kernel._text import parse_fields
+
+    for parse in (replay.parse_action, parse_fields):
+        started = time.monotonic()
+        parse(text)
+        assert time.monotonic() - started < 3, parse
