@@ -13,6 +13,7 @@ from ..semantics._records import RunHeader
 from ._fs import Location, location
 from ._lines import iter_lines
 from ._load import episodes_file, read_run_header
+from ._task import NAME_BYTES
 
 
 @dataclass(frozen=True)
@@ -25,7 +26,15 @@ class RunInput:
 
 
 def check_run_id(run_id: str, path: Location) -> None:
-    """A run id names directories (`run_id=<id>`, `mcap/<id>`): refuse what would break them."""
+    """A run id names directories (`run_id=<id>`, `mcap/<id>`): refuse what would break them
+    (PROTOCOL §1.5)."""
+    size = len(run_id.encode())
+    if size > NAME_BYTES:
+        raise InputError(
+            str(path),
+            f"run_id is {size:,} bytes long; it names directories, so at most {NAME_BYTES} "
+            "bytes (UTF-8)",
+        )
     bad = (
         run_id.startswith(".")
         or any(c in run_id for c in "/\\=%")

@@ -478,6 +478,40 @@ def test_planner_matches_the_recursion(seed: int) -> None:
     assert results[0] == results[1]
 
 
+# ------------------------------------------------------------------------------ names
+
+
+def test_an_episode_id_of_300_characters_gets_a_short_unique_file(tmp_path) -> None:
+    ids = ["é" * 290 + "/a", "é" * 290 + "/b", "x" * 300, "short/one"]
+    root = write_bench(
+        tmp_path / "bench", {"press": line_ssm(2)}, [task(i, "press", "S1") for i in ids]
+    )
+    run = write_run(tmp_path / "run", [episode(i) for i in ids])
+    names = []
+    for attempt in ("out", "again"):
+        done = vge_bounded("replay", run, "--bench", root, "--out", tmp_path / attempt, "--mcap")
+        assert done.returncode == 0, done.stderr
+        names.append(sorted(p.name for p in (tmp_path / attempt / "mcap" / "run").iterdir()))
+    assert names[0] == names[1]  # the same names on every run
+    assert len(set(names[0])) == 4 and "short%2Fone.mcap" in names[0]
+    long_ones = [n for n in names[0] if n != "short%2Fone.mcap"]
+    for name in long_ones:  # 200 bytes, then ".mcap"; the id's hash after "="
+        assert len(name.encode()) == 205 or name.startswith("%C3%A9")
+        assert len(name.encode()) <= 205 and name.split("=")[1][:32].isalnum()
+    assert sorted(replay.safe_file_name(i) + ".mcap" for i in ids[:3]) == long_ones
+
+
+def test_a_run_id_that_cannot_name_a_directory_is_refused_in_one_line(bench, tmp_path) -> None:
+    run = write_run(tmp_path / "run", [episode("e0")], run_id="r" * 300)
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out")
+    assert done.returncode == 1
+    assert one_line_error(done.stderr) == (
+        f"error: {run / 'run.json'}: run_id is 300 bytes long; it names directories, so at "
+        "most 200 bytes (UTF-8)"
+    )
+    assert not (tmp_path / "out" / "steps").exists()
+
+
 # ------------------------------------------------------------------ appended bytes
 
 
