@@ -260,12 +260,23 @@ class Location:
                 raise
 
     def rmtree(self) -> None:
-        """Delete this directory and everything under it, if it exists."""
+        """Delete this directory and everything under it, if it exists. On the local disk a
+        link (or a file) in its place is removed itself: never followed, so nothing outside
+        is touched."""
         if self.local is not None:
-            shutil.rmtree(self.local, ignore_errors=True)
+            remove_local(self.local)
             return
         if self._info().type == pafs.FileType.Directory:
             self.fs.delete_dir(self.path)  # type: ignore[union-attr]
+
+
+def remove_local(path: Path) -> None:
+    """Remove a local directory tree, or the link or file in its place (a link is unlinked,
+    never followed); a failure names the path (OSError)."""
+    if path.is_symlink() or path.is_file():
+        path.unlink()
+    elif path.exists():
+        shutil.rmtree(path)
 
 
 def location(given: str | os.PathLike[str] | Location) -> Location:
@@ -305,4 +316,4 @@ def _open(
     return fs, path
 
 
-__all__ = ["IMPLICIT_DIRECTORIES", "Location", "is_uri", "location"]
+__all__ = ["IMPLICIT_DIRECTORIES", "Location", "is_uri", "location", "remove_local"]

@@ -15,6 +15,7 @@ import gzip
 import json
 import os
 import random
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -510,6 +511,103 @@ def test_a_run_id_that_cannot_name_a_directory_is_refused_in_one_line(bench, tmp
         "most 200 bytes (UTF-8)"
     )
     assert not (tmp_path / "out" / "steps").exists()
+
+
+# -------------------------------------------------------------------------- processes
+
+
+def _alive(pid: int) -> bool:
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat[stat.rindex(")") + 2] != "Z"  # a zombie has ended
+
+
+def _children(pid: int) -> list[int]:
+    found = []
+    for path in Path(f"/proc/{pid}/task").glob("*/children"):
+        try:
+            found += [int(c) for c in path.read_text().split()]
+        except OSError:
+            continue
+    return found
+
+
+def _gone_within(pids: list[int], seconds: float) -> list[int]:
+    deadline = time.monotonic() + seconds
+    while any(map(_alive, pids)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return [p for p in pids if _alive(p)]
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+def test_a_killed_replay_leaves_no_process_behind(bench, tmp_path) -> None:
+    run = write_run(tmp_path / "run", (padded(f"e{i}", 100_000) for i in range(GOOD)))
+    cmd = [*VGE, "replay", str(run), "--bench", str(bench), "--out", str(tmp_path / "out")]
+    proc = subprocess.Popen([*cmd, "--workers", "2"], stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 30
+        while len(_children(proc.pid)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        kids = _children(proc.pid)  # the worker and the resource tracker
+        assert len(kids) == 2 and proc.poll() is None
+    finally:
+        proc.kill()
+        proc.wait()
+    assert _gone_within(kids, 15) == []
+
+
+_IDLE_POOL = """
+import functools, os, sys, time
+from concurrent.futures import ProcessPoolExecutor
+import multiprocessing
+from replay.io._parent import end_with_parent
+if __name__ == "__main__":
+    init = functools.partial(end_with_parent, death_signal=sys.argv[1] == "signal")
+    pool = ProcessPoolExecutor(1, multiprocessing.get_context("spawn"), init, (os.getpid(),))
+    print(pool.submit(os.getpid).result(), flush=True)  # then idle, waiting for tasks
+    time.sleep(120)
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+@pytest.mark.parametrize("how", ["signal", "watch"])
+def test_an_idle_worker_ends_with_its_parent(how: str) -> None:
+    """A worker waiting for tasks when its parent is killed: before, it (and the resource
+    tracker) waited for ever; now the kernel's death signal, or its watch thread, ends it."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _IDLE_POOL, how], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        worker = int(proc.stdout.readline())  # type: ignore[union-attr]
+        kids = _children(proc.pid)
+        assert worker in kids and len(kids) == 2
+    finally:
+        proc.kill()
+        proc.wait()
+    assert _gone_within(kids, 15) == []
+
+
+@pytest.mark.parametrize(
+    "where", ["staging", "trash", "staging/run", "trash/steps-run_id=run", "dangling staging"]
+)
+def test_stale_links_in_the_replay_state_are_unlinked_never_followed(
+    bench, tmp_path, where
+) -> None:
+    run = write_run(tmp_path / "run", [episode("e0")])
+    out = tmp_path / "out"
+    assert replay.replay_runs([run], bench, out, progress=False).exit_code == 0
+    elsewhere = tmp_path / "elsewhere"
+    (elsewhere / "steps-run_id=run").mkdir(parents=True)
+    (elsewhere / "keep.txt").write_text("not the replay's")
+    link = out / ".replay" / where.removeprefix("dangling ")
+    link.parent.mkdir(parents=True, exist_ok=True)
+    link.symlink_to(tmp_path / "nowhere" if where.startswith("dangling") else elsewhere)
+    manifest = replay.replay_runs([run], bench, out, force=True, progress=False)
+    assert manifest.exit_code == 0 and manifest.replayed == ["run"]
+    assert not link.is_symlink()
+    assert sorted(p.name for p in elsewhere.iterdir()) == ["keep.txt", "steps-run_id=run"]
 
 
 # ------------------------------------------------------------------ appended bytes
