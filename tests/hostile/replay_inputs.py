@@ -94,6 +94,12 @@ def nested(depth: int) -> str:
     return "[" * depth + "]" * depth
 
 
+def deep_step(episode_id: str, depth: int) -> bytes:
+    """A good record but for `depth` nested arrays in one step (its level 4 on)."""
+    doc = json.dumps({"episode_id": episode_id, "steps": [{"output": PRESS, "x": 0}]})
+    return doc.replace('"x": 0', '"x": ' + nested(depth)).encode()
+
+
 def zeros(size: int, block: int = 1 << 20) -> Iterator[bytes]:
     """`size` bytes of '0' with no newline, in blocks (one line, never held whole)."""
     while size > 0:

@@ -18,6 +18,7 @@ import random
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import msgspec
@@ -31,10 +32,11 @@ import replay
 from replay.io import _lines
 from tests.bounded import run_bounded
 
+from .processes import children, left_after
 from .replay_inputs import (
-    PRESS,
     append_gzip,
     chain_ssm,
+    deep_step,
     episode,
     line_ssm,
     nested,
@@ -60,7 +62,32 @@ def bench(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def vge_bounded(*args: str | Path, timeout: float = 60.0):
+    """`vge` as a real process under an address-space bound (`tests.bounded`)."""
     return run_bounded([*VGE, *map(str, args)], timeout=timeout)
+
+
+@dataclass(frozen=True)
+class Ran:
+    returncode: int
+    stdout: str
+    stderr: str
+    seconds: float
+
+
+@pytest.fixture
+def vge_here(capsys: pytest.CaptureFixture[str]):
+    """`vge` in this process (what needs no memory bound: no start-up paid)."""
+    from vge_analytics.cli import main
+
+    def run(*args: str | Path | int) -> Ran:
+        capsys.readouterr()
+        started = time.monotonic()
+        code = main([str(a) for a in args])
+        seconds = time.monotonic() - started
+        shown = capsys.readouterr()
+        return Ran(code, shown.out, shown.err, seconds)
+
+    return run
 
 
 @pytest.fixture(scope="module")
@@ -97,13 +124,13 @@ def test_records_of_100_kb_replay_in_bounded_memory(bench, baseline, tmp_path) -
     # 2,000 records of 100 KB: 200 MB in one batch of lines, cut by bytes into 32 MiB ones.
     # Batches of lines only made this run peak at 1.3 GB (4,096 such lines: 3.2 GB).
     run = write_run(tmp_path / "run", (padded(f"e{i}", 100_000) for i in range(GOOD)), gz=True)
-    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out")
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out", timeout=120)
     assert done.returncode == 0, done.stderr
     assert counts(tmp_path / "out").replayed == GOOD
     # 336 lines make a batch of 32 MiB or more: five of them, and 320 lines
     assert len(list((tmp_path / "out" / "steps" / "run_id=run").iterdir())) == 6
     assert done.peak_memory < baseline.peak_memory + 600 * MiB, done.peak_memory
-    assert done.seconds < baseline.seconds + 30
+    assert done.seconds < baseline.seconds + 60  # generous: the machine may be loaded
 
 
 def test_batches_are_cut_by_bytes(tmp_path) -> None:
@@ -134,15 +161,13 @@ def test_a_line_too_long_is_quarantined_without_being_held(bench, baseline, tmp_
     reason = json.loads((out / "quarantine.jsonl").read_text())["reason"]
     assert reason.startswith("line longer than 1,048,576 bytes, the maximum size of a record")
     assert done.peak_memory < baseline.peak_memory + 32 * MiB, done.peak_memory
-    assert done.seconds < baseline.seconds + 10
+    assert done.seconds < baseline.seconds + 30
 
 
-def test_the_bound_is_an_option_of_the_run(bench, tmp_path, capsys) -> None:
+def test_the_bound_is_an_option_of_the_run(bench, tmp_path, vge_here) -> None:
     """A run replayed with another bound is replayed again (its records may be judged
     otherwise); the manifest names the bound unless it is the default; `vge validate` reads
     the runs within the same bound."""
-    from vge_analytics.cli import main
-
     run = write_run(tmp_path / "run", [episode("e0"), padded("e1", 5000), episode("e2")])
     out = tmp_path / "out"
     first = replay.replay_runs([run], bench, out, progress=False)
@@ -155,10 +180,10 @@ def test_the_bound_is_an_option_of_the_run(bench, tmp_path, capsys) -> None:
     same = replay.replay_runs([run], bench, out, progress=False, max_record_bytes=4096)
     assert (same.skipped, same.exit_code) == (["run"], 2)
 
-    assert main(["validate", str(bench), str(run)]) == 0
-    assert main(["validate", str(bench), str(run), "--max-record-bytes", "4096"]) == 1
-    shown = capsys.readouterr().out
-    assert f"error   {run / 'episodes.jsonl'}:2: line longer than 4,096 bytes" in shown
+    assert vge_here("validate", bench, run).returncode == 0
+    done = vge_here("validate", bench, run, "--max-record-bytes", 4096)
+    assert done.returncode == 1
+    assert f"error   {run / 'episodes.jsonl'}:2: line longer than 4,096 bytes" in done.stdout
 
 
 @pytest.mark.parametrize(
@@ -182,14 +207,14 @@ def test_an_endless_input_is_read_up_to_the_bound(
     assert quarantine(out) == [(line, "record_too_large")]
     assert counts(out).replayed == 2
     assert done.peak_memory < baseline.peak_memory + 32 * MiB, done.peak_memory
-    assert done.seconds < baseline.seconds + 10, name
+    assert done.seconds < baseline.seconds + 30, name  # 1 GiB would take minutes
 
 
 def test_a_device_or_a_pipe_is_refused_in_one_line(bench, tmp_path) -> None:
     run = write_run(tmp_path / "run", [])
     (run / "episodes.jsonl").unlink()
     (run / "episodes.jsonl").symlink_to("/dev/zero")
-    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out", timeout=20)
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out")
     assert done.returncode == 1
     assert one_line_error(done.stderr) == (
         f"error: {run / 'episodes.jsonl'}: not a regular file "
@@ -197,11 +222,11 @@ def test_a_device_or_a_pipe_is_refused_in_one_line(bench, tmp_path) -> None:
     )
     (run / "episodes.jsonl").unlink()
     os.mkfifo(run / "episodes.jsonl")  # opening it would wait for a writer for ever
-    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out", timeout=20)
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out")
     assert done.returncode == 1 and "episodes.jsonl: not a regular file" in done.stderr
     (run / "run.json").unlink()
     (run / "run.json").symlink_to("/dev/zero")
-    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out", timeout=20)
+    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out")
     assert done.returncode == 1
     assert one_line_error(done.stderr).endswith(
         "run.json: not a regular file (a device, a pipe or a directory is no input)"
@@ -221,7 +246,7 @@ def test_line_splitting_is_linear(tmp_path, monkeypatch: pytest.MonkeyPatch) -> 
     started = time.monotonic()
     got = [(n, len(raw)) for n, raw in replay.iter_lines(path)]
     assert got == [(1, 2), (2, 32 * MiB), (3, 2)]
-    assert time.monotonic() - started < 5
+    assert time.monotonic() - started < 15  # 0.3 s here; minutes if quadratic
 
 
 @settings(max_examples=300, deadline=None)
@@ -253,17 +278,11 @@ def test_block_boundaries_never_change_the_lines(data: bytes, limit: int, block:
 # ------------------------------------------------------------------------------ depth
 
 
-def deep_step(episode_id: str, depth: int) -> bytes:
-    """A good record but for `depth` nested arrays in one step (its level 4 on)."""
-    doc = json.dumps({"episode_id": episode_id, "steps": [{"output": PRESS, "x": 0}]})
-    return doc.replace('"x": 0', '"x": ' + nested(depth)).encode()
-
-
-def test_a_deep_step_is_quarantined_and_the_rest_replayed(bench, tmp_path) -> None:
+def test_a_deep_step_is_quarantined_and_the_rest_replayed(bench, tmp_path, vge_here) -> None:
     deep = deep_step("e1", 1000)
     run = write_run(tmp_path / "run", [episode("e0"), deep, episode("e2"), episode("e3")])
     out = tmp_path / "out"
-    done = vge_bounded("replay", run, "--bench", bench, "--out", out)
+    done = vge_here("replay", run, "--bench", bench, "--out", out)
     assert done.returncode == 2, done.stderr
     assert quarantine(out) == [(2, "malformed_json")]
     reason = json.loads((out / "quarantine.jsonl").read_text())["reason"]
@@ -291,12 +310,12 @@ def test_the_depth_bound_is_the_same_in_every_process(
     assert tables[0].equals(tables[1])
 
 
-def test_deep_headers_tasks_and_machines_name_their_file(bench, tmp_path) -> None:
+def test_deep_headers_tasks_and_machines_name_their_file(bench, tmp_path, vge_here) -> None:
     header = {"run_id": "r", "model": "m", "agent_kind": "vlm", "meta": {"x": 0}}
     text = json.dumps(header, indent=1).replace('"x": 0', '"x": ' + nested(300))
     run = write_run(tmp_path / "run", [episode("e0")])
     (run / "run.json").write_text(text)
-    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out")
+    done = vge_here("replay", run, "--bench", bench, "--out", tmp_path / "out")
     assert done.returncode == 1
     at = text.index("[[") + 254  # meta is the second level
     assert one_line_error(done.stderr) == (
@@ -309,9 +328,9 @@ def test_deep_headers_tasks_and_machines_name_their_file(bench, tmp_path) -> Non
     root = write_bench(tmp_path / "bench", {"press": line_ssm(2)}, [])
     (root / "tasks.jsonl").write_text("\n".join(tasks) + "\n")
     (root / "ssm" / "deep.json").write_text(ssm)
-    done = vge_bounded("validate", root)
+    done = vge_here("validate", root)
     assert done.returncode == 1
-    shown = done.stdout_head.decode().splitlines()
+    shown = done.stdout.splitlines()
     assert [line for line in shown if line.startswith("error")] == [
         f"error   {root / 'ssm' / 'deep.json'}:2: JSON is nested deeper than 256 levels "
         f"(byte {ssm.index('[[') + 255})",
@@ -328,17 +347,17 @@ def test_deep_headers_tasks_and_machines_name_their_file(bench, tmp_path) -> Non
     [(line_ssm(1000), "S999", 999), (chain_ssm(4000), "C4000", 1)],
     ids=["1000-state line", "4000-state immediate chain"],
 )
-def test_long_machines_validate_and_replay(ssm, goal, steps, tmp_path) -> None:
+def test_long_machines_validate_and_replay(ssm, goal, steps, tmp_path, vge_here) -> None:
     root = write_bench(tmp_path / "bench", {"dev": ssm}, [task("t", "dev", goal)])
     run = write_run(tmp_path / "run", [episode("t", steps=steps)])
-    done = vge_bounded("validate", root, run)
+    done = vge_here("validate", root, run)
     assert done.returncode == 0, done.stderr
-    assert done.stdout_head.decode().startswith("OK 1 SSM(s), 1 task(s), 1 run(s)")
-    done = vge_bounded("replay", run, "--bench", root, "--out", tmp_path / "out")
+    assert done.stdout.startswith("OK 1 SSM(s), 1 task(s), 1 run(s)")
+    done = vge_here("replay", run, "--bench", root, "--out", tmp_path / "out")
     assert done.returncode == 0, done.stderr
     episodes = pq.read_table(tmp_path / "out" / "episodes", partitioning=None).to_pylist()
     assert [(e["success"], e["L_opt"], e["L_act"]) for e in episodes] == [(True, steps, steps)]
-    assert done.seconds < 30
+    assert done.seconds < 60
 
 
 def test_a_machine_of_100000_states_validates_in_seconds() -> None:
@@ -346,7 +365,7 @@ def test_a_machine_of_100000_states_validates_in_seconds() -> None:
         ssm = msgspec.convert(doc, replay.StateMachine)
         started = time.monotonic()
         assert replay.validate_machine(ssm, "big.json") == []
-        assert time.monotonic() - started < 5
+        assert time.monotonic() - started < 20  # a fraction of a second unloaded
 
 
 def _cycles_by_walking_from_every_state(ssm: replay.StateMachine) -> list[str]:
@@ -482,7 +501,7 @@ def test_planner_matches_the_recursion(seed: int) -> None:
 # ------------------------------------------------------------------------------ names
 
 
-def test_an_episode_id_of_300_characters_gets_a_short_unique_file(tmp_path) -> None:
+def test_an_episode_id_of_300_characters_gets_a_short_unique_file(tmp_path, vge_here) -> None:
     ids = ["é" * 290 + "/a", "é" * 290 + "/b", "x" * 300, "short/one"]
     root = write_bench(
         tmp_path / "bench", {"press": line_ssm(2)}, [task(i, "press", "S1") for i in ids]
@@ -490,7 +509,7 @@ def test_an_episode_id_of_300_characters_gets_a_short_unique_file(tmp_path) -> N
     run = write_run(tmp_path / "run", [episode(i) for i in ids])
     names = []
     for attempt in ("out", "again"):
-        done = vge_bounded("replay", run, "--bench", root, "--out", tmp_path / attempt, "--mcap")
+        done = vge_here("replay", run, "--bench", root, "--out", tmp_path / attempt, "--mcap")
         assert done.returncode == 0, done.stderr
         names.append(sorted(p.name for p in (tmp_path / attempt / "mcap" / "run").iterdir()))
     assert names[0] == names[1]  # the same names on every run
@@ -502,9 +521,11 @@ def test_an_episode_id_of_300_characters_gets_a_short_unique_file(tmp_path) -> N
     assert sorted(replay.safe_file_name(i) + ".mcap" for i in ids[:3]) == long_ones
 
 
-def test_a_run_id_that_cannot_name_a_directory_is_refused_in_one_line(bench, tmp_path) -> None:
+def test_a_run_id_that_cannot_name_a_directory_is_refused_in_one_line(
+    bench, tmp_path, vge_here
+) -> None:
     run = write_run(tmp_path / "run", [episode("e0")], run_id="r" * 300)
-    done = vge_bounded("replay", run, "--bench", bench, "--out", tmp_path / "out")
+    done = vge_here("replay", run, "--bench", bench, "--out", tmp_path / "out")
     assert done.returncode == 1
     assert one_line_error(done.stderr) == (
         f"error: {run / 'run.json'}: run_id is 300 bytes long; it names directories, so at "
@@ -516,31 +537,6 @@ def test_a_run_id_that_cannot_name_a_directory_is_refused_in_one_line(bench, tmp
 # -------------------------------------------------------------------------- processes
 
 
-def _alive(pid: int) -> bool:
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat[stat.rindex(")") + 2] != "Z"  # a zombie has ended
-
-
-def _children(pid: int) -> list[int]:
-    found = []
-    for path in Path(f"/proc/{pid}/task").glob("*/children"):
-        try:
-            found += [int(c) for c in path.read_text().split()]
-        except OSError:
-            continue
-    return found
-
-
-def _gone_within(pids: list[int], seconds: float) -> list[int]:
-    deadline = time.monotonic() + seconds
-    while any(map(_alive, pids)) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    return [p for p in pids if _alive(p)]
-
-
 @pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
 def test_a_killed_replay_leaves_no_process_behind(bench, tmp_path) -> None:
     run = write_run(tmp_path / "run", (padded(f"e{i}", 100_000) for i in range(GOOD)))
@@ -548,14 +544,14 @@ def test_a_killed_replay_leaves_no_process_behind(bench, tmp_path) -> None:
     proc = subprocess.Popen([*cmd, "--workers", "2"], stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 30
-        while len(_children(proc.pid)) < 2 and time.monotonic() < deadline:
+        while len(children(proc.pid)) < 2 and time.monotonic() < deadline:
             time.sleep(0.05)
-        kids = _children(proc.pid)  # the worker and the resource tracker
+        kids = children(proc.pid)  # the worker and the resource tracker
         assert len(kids) == 2 and proc.poll() is None
     finally:
         proc.kill()
         proc.wait()
-    assert _gone_within(kids, 15) == []
+    assert left_after(kids, 15) == []
 
 
 _IDLE_POOL = """
@@ -581,12 +577,12 @@ def test_an_idle_worker_ends_with_its_parent(how: str) -> None:
     )
     try:
         worker = int(proc.stdout.readline())  # type: ignore[union-attr]
-        kids = _children(proc.pid)
+        kids = children(proc.pid)
         assert worker in kids and len(kids) == 2
     finally:
         proc.kill()
         proc.wait()
-    assert _gone_within(kids, 15) == []
+    assert left_after(kids, 15) == []
 
 
 @pytest.mark.parametrize(
@@ -716,4 +712,4 @@ def test_responses_full_of_labels_parse_in_linear_time(text: str) -> None:
     for parse in (replay.parse_action, parse_fields):
         started = time.monotonic()
         parse(text)
-        assert time.monotonic() - started < 3, parse
+        assert time.monotonic() - started < 10, parse  # 0.2 s here; hours if quadratic
