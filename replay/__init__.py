@@ -15,6 +15,7 @@ from ._errors import (
     ConfigError,
     InputError,
     Problem,
+    RecordTooLarge,
     SSMError,
     TaskError,
     VGEError,
@@ -36,11 +37,11 @@ from .io._lambdas import LambdaBatch, LambdaTask, replay_lambdas
 
 # Input and output: loading and validating, the runner (`vge replay`), manifest, quarantine, MCAP,
 # JSON Schemas.
+from .io._lines import MAX_RECORD_BYTES, iter_lines
 from .io._load import (
     Benchmark,
     decode_state_machine,
     episodes_file,
-    iter_lines,
     load_machine,
     load_ssm,
     read_run_header,
@@ -151,6 +152,7 @@ __all__ = [
     "INPUT_RECORDS",
     "INTERACTIONS",
     "MAX_IMAGE_BYTES",
+    "MAX_RECORD_BYTES",
     "MCAP_LIBRARY",
     "ORTHOGRAPHIC_VIEWS",
     "OUTPUT_RECORDS",
@@ -228,6 +230,7 @@ __all__ = [
     "Problem",
     "progressing",
     "QuarantineRecord",
+    "RecordTooLarge",
     "read_manifest",
     "read_run_header",
     "rect_contains",

@@ -21,6 +21,11 @@ class InputError(VGEError):
         super().__init__(f"{where}: {message}")
 
 
+class RecordTooLarge(InputError):
+    """A record (a line, or a run of blank lines) longer than the maximum size of a record:
+    the reading of its file stops there (PROTOCOL §1.5)."""
+
+
 class Problem(VGEError):
     """One validation problem; `where` locates it (file, state, component...)."""
 

@@ -9,6 +9,7 @@ on the executor: every executor calls the same function on the same tasks.
 from __future__ import annotations
 
 import multiprocessing
+import os
 from collections import Counter, deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -16,6 +17,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Generic, Protocol, TypeVar
 
 from .._errors import ConfigError, WorkerError
+from ._parent import end_with_parent
 
 T = TypeVar("T")
 Batch = Callable[[Any], Any]
@@ -83,7 +85,12 @@ class WorkerProcesses:
         context = multiprocessing.get_context("spawn")
         self.slots = workers
         self.nodes: Counter[str] = Counter()
-        self.pool = ProcessPoolExecutor(max_workers=workers - 1, mp_context=context)
+        self.pool = ProcessPoolExecutor(
+            max_workers=workers - 1,
+            mp_context=context,
+            initializer=end_with_parent,  # no worker outlives this process (`_parent`)
+            initargs=(os.getpid(),),
+        )
         self._open: deque[_Share] = deque()  # submitted, result not taken yet
 
     def submit(self, fn: Batch, task: Any) -> _Share:
@@ -134,7 +141,8 @@ class WorkerProcesses:
 def make_executor(workers: int = 1, ray: str | None = None) -> Executor:
     """This process (`workers=1`), `workers` processes, or the Ray cluster at `ray`
     (`auto`: the cluster this host belongs to or `RAY_ADDRESS`; `local`: a cluster started
-    in this process; else an address)."""
+    in this process; else an address). Worker processes end with this process; on Linux
+    also with the thread that first submits to them, which must outlive the executor."""
     if ray is not None:
         from ._ray import RayCluster
 

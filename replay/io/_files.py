@@ -15,7 +15,6 @@ files depend only on the input, never on timing or the number of workers.
 from __future__ import annotations
 
 import os
-import shutil
 from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO
@@ -23,7 +22,7 @@ from typing import BinaryIO
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ._fs import Location
+from ._fs import Location, remove_local
 
 STATE_DIR = ".replay"
 """Private state under OUT: per-run quarantine records, the lock, staging and trash."""
@@ -96,10 +95,9 @@ def remove_dir(final: Location, trash: Location) -> None:
         return
     trash_path.mkdir(parents=True, exist_ok=True)
     old = trash_path / f"{final_path.parent.name}-{final_path.name}"
-    if old.exists():
-        shutil.rmtree(old)
+    remove_local(old)
     os.rename(final_path, old)
-    shutil.rmtree(old)
+    remove_local(old)
 
 
 def swap_in(staged: Path, final: Path, trash: Path) -> None:
@@ -109,10 +107,9 @@ def swap_in(staged: Path, final: Path, trash: Path) -> None:
     if final.exists():
         trash.mkdir(parents=True, exist_ok=True)
         old = trash / f"{final.parent.name}-{final.name}"
-        if old.exists():
-            shutil.rmtree(old)
+        remove_local(old)  # a leftover, or a link someone put there (unlinked, not followed)
         os.rename(final, old)
     os.rename(staged, final)
     if old is not None:
-        shutil.rmtree(old)
+        remove_local(old)
 

@@ -23,6 +23,7 @@ import io
 import os
 import re
 import shutil
+import stat
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
@@ -147,8 +148,13 @@ class Location:
         return self._info().type == pafs.FileType.File
 
     def open_read(self) -> BinaryIO:
-        """The file's bytes as a stream (never decompressed on the way)."""
+        """The file's bytes as a stream (never decompressed on the way). On the local disk
+        only a regular file: a device or a pipe may never end, and is read once only."""
         if self.local is not None:
+            if not stat.S_ISREG(os.stat(self.local).st_mode):
+                raise InputError(
+                    str(self), "not a regular file (a device, a pipe or a directory is no input)"
+                )
             return open(self.local, "rb")  # noqa: SIM115
         return self.fs.open_input_stream(self.path, compression=None)  # type: ignore[union-attr,return-value]
 
@@ -254,12 +260,23 @@ class Location:
                 raise
 
     def rmtree(self) -> None:
-        """Delete this directory and everything under it, if it exists."""
+        """Delete this directory and everything under it, if it exists. On the local disk a
+        link (or a file) in its place is removed itself: never followed, so nothing outside
+        is touched."""
         if self.local is not None:
-            shutil.rmtree(self.local, ignore_errors=True)
+            remove_local(self.local)
             return
         if self._info().type == pafs.FileType.Directory:
             self.fs.delete_dir(self.path)  # type: ignore[union-attr]
+
+
+def remove_local(path: Path) -> None:
+    """Remove a local directory tree, or the link or file in its place (a link is unlinked,
+    never followed); a failure names the path (OSError)."""
+    if path.is_symlink() or path.is_file():
+        path.unlink()
+    elif path.exists():
+        shutil.rmtree(path)
 
 
 def location(given: str | os.PathLike[str] | Location) -> Location:
@@ -299,4 +316,4 @@ def _open(
     return fs, path
 
 
-__all__ = ["IMPLICIT_DIRECTORIES", "Location", "is_uri", "location"]
+__all__ = ["IMPLICIT_DIRECTORIES", "Location", "is_uri", "location", "remove_local"]

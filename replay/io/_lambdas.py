@@ -20,6 +20,7 @@ import pyarrow as pa
 
 from ..kernel._batch import EpisodeInput, replay_kernel
 from ..semantics._budget import episode_lambda
+from ._decode import decode
 from ._load import episode_decoder
 from ._worker import worker_state
 
@@ -59,7 +60,7 @@ def replay_lambdas(task: LambdaTask) -> LambdaBatch:
     seen: set[str] = set()
     for _, line in task.lines:
         try:
-            log = episode_decoder.decode(line)
+            log = decode(episode_decoder, line)
         except msgspec.DecodeError:
             continue  # quarantined by the replay: not in OUT either
         eid = log.episode_id

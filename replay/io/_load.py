@@ -5,19 +5,20 @@ program that writes runs (`vge synth`, `vge run`, `vge play`)."""
 
 from __future__ import annotations
 
-import gzip
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any
 
 import msgspec
 
 from .._errors import InputError, Problem, SSMError, TaskError, VGEError, decode_error_message
 from ..semantics._machine import Machine, compile_machine, validate_machine
 from ..semantics._records import EpisodeLog, RunHeader, StateMachine, Task
+from ._decode import decode
 from ._fs import Location, location
+from ._lines import MAX_RECORD_BYTES, iter_lines, read_whole
 
 _BYTE = re.compile(r"byte (\d+)")
 _ssm_decoder = msgspec.json.Decoder(StateMachine)
@@ -33,27 +34,12 @@ def _line_of(data: bytes, message: str) -> int | None:
     return data.count(b"\n", 0, int(m.group(1))) + 1
 
 
-def _read(path: Location) -> bytes:
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError(str(path), "file not found") from None
-    except OSError as exc:
-        raise InputError(str(path), f"cannot read: {exc.strerror or exc}") from None
-    if path.suffix == ".gz":
-        try:
-            data = gzip.decompress(data)
-        except (OSError, EOFError) as exc:
-            raise InputError(str(path), f"not a valid gzip file: {exc}") from None
-    return data
-
-
 def decode_state_machine(path: str | Path | Location) -> StateMachine:
     """Decode an SSM/UCSM JSON file (no semantic validation)."""
     path = location(path)
-    data = _read(path)
+    data = read_whole(path)
     try:
-        return _ssm_decoder.decode(data)
+        return decode(_ssm_decoder, data)
     except msgspec.DecodeError as exc:
         msg = decode_error_message(exc)
         raise InputError(str(path), msg, _line_of(data, msg)) from None
@@ -75,52 +61,11 @@ def load_machine(path: str | Path | Location, device_id: str | None = None) -> M
     return compile_machine(ssm, device_id=device_id or path.stem, source=str(path))
 
 
-def iter_lines(path: str | Path | Location) -> Iterator[tuple[int, bytes]]:
-    """(line number from 1, raw line) of a .jsonl or .jsonl.gz file, blank lines skipped.
-
-    A truncated gzip stream raises `InputError` after yielding what could be read (every
-    complete line). Read in blocks (`read1`: one read of the underlying stream each, so a
-    failing read loses nothing already decompressed) and split in bulk, several times
-    faster than line by line through `gzip`.
-    """
-    path = location(path)
-    number = 0
-    try:
-        with path.open_read() as raw, _gunzip(raw) if path.suffix == ".gz" else raw as fh:
-            rest = b""
-            while True:
-                block = fh.read1(_BLOCK)
-                if not block:
-                    break
-                lines = (rest + block).split(b"\n")
-                rest = lines.pop()
-                for raw in lines:
-                    number += 1
-                    line = raw.strip()
-                    if line:
-                        yield number, line
-            if rest:
-                line = rest.strip()
-                if line:
-                    yield number + 1, line
-    except FileNotFoundError:
-        raise InputError(str(path), "file not found") from None
-    except (OSError, EOFError) as exc:
-        raise InputError(str(path), f"unreadable ({exc})") from None
-
-
-_BLOCK = 1 << 20
-
-
-def _gunzip(raw: BinaryIO) -> BinaryIO:
-    return gzip.GzipFile(fileobj=raw, mode="rb")  # type: ignore[return-value]
-
-
 def read_run_header(run_dir: str | Path | Location) -> RunHeader:
     path = location(run_dir) / "run.json"
-    data = _read(path)
+    data = read_whole(path)
     try:
-        header = _run_decoder.decode(data)
+        header = decode(_run_decoder, data)
     except msgspec.DecodeError as exc:
         msg = decode_error_message(exc)
         raise InputError(str(path), msg, _line_of(data, msg)) from None
@@ -180,7 +125,7 @@ class Benchmark:
             raise InputError(str(tasks_path), "file not found")
         for number, line in iter_lines(tasks_path):
             try:
-                task = _task_decoder.decode(line)
+                task = decode(_task_decoder, line)
             except msgspec.DecodeError as exc:
                 bench.task_problems.append(
                     Problem(f"{tasks_path}:{number}", "", decode_error_message(exc))
@@ -223,6 +168,10 @@ class Benchmark:
         return got
 
 
+def _problem(exc: InputError) -> Problem:
+    return Problem(exc.path if exc.line is None else f"{exc.path}:{exc.line}", "", exc.message)
+
+
 def validate_benchmark(root: str | Path | Location) -> list[Problem]:
     """Every problem of a benchmark: SSMs, UCSMs, tasks (PROTOCOL §1.1-1.3, 4)."""
     from ..semantics._episode import setup_episode
@@ -234,9 +183,7 @@ def validate_benchmark(root: str | Path | Location) -> list[Problem]:
         try:
             ssm = decode_state_machine(path)
         except InputError as exc:
-            problems.append(
-                Problem(exc.path if exc.line is None else f"{exc.path}:{exc.line}", "", exc.message)
-            )
+            problems.append(_problem(exc))
             continue
         problems.extend(validate_machine(ssm, str(path)))
         if ssm.device_id is not None and ssm.device_id != device_id:
@@ -261,11 +208,7 @@ def validate_benchmark(root: str | Path | Location) -> list[Problem]:
             try:
                 ucsm = decode_state_machine(path)
             except InputError as exc:
-                problems.append(
-                    Problem(
-                        exc.path if exc.line is None else f"{exc.path}:{exc.line}", "", exc.message
-                    )
-                )
+                problems.append(_problem(exc))
                 continue
             problems.extend(validate_machine(ucsm, str(path), require_geometry=False))
     problems.extend(bench.task_problems)
@@ -316,27 +259,31 @@ def validate_benchmark(root: str | Path | Location) -> list[Problem]:
     return problems
 
 
-def validate_run(run_dir: str | Path | Location, bench: Benchmark) -> list[Problem]:
-    """Problems of a run directory: header, episode lines, unknown or duplicate episodes."""
+def validate_run(
+    run_dir: str | Path | Location,
+    bench: Benchmark,
+    *,
+    max_record_bytes: int = MAX_RECORD_BYTES,
+) -> list[Problem]:
+    """Problems of a run directory: header, episode lines (each at most `max_record_bytes`),
+    unknown or duplicate episodes."""
     problems: list[Problem] = []
     run_dir = location(run_dir)
     try:
         read_run_header(run_dir)
     except InputError as exc:
-        problems.append(
-            Problem(exc.path if exc.line is None else f"{exc.path}:{exc.line}", "", exc.message)
-        )
+        problems.append(_problem(exc))
     try:
         path = episodes_file(run_dir)
     except InputError as exc:
-        problems.append(Problem(exc.path, "", exc.message))
+        problems.append(_problem(exc))
         return problems
     seen: dict[str, int] = {}
     try:
-        for number, line in iter_lines(path):
+        for number, line in iter_lines(path, max_record_bytes=max_record_bytes):
             where = f"{path}:{number}"
             try:
-                log = episode_decoder.decode(line)
+                log = decode(episode_decoder, line)
             except msgspec.DecodeError as exc:
                 problems.append(Problem(where, "", decode_error_message(exc)))
                 continue
@@ -359,5 +306,5 @@ def validate_run(run_dir: str | Path | Location, bench: Benchmark) -> list[Probl
                     )
                 )
     except InputError as exc:
-        problems.append(Problem(exc.path, "", exc.message))
+        problems.append(_problem(exc))
     return problems

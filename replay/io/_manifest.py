@@ -22,6 +22,7 @@ from msgspec import Meta
 from .._errors import InputError, decode_error_message
 from ..semantics._budget import run_lambda
 from ._fs import Location, location
+from ._lines import MAX_RECORD_BYTES
 
 MANIFEST_FORMAT = "vge-replay-manifest"
 MANIFEST_VERSION = 1
@@ -47,10 +48,13 @@ class RunInputs(msgspec.Struct, kw_only=True):
     ssm: Annotated[dict[str, FileRef], _d("SSM of every device the run's episodes use")]
 
 
-class RunOptions(msgspec.Struct, kw_only=True):
+class RunOptions(msgspec.Struct, kw_only=True, omit_defaults=True):
     lam: Annotated[float | None, _d("--lambda, if given")] = msgspec.field(name="lambda")
     mcap: bool
     mcap_episodes: Annotated[list[str] | None, _d("Episodes with an MCAP file; null: all")]
+    max_record_bytes: Annotated[
+        int, _d("--max-record-bytes; absent when it is the default, 67108864 (64 MiB)")
+    ] = MAX_RECORD_BYTES
 
 
 class RunInfo(msgspec.Struct, kw_only=True):

@@ -22,6 +22,8 @@ QUARANTINE_KINDS: dict[str, str] = {
     "task_error": "the task cannot be played on its device (bad goals, unplannable...)",
     "duplicate_episode": "the episode id already appeared earlier in the same run",
     "truncated_file": "the rest of the file cannot be read (truncated gzip stream, I/O error)",
+    "record_too_large": "a line (or a run of blank lines) longer than the maximum size of a "
+    "record (--max-record-bytes, 64 MiB by default); the rest of the file is not read",
 }
 """Quarantine kind -> what it means (also in docs/REPLAY.md)."""
 

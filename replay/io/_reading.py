@@ -11,7 +11,9 @@ from queue import Full, Queue
 from .._errors import ConfigError, InputError
 from ..semantics._records import RunHeader
 from ._fs import Location, location
-from ._load import episodes_file, iter_lines, read_run_header
+from ._lines import iter_lines
+from ._load import episodes_file, read_run_header
+from ._task import NAME_BYTES
 
 
 @dataclass(frozen=True)
@@ -24,7 +26,15 @@ class RunInput:
 
 
 def check_run_id(run_id: str, path: Location) -> None:
-    """A run id names directories (`run_id=<id>`, `mcap/<id>`): refuse what would break them."""
+    """A run id names directories (`run_id=<id>`, `mcap/<id>`): refuse what would break them
+    (PROTOCOL §1.5)."""
+    size = len(run_id.encode())
+    if size > NAME_BYTES:
+        raise InputError(
+            str(path),
+            f"run_id is {size:,} bytes long; it names directories, so at most {NAME_BYTES} "
+            "bytes (UTF-8)",
+        )
     bad = (
         run_id.startswith(".")
         or any(c in run_id for c in "/\\=%")
@@ -62,14 +72,21 @@ _END = object()
 
 
 class LineReader:
-    """Lines of an episodes file in batches; a read error ends the file (kept in `error`).
+    """Lines of an episodes file in batches of at most `batch_lines` lines, cut as well once
+    they hold `batch_bytes` bytes (so the batches in memory stay bounded whatever the line
+    sizes); a read error or a line longer than `max_record_bytes` ends the file (kept in
+    `error`).
 
     A thread reads ahead (`READ_AHEAD` batches): inflating gzip releases the GIL, so the
     reading overlaps the replay of the batches already read."""
 
-    def __init__(self, path: Location, batch_lines: int) -> None:
+    def __init__(
+        self, path: Location, batch_lines: int, batch_bytes: int, max_record_bytes: int
+    ) -> None:
         self.path = path
         self.batch_lines = batch_lines
+        self.batch_bytes = batch_bytes
+        self.max_record_bytes = max_record_bytes
         self.last_line = 0
         self.error: InputError | None = None
 
@@ -112,7 +129,8 @@ class LineReader:
 
     def _read(self) -> Iterator[list[tuple[int, bytes]]]:
         batch: list[tuple[int, bytes]] = []
-        lines = iter_lines(self.path)
+        size = 0
+        lines = iter_lines(self.path, max_record_bytes=self.max_record_bytes)
         while True:
             try:
                 item = next(lines)
@@ -123,8 +141,9 @@ class LineReader:
                 break
             self.last_line = item[0]
             batch.append(item)
-            if len(batch) >= self.batch_lines:
+            size += len(item[1])
+            if len(batch) >= self.batch_lines or size >= self.batch_bytes:
                 yield batch
-                batch = []
+                batch, size = [], 0
         if batch:
             yield batch

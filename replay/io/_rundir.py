@@ -25,6 +25,7 @@ import msgspec
 
 from .._errors import InputError
 from ..semantics._records import EpisodeLog, RunHeader
+from ._decode import decode
 from ._durable import append_record, truncate, write_atomic
 from ._load import read_run_header, run_header_bytes
 
@@ -67,7 +68,7 @@ class RunDirectory:
             return None
         start = data.rfind(b"\n") + 1
         try:
-            _episode_decoder.decode(data[start:])
+            decode(_episode_decoder, data[start:])
         except msgspec.DecodeError:
             kept = None if self.aside is None else keep_aside(self.aside, "episodes-tail", data[start:])
             truncate(path, start)
@@ -89,7 +90,7 @@ class RunDirectory:
             if not line.strip():
                 continue
             try:
-                log = _episode_decoder.decode(line)
+                log = decode(_episode_decoder, line)
             except msgspec.DecodeError as exc:
                 raise InputError(
                     str(self.episodes_path),

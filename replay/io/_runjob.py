@@ -9,7 +9,7 @@ import shutil
 import tempfile
 from collections.abc import Callable
 
-from .._errors import InputError
+from .._errors import InputError, RecordTooLarge
 from .._version import ENGINE_VERSION
 from ..semantics._tables import TABLE_ROWS, arrow_schema
 from ._files import STATE_DIR, commit_dir, remove_dir, write_part
@@ -178,15 +178,20 @@ class RunJob:
         return result
 
     def finish_reading(self, last_line: int, error: InputError | None) -> None:
-        """A read error ends the file: one `truncated_file` record at the first lost line."""
-        if error is not None:
-            self.lines_read += 1
-            self.quarantine(
-                last_line + 1,
-                None,
-                "truncated_file",
-                f"the file cannot be read from line {last_line + 1} on: {error.message}",
-            )
+        """What ends a file early is one record: `record_too_large` at the line too long,
+        or `truncated_file` at the first line that could not be read."""
+        if error is None:
+            return
+        self.lines_read += 1
+        if isinstance(error, RecordTooLarge):
+            self.quarantine(error.line or last_line + 1, None, "record_too_large", error.message)
+            return
+        self.quarantine(
+            last_line + 1,
+            None,
+            "truncated_file",
+            f"the file cannot be read from line {last_line + 1} on: {error.message}",
+        )
 
     def abort(self) -> None:
         self._quarantine.close()

@@ -1,6 +1,7 @@
 """`replay_runs`: run logs -> Parquet tables, quarantine, manifest, MCAP (PROTOCOL §7).
 
-The main process reads each episodes file and cuts it into batches of `BATCH_LINES` lines.
+The main process reads each episodes file and cuts it into batches of `BATCH_LINES` lines
+(or fewer: `BATCH_BYTES` bytes).
 A batch is replayed and written as one Parquet part per table by `_worker.replay_batch`,
 here or in worker processes (`_executor`), at most `AHEAD_PER_WORKER` batches per worker in
 flight, the next run's batches following the current one's without a pause. The main
@@ -24,6 +25,7 @@ from ._executor import Executor, InProcess, in_order, make_executor
 from ._files import STATE_DIR
 from ._fs import Location, location
 from ._images import ImageSource
+from ._lines import MAX_RECORD_BYTES
 from ._load import Benchmark
 from ._manifest import Hasher, Manifest, RunEntry, RunOptions, read_manifest
 from ._outdir import OutputLock, publish, run_inputs, up_to_date
@@ -38,15 +40,24 @@ if TYPE_CHECKING:
 BATCH_LINES = 4096
 """Episode lines per batch: the unit of work of a worker and of a Parquet part (fixed,
 whatever the workers)."""
+BATCH_BYTES = 32 << 20
+"""A batch ends early once its lines hold this many bytes, so the batches read ahead and in
+flight stay bounded in memory however long the lines are. Twice the largest batch of the
+full synthetic benchmark (15 MB): its batches, and the sample's, are cut by lines only."""
 AHEAD_PER_WORKER = 2
 """Batches in flight per worker process."""
 
 
 def _options(
-    lam: float | None, mcap: bool, mcap_episodes: Iterable[str] | None, workers: int
+    lam: float | None,
+    mcap: bool,
+    mcap_episodes: Iterable[str] | None,
+    workers: int,
+    max_record_bytes: int,
 ) -> RunOptions:
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ConfigError(f"workers must be a positive integer, not {workers!r}")
+    for name, value in (("workers", workers), ("max_record_bytes", max_record_bytes)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ConfigError(f"{name} must be a positive integer, not {value!r}")
     if lam is not None and not (isinstance(lam, (int, float)) and math.isfinite(lam) and lam > 0):
         raise ConfigError(f"lambda must be a positive number, not {lam!r}")
     episodes = None
@@ -56,7 +67,10 @@ def _options(
         episodes = sorted(set(mcap_episodes))
         mcap = True
     return RunOptions(
-        lam=None if lam is None else float(lam), mcap=bool(mcap), mcap_episodes=episodes
+        lam=None if lam is None else float(lam),
+        mcap=bool(mcap),
+        mcap_episodes=episodes,
+        max_record_bytes=max_record_bytes,
     )
 
 
@@ -107,6 +121,7 @@ def replay_runs(
     progress: bool = True,
     image_source: ImageSource | None = None,
     ray: str | None = None,
+    max_record_bytes: int = MAX_RECORD_BYTES,
 ) -> Manifest:
     """Replay run directories against a benchmark into `out_dir` (PROTOCOL §7).
 
@@ -119,12 +134,14 @@ def replay_runs(
     `ray` replays the batches as Ray tasks instead of local workers (`auto`: the cluster this
     host belongs to or `RAY_ADDRESS`; `local`: one started in this process; or an address);
     every node must reach `bench_dir`, `out_dir` and the image source (docs/SCALE.md).
+    `max_record_bytes` bounds an episode line: a longer one is quarantined as
+    `record_too_large` and ends the reading of its file (PROTOCOL §1.5).
     Run directories, `bench_dir` and `out_dir` are local paths or URIs of pyarrow's
     filesystems (`s3://bucket/out`, `gs://...`, `file:///...`); in an object store the
     manifest is the commit marker and there is no writer lock (docs/SCALE.md).
     Raises `VGEError` subclasses on fatal problems; bad records are quarantined instead.
     """
-    options = _options(lam, mcap, mcap_episodes, workers)
+    options = _options(lam, mcap, mcap_episodes, workers, max_record_bytes)
     if not run_dirs:
         raise ConfigError("no run directories given")
     bench_given = str(bench_dir)
@@ -225,7 +242,9 @@ def _replay_all(
                 run, bench, bench_given, out, options, image_source,
                 _files.ROW_GROUP_ROWS,
             )  # fmt: skip
-            job.reader = LineReader(run.episodes, BATCH_LINES)
+            job.reader = LineReader(
+                run.episodes, BATCH_LINES, BATCH_BYTES, options.max_record_bytes
+            )
             open_jobs.append(job)
             if bar is not None:
                 bars[job.ctx.run_id] = bar.add_task(job.ctx.run_id, total=None, rate="-", nodes=0)

@@ -25,6 +25,7 @@ from ..semantics._machine import Machine
 from ..semantics._records import Task
 from ..semantics._rows import EpisodeRow, GoalRow, StepRow
 from ..semantics._tables import TABLE_ROWS, rows_to_table
+from ._decode import decode
 from ._files import write_part
 from ._fs import location
 from ._images import ImageSource, ViewImage, as_view_image
@@ -270,7 +271,7 @@ def _prepare_line(
     outcome is filled in after the replay)."""
     bench = state.bench
     try:
-        log = episode_decoder.decode(raw)
+        log = decode(episode_decoder, raw)
     except msgspec.DecodeError as exc:
         kind, reason, episode_id = classify_decode_error(raw, exc)
         outcomes.append(LineOutcome(number, episode_id, False, kind, reason))

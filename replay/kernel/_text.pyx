@@ -151,8 +151,9 @@ cdef int _labels(const char* s, Py_ssize_t n, Span* first, Span* second) noexcep
     each colon closes at most one label, and colons come in the order of their labels."""
     cdef int n_line = 0, n_any = 0
     cdef Span line0, line1, any0, any1
-    cdef Py_ssize_t colon, pos, k, sol
+    cdef Py_ssize_t colon, pos, k, sol = 0, searched = 0, decor_end = -1
     cdef bint at_line
+    cdef const char* nl
     cdef const char* hit = <const char*>memchr(s, 58, n)
     while hit != NULL:
         colon = hit - s
@@ -163,14 +164,20 @@ cdef int _labels(const char* s, Py_ssize_t n, Span* first, Span* second) noexcep
         pos = k - 5
         if pos < 0 or not _at_nocase(s, n, pos, b"action", 6):
             continue
-        sol = pos
-        while sol > 0 and s[sol - 1] != 10:
-            sol -= 1
-        at_line = True
-        for k in range(sol, pos):
-            if not _line_decor(s[k]):
-                at_line = False
-                break
+        # Labels come in order: the start of each one's line (`sol`) and the end of that
+        # line's decoration are found going forward, each byte looked at once (linear time,
+        # however many labels a line holds).
+        nl = <const char*>memchr(s + searched, 10, pos - searched)
+        while nl != NULL:
+            sol = nl - s + 1
+            decor_end = -1
+            nl = <const char*>memchr(s + sol, 10, pos - sol)
+        searched = pos
+        if decor_end < 0:
+            decor_end = sol
+            while decor_end < n and _line_decor(s[decor_end]):
+                decor_end += 1
+        at_line = decor_end >= pos
         if at_line:
             if n_line == 0:
                 line0.start = sol

@@ -218,30 +218,44 @@ def validate_machine(
                         seen_triggers[trigger] = k
 
     # Cycles made only of immediate transitions (the simulator would never stop).
-    order = {name: i for i, name in enumerate(states)}
-    for start in states:
-        seen = [start]
-        current = start
-        while True:
-            imm = states[current].on.get(IMMEDIATE) if current in states else None
-            if not imm:
-                break
-            nxt = imm[0].next_state
-            if nxt not in states:
-                break
-            if nxt in seen:
-                members = seen[seen.index(nxt) :]
-                # Report each cycle once, from its first member in file order.
-                if nxt == start and start == min(members, key=order.__getitem__):
-                    cycle = " -> ".join(members + [nxt])
-                    err(
-                        f"state {start!r}, component 'immediate'",
-                        f"cycle of immediate transitions: {cycle}",
-                    )
-                break
-            seen.append(nxt)
-            current = nxt
+    for cycle in _immediate_cycles(ssm):
+        err(
+            f"state {cycle[0]!r}, component 'immediate'",
+            f"cycle of immediate transitions: {' -> '.join([*cycle, cycle[0]])}",
+        )
     return problems
+
+
+def _immediate_cycles(ssm: StateMachine) -> list[list[str]]:
+    """Every cycle of immediate transitions, listed from its first member in file order, in
+    the order of those members (each cycle reported once).
+
+    A state has at most one immediate successor (its first `immediate` transition), so one
+    walk from each state not yet seen, marking the states of the walk, finds every cycle in
+    time linear in the states (a long chain is walked once, not once per state in it)."""
+    states = ssm.states
+    order = {name: i for i, name in enumerate(states)}
+
+    def successor(name: str) -> str | None:
+        imm = states[name].on.get(IMMEDIATE)
+        nxt = imm[0].next_state if imm else None
+        return nxt if nxt in states else None
+
+    seen: set[str] = set()
+    cycles: list[list[str]] = []
+    for start in states:
+        walk: dict[str, int] = {}  # state -> its position in this walk
+        current: str | None = start
+        while current is not None and current not in seen:
+            seen.add(current)
+            walk[current] = len(walk)
+            current = successor(current)
+        if current is not None and current in walk:  # the walk closed on itself
+            members = list(walk)[walk[current] :]
+            first = min(range(len(members)), key=lambda k: order[members[k]])
+            cycles.append(members[first:] + members[:first])
+    cycles.sort(key=lambda cycle: order[cycle[0]])
+    return cycles
 
 
 def _check_coordinate(coord: list[float], where: str, err) -> None:
@@ -282,16 +296,21 @@ def compile_machine(
         imm = ssm.states[nm].on.get(IMMEDIATE)
         if imm:
             immediate_next[i] = index[imm[0].next_state]
-    chains: list[tuple[int, ...]] = []
-    ends: list[int] = []
+    # A state's chain is its successor's with the successor in front: built back from each
+    # stable end, every state once (a long chain is not walked again for each state in it).
+    chains: list[tuple[int, ...]] = [()] * n
+    built = [False] * n
     for i in range(n):
-        chain: list[int] = []
+        path: list[tuple[int, int]] = []  # (state, its successor) up to a built state
         cur = i
-        while immediate_next[cur] is not None:
-            cur = immediate_next[cur]  # type: ignore[assignment]
-            chain.append(cur)
-        chains.append(tuple(chain))
-        ends.append(cur)
+        while not built[cur] and (nxt := immediate_next[cur]) is not None:
+            path.append((cur, nxt))
+            cur = nxt
+        built[cur] = True
+        for state, succ in reversed(path):
+            chains[state] = (succ, *chains[succ])
+            built[state] = True
+    ends = [chain[-1] if chain else i for i, chain in enumerate(chains)]
 
     views = list(ssm.views) if ssm.views is not None else list(STANDARD_VIEWS)
     view_list = [v.lower() for v in views]

@@ -125,14 +125,25 @@ def _find_labels(text: str) -> list[tuple[int, int]]:
     line: list[tuple[int, int]] = []
     anywhere: list[tuple[int, int]] = []
     n = len(text)
+    # The line of each label and where its decoration ends are found going forward, each
+    # character looked at once: however many labels a line holds, the time stays linear.
+    start_of_line = searched = 0
+    decor_end = -1  # the first character of that line that is not decoration (-1: not yet)
     pos = low.find("action")
     while pos >= 0:
         j = pos + 6
         while j < n and text[j] in _LABEL_DECOR:
             j += 1
         if j < n and text[j] == ":":
-            start_of_line = text.rfind("\n", 0, pos) + 1
-            if all(ch in _LINE_DECOR for ch in text[start_of_line:pos]):
+            newline = text.rfind("\n", searched, pos)
+            searched = pos
+            if newline >= 0:
+                start_of_line, decor_end = newline + 1, -1
+            if decor_end < 0:
+                decor_end = start_of_line
+                while decor_end < n and text[decor_end] in _LINE_DECOR:
+                    decor_end += 1
+            if decor_end >= pos:  # nothing but decoration before it on its line
                 line.append((start_of_line, j + 1))
             elif pos == 0 or not (text[pos - 1].isalnum() or text[pos - 1] == "_"):
                 anywhere.append((pos, j + 1))

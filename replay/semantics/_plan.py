@@ -3,14 +3,16 @@
 An optimal plan minimises (transitions, view switches) lexicographically. Because the state
 after completing goal i is fixed (the immediate chain of g_i), its transition count is the
 sum of per-goal distances, and only *tight* transitions (those lowering the distance) can
-appear in it. Over that DAG we minimise switches jointly across goals by memoised
-recursion on (goal index, state, view, dashboard unlocked). Switches are folded into the
+appear in it. Over that DAG we minimise switches jointly across goals, evaluating (goal
+index, state, view, dashboard unlocked) depth first with memoisation, on a stack of our own
+(never Python's: a plan is as long as the input makes it). Switches are folded into the
 interaction that needs them, so they land as late as possible. PROTOCOL §4.3 lists the
 tie-breaks.
 """
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from dataclasses import dataclass
 
 from .._errors import TaskError
@@ -210,28 +212,50 @@ class _Solver:
         self.memo: dict[tuple, int] = {}
 
     def value(self, i: int, s: int, view: str, unlocked: bool) -> int:
+        """J(i, s, view, unlocked), depth first on an explicit stack rather than Python's
+        (a plan may take as many transitions as the machine has states): each node is a
+        generator that yields the nodes it needs and is sent their values, so nodes are
+        evaluated exactly in the order, and with the pruning, of the plain recursion."""
         goals = self.goals
+        memo = self.memo
+        key = (i, s, view, unlocked)
         if i >= len(goals):
             return 0
-        key = (i, s, view, unlocked)
-        memo = self.memo
         got = memo.get(key)
         if got is not None:
             return got
+        stack = [(key, self._node(*key))]
+        sent: int | None = None
+        while stack:
+            node, frame = stack[-1]
+            try:
+                child = frame.send(sent)
+            except StopIteration as done:
+                memo[node] = sent = done.value
+                stack.pop()
+                continue
+            sent = 0 if child[0] >= len(goals) else memo.get(child)
+            if sent is None:
+                stack.append((child, self._node(*child)))
+        return memo[key]
+
+    def _node(
+        self, i: int, s: int, view: str, unlocked: bool
+    ) -> Generator[tuple[int, int, str, bool], int, int]:
+        """The value of one node: the best over its options, each option's rest asked for by
+        yielding its node (an option that cannot beat the best so far is skipped unasked)."""
         best = INF
-        if s == goals[i]:  # goals complete when entered (PROTOCOL §3.4)
-            memo[key] = best
+        if s == self.goals[i]:  # goals complete when entered (PROTOCOL §3.4)
             return best
-        for tr in progressing(self.m, s, goals[i]):
-            j = _advance(goals, i, tr)
+        for tr in progressing(self.m, s, self.goals[i]):
+            j = _advance(self.goals, i, tr)
             for opt in _options(self.m, tr, view, unlocked):
                 if opt.switches >= best:
                     continue
-                rest = self.value(j, tr.end, opt.view, opt.unlocked)
+                rest = yield (j, tr.end, opt.view, opt.unlocked)
                 total = opt.switches + rest
                 if total < best:
                     best = total
-        memo[key] = best
         return best
 
     def choose(self, i: int, s: int, view: str, unlocked: bool) -> tuple[_Option, int]:

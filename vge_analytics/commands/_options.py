@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from replay import ConfigError
+from replay import MAX_RECORD_BYTES, ConfigError
 
 from .._limits import CLI_TIMEOUT
 from .._metric_set import METRICS_DIR_ENV
@@ -60,6 +60,18 @@ def timeout_option() -> float:
     )
 
 
+def max_record_bytes_option(outcome: str = "is quarantined as record_too_large") -> int:
+    """`--max-record-bytes N` (a typer option default; `vge replay` and `vge validate`)."""
+    return typer.Option(
+        MAX_RECORD_BYTES,
+        "--max-record-bytes",
+        min=1,
+        metavar="BYTES",
+        help=f"The longest episode line read (64 MiB by default): a longer one {outcome} and "
+        "the rest of its file is not read.",
+    )
+
+
 def episode_ids(text: str | None, option: str) -> tuple[str, ...] | None:
     """The episode ids of a comma-separated option (`--episodes`, `--mcap-episodes`); None
     when the option is not given, an error when it names none."""
@@ -75,6 +87,7 @@ __all__ = [
     "METRICS_DIR_HELP",
     "episode_ids",
     "format_option",
+    "max_record_bytes_option",
     "memory_limit_option",
     "metrics_dir_option",
     "out_argument",

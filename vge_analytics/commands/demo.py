@@ -17,8 +17,8 @@ from .._metric_set import MetricSet
 from .._metrics import metrics as compute_metrics
 from .._output import emit
 from .._scope import DEFAULT_BY
+from ..synth import image_source
 from .metrics import for_people
-from .replay import image_source
 
 _REPO_SAMPLE = Path(__file__).resolve().parents[2] / "logs"
 

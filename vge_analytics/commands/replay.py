@@ -15,7 +15,7 @@ from rich.table import Table
 from replay import Manifest, location, replay_runs
 
 from ..synth import image_source
-from ._options import episode_ids
+from ._options import episode_ids, max_record_bytes_option
 
 
 def _summary(manifest: Manifest) -> Table:
@@ -72,6 +72,7 @@ def replay_command(
         "address. Needs pip install 'vge-analytics[ray]'.",
     ),
     force: bool = typer.Option(False, "--force", help="Replay runs even when up to date."),
+    max_record_bytes: int = max_record_bytes_option(),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
 ) -> None:
     """Replay logged episodes against the SSMs and write the steps, episodes, goals and runs tables
@@ -94,6 +95,7 @@ def replay_command(
         progress=progress,
         image_source=image_source(bench),
         ray=ray,
+        max_record_bytes=max_record_bytes,
     )
     console.print(_summary(manifest))
     for run_id in manifest.skipped:

@@ -8,6 +8,8 @@ from rich.markup import escape
 
 from replay import Benchmark, Problem, validate_benchmark, validate_run
 
+from ._options import max_record_bytes_option
+
 
 def _report(console: Console, problems: list[Problem]) -> tuple[int, int]:
     errors = warnings = 0
@@ -27,13 +29,14 @@ def validate(
         ..., help="Benchmark directory (ssm/, tasks.jsonl, ...): a path or a URI (s3://...)."
     ),
     runs: list[str] = typer.Argument(None, help="Run directories to check against it."),
+    max_record_bytes: int = max_record_bytes_option("is an error"),
 ) -> None:
     """Check SSMs, UCSMs, tasks and run logs; exit 1 with a report if anything is wrong."""
     console = Console(highlight=False)
     problems = validate_benchmark(bench)
     opened = Benchmark.open(bench)
     for run in runs or []:
-        problems.extend(validate_run(run, opened))
+        problems.extend(validate_run(run, opened, max_record_bytes=max_record_bytes))
     errors, warnings = _report(console, problems)
     n_ssm = len(opened.ssm_paths)
     n_tasks = len(opened.tasks)
