@@ -218,12 +218,54 @@ def validate_machine(
                         seen_triggers[trigger] = k
 
     # Cycles made only of immediate transitions (the simulator would never stop).
-    for cycle in _immediate_cycles(ssm):
+    cycles = _immediate_cycles(ssm)
+    for cycle in cycles:
         err(
             f"state {cycle[0]!r}, component 'immediate'",
             f"cycle of immediate transitions: {' -> '.join([*cycle, cycle[0]])}",
         )
+    if not cycles:
+        held = _chain_states_held(ssm)
+        if held > MAX_CHAIN_STATES:
+            err(
+                "component 'immediate'",
+                f"immediate chains too long: compiling would hold {held:,} entered states "
+                f"(at most {MAX_CHAIN_STATES:,}, PROTOCOL §1.5)",
+            )
     return problems
+
+
+MAX_CHAIN_STATES = 1 << 24
+"""The states entered through `immediate` chains that a compiled machine holds, summed over
+its states and transitions (each keeps the chain after it): the bound on its memory."""
+
+
+def _chain_states_held(ssm: StateMachine) -> int:
+    """What compiling holds of the immediate chains (see `MAX_CHAIN_STATES`): every state's
+    chain, and for every other transition its target and the target's chain. Linear time;
+    the machine has no immediate cycle."""
+    states = ssm.states
+    length: dict[str, int] = {}
+    for start in states:
+        path: list[str] = []
+        current = start
+        while current not in length:
+            imm = states[current].on.get(IMMEDIATE)
+            nxt = imm[0].next_state if imm else None
+            if nxt is None or nxt not in states:
+                length[current] = 0
+                break
+            path.append(current)
+            current = nxt
+        for name in reversed(path):
+            imm = states[name].on[IMMEDIATE]
+            length[name] = 1 + length[imm[0].next_state]
+    held = sum(length.values())
+    for sdef in states.values():
+        for comp, trs in sdef.on.items():
+            if comp != IMMEDIATE:
+                held += sum(1 + length.get(tr.next_state, 0) for tr in trs)
+    return held
 
 
 def _immediate_cycles(ssm: StateMachine) -> list[list[str]]:

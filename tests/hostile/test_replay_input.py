@@ -361,11 +361,30 @@ def test_long_machines_validate_and_replay(ssm, goal, steps, tmp_path, vge_here)
 
 
 def test_a_machine_of_100000_states_validates_in_seconds() -> None:
-    for doc in (line_ssm(100_000), chain_ssm(100_000)):
-        ssm = msgspec.convert(doc, replay.StateMachine)
-        started = time.monotonic()
-        assert replay.validate_machine(ssm, "big.json") == []
-        assert time.monotonic() - started < 20  # a fraction of a second unloaded
+    ssm = msgspec.convert(line_ssm(100_000), replay.StateMachine)
+    started = time.monotonic()
+    assert replay.validate_machine(ssm, "big.json") == []
+    assert time.monotonic() - started < 20  # a fraction of a second unloaded
+
+
+def test_immediate_chains_too_long_to_compile_are_refused_before_compiling() -> None:
+    """Compiling keeps, for each state and transition, the chain it enters: with 100,000
+    chained states, C_i's chain holds 100,000 - i states (99,999 * 100,000 / 2 =
+    4,999,950,000 in all), the press into C1 holds C1 and its chain (100,000) and the press
+    out of the chain holds Off (1): 5,000,050,001 entries, far past the bound, so validation
+    refuses the machine in one problem, in linear time, before anything is built."""
+    ssm = msgspec.convert(chain_ssm(100_000), replay.StateMachine)
+    started = time.monotonic()
+    (problem,) = replay.validate_machine(ssm, "big.json")
+    assert time.monotonic() - started < 20
+    assert str(problem) == (
+        "big.json [component 'immediate']: immediate chains too long: compiling would hold "
+        "5,000,050,001 entered states (at most 16,777,216, PROTOCOL §1.5)"
+    )
+    with pytest.raises(replay.SSMError, match="immediate chains too long"):
+        replay.compile_machine(ssm)
+    # 4,000 states stay well within it (7,998,000 + 4,000 + 1 = 8,002,001 entries).
+    replay.compile_machine(msgspec.convert(chain_ssm(4000), replay.StateMachine))
 
 
 def _cycles_by_walking_from_every_state(ssm: replay.StateMachine) -> list[str]:
