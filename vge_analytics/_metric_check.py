@@ -6,8 +6,8 @@ g.run_id` over empty tables with the replay's output schema (`replay.arrow_schem
 shape in which `_metrics.compose` uses the expression. That catches an unknown column, a
 syntax error, a column used outside an aggregate, an expression that is not a number, and
 text that is not one expression (a `;`, extra columns). The connection doing it is locked
-like the store's (no file access, no extensions, settings final), so binding a file
-reference fails instead of reading the file.
+like the store's (`_locked`: no file access, a read-only catalog, no extensions, settings
+final), so binding a file reference fails instead of reading the file.
 
 Then the expression must be additive (its value over a union of rows is the sum of its
 values over the parts), because the metric's terms are added across runs, groups and the
@@ -31,6 +31,7 @@ import pyarrow as pa
 
 import replay
 
+from ._locked import locked_connection, register_all
 from ._metric_file import Metric, Problem
 from ._store import NUMERIC_TYPES
 
@@ -38,25 +39,20 @@ _LINE = re.compile(r"\bLINE (\d+):")
 
 _lock = threading.Lock()
 _connection: list[duckdb.DuckDBPyConnection] = []
-_empty: list[pa.Table] = []
+_EMPTY: dict[str, pa.Table] = {}
 
 
 def _schema_connection() -> duckdb.DuckDBPyConnection:
-    """An in-memory DuckDB with empty `steps`, `episodes`, `goals` tables (made once)."""
+    """A cursor on a locked DuckDB (made once) with empty `steps`, `episodes`, `goals`."""
     with _lock:
         if not _connection:
-            # Binding needs no worker threads and no memory to speak of.
-            con = duckdb.connect(":memory:", config={"threads": 1, "memory_limit": "64MB"})
             for table in replay.TABLE_ROWS:  # steps, episodes, goals
-                empty = replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
-                _empty.append(empty)
-                con.from_arrow(empty).create_view(table)
-            con.execute("SET enable_external_access = false")
-            con.execute("SET autoinstall_known_extensions = false")
-            con.execute("SET autoload_known_extensions = false")
-            con.execute("SET lock_configuration = true")
-            _connection.append(con)
-        return _connection[0].cursor()
+                _EMPTY[table] = replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
+            # Binding needs no worker threads and no memory to speak of.
+            _connection.append(locked_connection({"threads": "1", "memory_limit": "64MB"}))
+        cursor = _connection[0].cursor()
+    register_all(cursor, _EMPTY)
+    return cursor
 
 
 def bind_query(grain: str, expression: str) -> str:

@@ -2,16 +2,18 @@
 
 Two independent guards keep a query read-only:
 
-1. DuckDB's own settings on the connection (see `_store._secure`): file access limited to
-   OUT (`allowed_directories` + `enable_external_access = false`), no extension install or
-   load, and `lock_configuration = true` so no statement can undo them. `read_csv('/etc/
-   passwd')`, `read_parquet` of another path, `COPY ... TO`, `ATTACH`, `EXPORT DATABASE`
-   fail inside DuckDB with a permission error, whatever the SQL text looks like.
+1. The connection itself (`_locked`, opened by `_store`): DuckDB opens no file
+   (`enable_external_access = false`, no allowed directory; the tables are Arrow datasets
+   that pyarrow reads), its catalog is an empty database opened read-only, no extension can
+   be installed or loaded, and `lock_configuration = true` makes that final. `read_csv('/etc/
+   passwd')`, `read_parquet` of any path (inside OUT too), `COPY ... TO`, `ATTACH`, `EXPORT
+   DATABASE` fail with a permission error, `CREATE`, `DROP`, `INSERT` as writes to a read-only
+   database, whatever the SQL text looks like.
 2. The statement type, as DuckDB's parser classifies it (`duckdb.extract_statements`, not
    string matching): exactly one statement, of type SELECT (which covers `WITH`, `FROM ...`,
    `VALUES`, `DESCRIBE`, `SHOW`, `SUMMARIZE`) or EXPLAIN of such a statement. INSERT, CREATE,
-   COPY, ATTACH, PRAGMA, SET, INSTALL, LOAD, CALL, ... are refused before they run, so the
-   views of the shared connection cannot be replaced or dropped.
+   COPY, ATTACH, PRAGMA, SET, INSTALL, LOAD, CALL, ... are refused before they run, with a
+   message that says so.
 
 And every query runs within `SqlLimits` (`_limits`): DuckDB's memory and spill limits on the
 connection, a timer that interrupts the query, and a result that is read batch by batch
@@ -130,9 +132,7 @@ def analytics_timeout() -> float | None:
     return _ANALYTICS_TIMEOUT.get()
 
 
-def _limit_error(
-    exc: BaseException, store: Store, limits: SqlLimits, deadline: Deadline
-) -> Exception:
+def _limit_error(exc: BaseException, limits: SqlLimits, deadline: Deadline) -> Exception:
     """The one-line error for a failure while a query ran or its result was read.
 
     DuckDB's errors reach us as duckdb exceptions, or, while the Arrow reader pulls batches,
@@ -151,7 +151,10 @@ def _limit_error(
             limit="memory",
         )
     if isinstance(exc, duckdb.PermissionException) or first.startswith("Permission Error"):
-        return QueryRefused(f"access outside {store.out} is not allowed ({first})")
+        return QueryRefused(
+            "access outside the tables steps, episodes, goals, runs is not allowed: no file "
+            f"is opened, in OUT or elsewhere ({first})"
+        )
     return QueryError(first)
 
 
@@ -227,7 +230,7 @@ def stream(
     deadline = Deadline(cursor, limits.timeout)
 
     def fail(exc: BaseException) -> Exception:
-        return _limit_error(exc, store, limits, deadline)
+        return _limit_error(exc, limits, deadline)
 
     reader = None
     try:

@@ -648,20 +648,26 @@ def error_step_sample(
     in the query, so a common error type on the full benchmark (10^5 steps) stays cheap."""
     store = open_store(out)
     check_columns(store, [*(where or {}), *columns], ["steps"], "filter/column")
+    order = "ORDER BY g.run_id, g.episode_id, g.step LIMIT ?"
     scope = build_scope(store, "steps", [], where)
+    base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
+    params = [*scope.params, error_type, int(limit)]
+    total, runs = (
+        store.cursor()
+        .execute(
+            f"SELECT (SELECT count(*) {base}), "
+            f"(SELECT list(DISTINCT run_id) FROM (SELECT g.run_id {base} {order}))",
+            [*params[:-1], *params],
+        )
+        .fetchall()[0]
+    )
+    # The wide columns are read from the runs of the first rows only: the scan skips the
+    # other runs' files instead of reading every column of every step (same rows).
+    scope = build_scope(store, "steps", [], {**(where or {}), "run_id": runs or []})
     cols = ", ".join(f"g.{quote_ident(c)}" for c in columns)
     base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
-    params = [*scope.params, error_type]
-    total = store.cursor().execute(f"SELECT count(*) {base}", params).fetchall()[0][0]
-    df = (
-        store.cursor()
-        .sql(
-            f"SELECT {cols} {base} ORDER BY g.run_id, g.episode_id, g.step LIMIT ?",
-            params=[*params, int(limit)],
-        )
-        .pl()
-    )
-    return df, int(total)
+    df = store.cursor().sql(f"SELECT {cols} {base} {order}", params=[*scope.params, *params[-2:]])
+    return df.pl(), int(total)
 
 
 def error_share_wide(dist: pl.DataFrame) -> pl.DataFrame:

@@ -10,7 +10,7 @@ limits, max_rows = ui.sql_settings()
 st.title("SQL")
 st.caption(
     "DuckDB SQL over the replay tables `steps`, `episodes`, `goals` and `runs` (one statement, "
-    "read-only; files outside OUT cannot be read). "
+    "read-only; no file can be read or written). "
     + dash.sql_limits_note(limits, max_rows)
     + " Ctrl+Enter runs the query."
 )
