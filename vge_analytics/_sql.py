@@ -15,6 +15,9 @@ Two independent guards keep a query read-only:
    COPY, ATTACH, PRAGMA, SET, INSTALL, LOAD, CALL, ... are refused before they run, with a
    message that says so.
 
+The query's text is refused past `MAX_SQL_TEXT` bytes before it is parsed (DuckDB's parser
+takes hundreds of times the text's size in memory).
+
 And every query runs within `SqlLimits` (`_limits`): DuckDB's memory and spill limits on the
 connection, a timer that interrupts the query, and a result that is read batch by batch
 (`stream`) so it never has to fit in memory: `sql` collects at most `limits.memory` bytes of
@@ -36,7 +39,7 @@ import polars as pl
 import pyarrow as pa
 
 from ._errors import QueryError, QueryLimitError, QueryRefused
-from ._limits import CLI_TIMEOUT, SqlLimits, format_size
+from ._limits import CLI_TIMEOUT, MAX_SQL_TEXT, SqlLimits, format_size, text_too_large
 from ._store import Store, open_store
 
 _ALLOWED = {duckdb.StatementType.SELECT}
@@ -49,15 +52,33 @@ def _kind(statement) -> str:
     return str(statement.type).rsplit(".", 1)[-1]
 
 
+def check_size(query: str) -> str:
+    """The query if its text is at most `MAX_SQL_TEXT` bytes, else `QueryRefused` (checked
+    without parsing it)."""
+    # A character is at most 4 bytes in UTF-8: most texts need no encoding to be measured.
+    if len(query) * 4 > MAX_SQL_TEXT:
+        why = text_too_large(len(query.encode("utf-8", "surrogatepass")))
+        if why is not None:
+            raise QueryRefused(f"the query holds {why}")
+    return query
+
+
 def check_read_only(query: str, con: duckdb.DuckDBPyConnection | None = None) -> str:
-    """The query if it is one read-only statement, else `QueryRefused` (one line).
+    """The query if it is one read-only statement, else `QueryRefused` (one line). Its size
+    is checked first (`check_size`).
 
     `con`: the connection whose parser to use; without one, DuckDB's module-level default
     connection is opened (a database of its own, with its threads: a long-lived process
     that has a connection passes it)."""
+    check_size(query)
     parser = con if con is not None else duckdb
     try:
         statements = parser.extract_statements(query)
+    except duckdb.OutOfMemoryException:  # a long, deeply nested text, under the size cap
+        raise QueryLimitError(
+            "parsing the query needed more memory than it may use: shorten it, or nest it less",
+            limit="memory",
+        ) from None
     except duckdb.Error as exc:
         raise QueryError(f"cannot parse the query: {str(exc).splitlines()[0]}") from None
     if not statements:
@@ -316,6 +337,7 @@ __all__ = [
     "SqlHead",
     "analytics_timeout",
     "check_read_only",
+    "check_size",
     "query_time_limit",
     "sql",
     "sql_head",

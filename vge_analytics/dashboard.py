@@ -25,7 +25,7 @@ import polars as pl
 import replay
 
 from ._errors import OutputDirError, UnknownRunError
-from ._isolated import IsolatedResult, run_isolated
+from ._isolated import SLOT_WAIT, IsolatedResult, run_isolated
 from ._limits import SqlLimits, format_size
 from ._metric_set import MetricSet, MetricsSource, fingerprint, metric_set
 from ._registry import Metric
@@ -998,19 +998,26 @@ def table_columns_frame(out: str | Path) -> pl.DataFrame:
     return pl.DataFrame(rows, schema={"table": pl.String, "column": pl.String, "type": pl.String})
 
 
-def sql_preview(out: str | Path, query: str, rows: int, limits: SqlLimits) -> IsolatedResult:
-    """The SQL page's query: the first `rows` rows, computed in a process of its own within
-    `limits` (`vge_analytics._isolated`), so no query can take the dashboard down."""
-    return run_isolated(out, query, rows, limits)
+def sql_preview(
+    out: str | Path, query: str, rows: int, limits: SqlLimits, *, max_queries: int | None = None
+) -> IsolatedResult:
+    """The SQL page's query: the first `rows` rows, parsed and computed in a process of its
+    own within `limits`, with at most `max_queries` such processes at once across the
+    sessions (`vge_analytics._isolated`), so no query can take the dashboard down."""
+    return run_isolated(out, query, rows, limits, max_queries=max_queries)
 
 
-def sql_limits_note(limits: SqlLimits, rows: int) -> str:
-    """What the SQL page says about its limits."""
+def sql_limits_note(limits: SqlLimits, rows: int, max_queries: int | None = None) -> str:
+    """What the SQL page says about its limits (and, given, the number of queries at once)."""
     time = f"after {limits.timeout:g} s or " if limits.timeout is not None else ""
-    return (
+    note = (
         f"Each query runs in a process of its own and is stopped {time}past "
         f"{limits.describe()}; the page shows the first {rows:,} rows."
     )
+    if max_queries is not None:
+        many = "1 query runs" if max_queries == 1 else f"{max_queries} queries run"
+        note += f" At most {many} at once, for all visitors; another waits up to {SLOT_WAIT:g} s."
+    return note
 
 
 def sql_caption(result: IsolatedResult, rows: int) -> str:
