@@ -22,6 +22,7 @@ import streamlit as st
 import vge_analytics as va
 from vge_analytics import dashboard as dash
 from vge_analytics import play
+from vge_analytics._isolated import default_max_queries
 from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, CLI_TIMEOUT, SqlLimits
 from vge_analytics._metric_set import default_folder
 
@@ -514,6 +515,14 @@ def sql_settings(argv: Sequence[str] | None = None) -> tuple[SqlLimits, int]:
         timeout=APP_TIMEOUT if timeout is None else float(timeout),
     )
     return limits, APP_MAX_ROWS if rows is None else int(rows)
+
+
+def sql_max_queries(argv: Sequence[str] | None = None) -> int:
+    """How many SQL page queries run at once across all sessions: `vge app
+    --sql-max-queries` (passed on as a script argument), else as many as fit in memory at the
+    page's limits (`default_max_queries`)."""
+    given = script_option("sql-max-queries", argv)
+    return int(given) if given else default_max_queries(sql_settings(argv)[0])
 
 
 def load_example() -> None:

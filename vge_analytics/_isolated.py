@@ -2,37 +2,55 @@
 
 The dashboard serves every visitor from one process, so a query run inside it could take all
 of it down: DuckDB's memory limit does not cover everything (one value larger than memory,
-`repeat('x', 10^10)`), and a query that ignores its interrupt would hold a thread forever.
-Here each query runs in a child process forked from a forkserver (it starts in milliseconds,
-with the libraries already imported), with DuckDB's limits and its data segment capped
-(`process_memory_cap`, for the child's whole life). The child sends back the first rows as
-Arrow IPC, or the one-line error. The parent waits for the time limit plus a grace period
-and kills a child that has not answered by then; a child that dies (killed, crashed) is
-reported, and the next query gets a fresh child.
+`repeat('x', 10^10)`), its parser takes hundreds of times the text's size, and a query that
+ignores its interrupt would hold a thread forever. Here each query is parsed, checked and run
+in a child process forked from a forkserver (it starts in milliseconds, with the libraries
+already imported), with DuckDB's limits and its data segment capped (`process_memory_cap`,
+for the child's whole life). The server only measures the text (`check_size`). The child
+sends back the first rows as Arrow IPC, or the one-line error. The parent waits for the time
+limit plus a grace period and kills a child that has not answered by then; a child that dies
+(killed, crashed) is reported, and the next query gets a fresh child.
+
+At most `max_queries` children run at once across all the sessions of the server (each may
+take its memory limit and half again): a query beyond them waits up to `SLOT_WAIT` seconds for
+one to end, then is refused in one line.
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import resource
+import threading
 import time
 from dataclasses import dataclass
+from functools import cache
 from multiprocessing.connection import Connection
 from pathlib import Path
 
 import polars as pl
 import pyarrow as pa
 
-from ._errors import QueryError, QueryLimitError, QueryRefused
-from ._limits import SqlLimits, format_size, memory_headroom, process_memory_cap
-from ._sql import check_read_only, sql_head
+from ._errors import AnalyticsError, OutputDirError, QueryError, QueryLimitError, QueryRefused
+from ._limits import (
+    SqlLimits,
+    format_size,
+    machine_memory,
+    memory_headroom,
+    process_memory_cap,
+)
+from ._sql import check_size, sql_head
 
 GRACE = 5.0
 """Seconds the parent waits past the time limit before it kills the child (the child's own
 timer normally ends the query first, with a clearer message)."""
 
+SLOT_WAIT = 5.0
+"""Seconds a query waits for a free process slot before it is refused."""
+
 _CONTEXT = multiprocessing.get_context("forkserver")
-_ERRORS = {cls.__name__: cls for cls in (QueryError, QueryRefused, QueryLimitError)}
+_ERRORS = {
+    cls.__name__: cls for cls in (QueryError, QueryRefused, QueryLimitError, OutputDirError)
+}
 
 
 @dataclass(frozen=True)
@@ -56,6 +74,20 @@ def warm() -> None:
     forkserver.ensure_running()
 
 
+def default_max_queries(limits: SqlLimits) -> int:
+    """How many query processes fit in this machine's memory, each at its bound (the memory
+    limit and half again, `memory_headroom`); at least 1. With the default limit (a quarter of
+    the machine) that is 2."""
+    return max(1, machine_memory() // memory_headroom(limits))
+
+
+@cache
+def _slots(size: int) -> threading.BoundedSemaphore:
+    """The process slots of this server for a cap of `size` (one cap per server in practice:
+    `vge app --sql-max-queries`)."""
+    return threading.BoundedSemaphore(size)
+
+
 def _peak_memory() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
@@ -71,7 +103,7 @@ def _child(conn: Connection, out: str, query: str, rows: int, limits: SqlLimits)
                 writer.write_table(table)
             conn.send(("ok", head.truncated, _peak_memory()))
             conn.send_bytes(sink.getvalue())
-        except (QueryError, QueryRefused) as exc:
+        except AnalyticsError as exc:  # refused, failed, stopped, or OUT unreadable
             limit = getattr(exc, "limit", None)
             conn.send(("error", type(exc).__name__, str(exc), limit, _peak_memory()))
         except MemoryError:
@@ -86,10 +118,35 @@ def _error(kind: str, message: str, limit: str | None) -> Exception:
     return cls(message)
 
 
-def run_isolated(out: str | Path, query: str, rows: int, limits: SqlLimits) -> IsolatedResult:
+def run_isolated(
+    out: str | Path,
+    query: str,
+    rows: int,
+    limits: SqlLimits,
+    *,
+    max_queries: int | None = None,
+) -> IsolatedResult:
     """The first `rows` rows of a read-only query over OUT, computed in a child process
-    within `limits`. Raises `QueryRefused`, `QueryLimitError` or `QueryError` (one line)."""
-    check_read_only(query)  # refused without starting a process
+    within `limits`, while at most `max_queries` such processes run in this server (default:
+    `default_max_queries(limits)`). Raises `QueryRefused`, `QueryLimitError` or `QueryError`
+    (one line)."""
+    check_size(query)  # too large: refused without a process; parsing is the child's job
+    size = max_queries or default_max_queries(limits)
+    slots = _slots(size)
+    if not slots.acquire(timeout=SLOT_WAIT):
+        raise QueryLimitError(
+            f"{size} {'query is' if size == 1 else 'queries are'} running already, as many as "
+            f"the SQL page runs at once; this one waited {SLOT_WAIT:g} s: run it again when "
+            "one has ended",
+            limit="queries",
+        )
+    try:
+        return _run_child(out, query, rows, limits)
+    finally:
+        slots.release()
+
+
+def _run_child(out: str | Path, query: str, rows: int, limits: SqlLimits) -> IsolatedResult:
     started = time.monotonic()
     _CONTEXT.set_forkserver_preload([__name__])
     receiver, sender = _CONTEXT.Pipe(duplex=False)
@@ -132,4 +189,4 @@ def run_isolated(out: str | Path, query: str, rows: int, limits: SqlLimits) -> I
     )
 
 
-__all__ = ["GRACE", "IsolatedResult", "run_isolated", "warm"]
+__all__ = ["GRACE", "SLOT_WAIT", "IsolatedResult", "default_max_queries", "run_isolated", "warm"]

@@ -40,6 +40,16 @@ APP_MAX_ROWS = 10_000
 """Rows the dashboard's SQL page shows (and its CSV download holds)."""
 CLI_MAX_ROWS = 10_000
 """Rows `vge sql` prints in the formats for people (table, markdown, latex)."""
+MAX_SQL_TEXT = 1024**2
+"""Bytes of SQL text a query may hold (1 MB), checked before anything parses it: DuckDB's
+parser takes hundreds of times the text's size in memory, over a thousand for nested
+parentheses (6.4 MB of them: 8 GB and 65 s), and no query needs a megabyte. A query under the
+cap is parsed in its own process or within its memory limit (`process_memory_cap`)."""
+MAX_METRIC_FILE = 256 * 1024
+"""Bytes a metric file may hold (256 KB, a thousand times a real one), checked before it is
+read whole: its expressions are parsed in the process that loads the folder (the dashboard's
+server too): the costliest 256 KB found peaks at 0.7 GB for the whole process, 1 MB at 1.6
+GB."""
 
 _UNITS = {"": 1, "B": 1, "K": 1024, "M": 1024**2, "G": 1024**3, "T": 1024**4}
 _SIZE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([KMGT]?)(?:I?B)?\s*$", re.IGNORECASE)
@@ -109,6 +119,15 @@ class SqlLimits:
         return f"{format_size(self.memory)} in memory, {format_size(self.spill)} on disk"
 
 
+def text_too_large(size: int, cap: int = MAX_SQL_TEXT) -> str | None:
+    """Why `size` bytes of SQL text are refused past `cap` (None when they are not)."""
+    if size <= cap:
+        return None
+    if size < 2 * cap:  # rounded, the two sizes could read the same
+        return f"{size:,} bytes of text, more than the {format_size(cap)} ({cap:,} bytes) accepted"
+    return f"{format_size(size)} of text, more than the {format_size(cap)} accepted"
+
+
 def _data_segment() -> int:
     """Bytes of the process's data segment now (VmData: what RLIMIT_DATA counts)."""
     for line in Path("/proc/self/status").read_text().splitlines():
@@ -152,6 +171,8 @@ __all__ = [
     "APP_TIMEOUT",
     "CLI_MAX_ROWS",
     "CLI_TIMEOUT",
+    "MAX_METRIC_FILE",
+    "MAX_SQL_TEXT",
     "SqlLimits",
     "default_memory_limit",
     "format_size",
@@ -159,4 +180,5 @@ __all__ = [
     "memory_headroom",
     "parse_size",
     "process_memory_cap",
+    "text_too_large",
 ]

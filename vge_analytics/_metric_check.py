@@ -6,14 +6,18 @@ g.run_id` over empty tables with the replay's output schema (`replay.arrow_schem
 shape in which `_metrics.compose` uses the expression. That catches an unknown column, a
 syntax error, a column used outside an aggregate, an expression that is not a number, and
 text that is not one expression (a `;`, extra columns). The connection doing it is locked
-like the store's (no file access, no extensions, settings final), so binding a file
-reference fails instead of reading the file.
+like the store's (`_locked`: no file access, a read-only catalog, no extensions, settings
+final), so binding a file reference fails instead of reading the file. DuckDB refuses an
+expression nested more than `MAX_EXPRESSION_DEPTH` levels, which bounds the parse tree read
+below (and the recursion that reads it).
 
 Then the expression must be additive (its value over a union of rows is the sum of its
 values over the parts), because the metric's terms are added across runs, groups and the
 resampled episodes of `compare`. Read from DuckDB's own parse tree (`json_serialize_sql`),
 the expression must be a sum or a count (no DISTINCT), or built from them with `+`, `-`, a
-constant factor, a cast, or `coalesce(..., 0)`; what is inside an aggregate is free.
+constant factor, a cast, or `coalesce(..., 0)`; what is inside an aggregate is free. The tree
+must also be one expression: text that closes the parenthesis around it and goes on with a
+second query (`UNION`, `EXCEPT`, `INTERSECT`) binds in the shape above, and is refused here.
 
 A problem is reported at the line of the file DuckDB points to (its `LINE n:`), else at the
 expression's first line.
@@ -31,32 +35,39 @@ import pyarrow as pa
 
 import replay
 
+from ._locked import locked_connection, register_all
 from ._metric_file import Metric, Problem
 from ._store import NUMERIC_TYPES
 
 _LINE = re.compile(r"\bLINE (\d+):")
+_DEPTH = "Max expression depth limit"
+
+MAX_EXPRESSION_DEPTH = 100
+"""Levels of nesting (operators, calls, parentheses) a metric expression may have: far above
+any metric (the built-ins nest a few levels), far below what reading its parse tree in
+Python could not follow (DuckDB's own default is 1,000)."""
 
 _lock = threading.Lock()
 _connection: list[duckdb.DuckDBPyConnection] = []
-_empty: list[pa.Table] = []
+_EMPTY: dict[str, pa.Table] = {}
 
 
 def _schema_connection() -> duckdb.DuckDBPyConnection:
-    """An in-memory DuckDB with empty `steps`, `episodes`, `goals` tables (made once)."""
+    """A cursor on a locked DuckDB (made once) with empty `steps`, `episodes`, `goals`."""
     with _lock:
         if not _connection:
-            # Binding needs no worker threads and no memory to speak of.
-            con = duckdb.connect(":memory:", config={"threads": 1, "memory_limit": "64MB"})
             for table in replay.TABLE_ROWS:  # steps, episodes, goals
-                empty = replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
-                _empty.append(empty)
-                con.from_arrow(empty).create_view(table)
-            con.execute("SET enable_external_access = false")
-            con.execute("SET autoinstall_known_extensions = false")
-            con.execute("SET autoload_known_extensions = false")
-            con.execute("SET lock_configuration = true")
-            _connection.append(con)
-        return _connection[0].cursor()
+                _EMPTY[table] = replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
+            # Binding needs no worker threads; serializing the parse tree of a long
+            # expression (a list of 100,000 constants) takes tens of MB. The depth limit is
+            # given at start: so set, it holds for every cursor (SET would hold for one).
+            config = {"threads": "1", "memory_limit": "256MB"}
+            _connection.append(
+                locked_connection({**config, "max_expression_depth": str(MAX_EXPRESSION_DEPTH)})
+            )
+        cursor = _connection[0].cursor()
+    register_all(cursor, _EMPTY)
+    return cursor
 
 
 def bind_query(grain: str, expression: str) -> str:
@@ -100,6 +111,11 @@ def check_expression(metric: Metric, part: str) -> Problem | None:
             statements = cursor.extract_statements(query)
         except duckdb.Error as exc:
             message, line = _first_lines(exc)
+            if _DEPTH in message:  # DuckDB's advice (SET max_expression_depth) is not for users
+                return problem(
+                    f"nests more than {MAX_EXPRESSION_DEPTH} levels deep (operators, calls, "
+                    "parentheses)"
+                )
             return problem(f"is not valid SQL: {message}", line)
         if len(statements) != 1:
             return problem("must be one SQL expression (it holds a ';')")
@@ -114,9 +130,15 @@ def check_expression(metric: Metric, part: str) -> Problem | None:
         kind = types[1].upper()
         if kind not in NUMERIC_TYPES and not kind.startswith("DECIMAL"):
             return problem(f"gives {types[1]} values, not numbers (it must be a count or a sum)")
-        why = not_additive(_parsed(cursor, expression))
+        try:
+            node = _parsed(cursor, expression)
+        except duckdb.Error as exc:
+            return problem(f"cannot be checked: {_first_lines(exc)[0]}")
     finally:
         cursor.close()
+    if node.get("type") != "SELECT_NODE":  # it closed the parenthesis: `...) UNION SELECT (...`
+        return problem(f"must be one SQL expression (it adds {node.get('setop_type')})")
+    why = not_additive(node["select_list"][0])
     if why is not None:
         return problem(
             f"is not additive: {why} (the terms are added across runs, groups and resampled "
@@ -191,10 +213,12 @@ def not_additive(node: dict[str, Any]) -> str | None:
 
 
 def _parsed(cursor: duckdb.DuckDBPyConnection, expression: str) -> dict[str, Any]:
+    """The parse tree of `SELECT (<expression>)`: the node of its one statement (it bound,
+    so it parses)."""
     text = cursor.execute(
         "SELECT json_serialize_sql(?::VARCHAR)", ["SELECT (\n" + expression + "\n)"]
     ).fetchall()[0][0]
-    return json.loads(text)["statements"][0]["node"]["select_list"][0]
+    return json.loads(text)["statements"][0]["node"]
 
 
 def check_metric(metric: Metric) -> list[Problem]:

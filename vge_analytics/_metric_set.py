@@ -21,6 +21,7 @@ import hashlib
 import json
 import os
 import re
+import stat
 import threading
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ from pathlib import Path
 from typing import Literal
 
 from ._errors import MetricFileError, UnknownMetricError
+from ._limits import MAX_METRIC_FILE, text_too_large
 from ._metric_check import check_metric
 from ._metric_file import Metric, Problem, parse_metric_file
 from ._registry import registry
@@ -141,13 +143,45 @@ def same_definition(a: Metric, b: Metric) -> bool:
 # ------------------------------------------------------------------------------ loading
 
 
+def _read_text(path: Path, shown: str, problems: list[Problem]) -> str | None:
+    """The text of a metric file, or None after adding its problem: not a regular file, more
+    than `MAX_METRIC_FILE` bytes (read no further, so a file that grows costs at most that),
+    not UTF-8, unreadable."""
+    try:
+        # O_NONBLOCK: a FIFO put in the file's place opens at once instead of waiting.
+        handle = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        problems.append(Problem(shown, 1, f"cannot be read ({exc.strerror})"))
+        return None
+    with os.fdopen(handle, "rb") as fh:
+        info = os.fstat(handle)
+        if not stat.S_ISREG(info.st_mode):
+            problems.append(Problem(shown, 1, "not a regular file"))
+            return None
+        try:
+            data = fh.read(MAX_METRIC_FILE + 1)
+        except OSError as exc:
+            problems.append(Problem(shown, 1, f"cannot be read ({exc.strerror})"))
+            return None
+    why = text_too_large(max(info.st_size, len(data)), MAX_METRIC_FILE)
+    if why is not None:
+        problems.append(Problem(shown, 1, f"the file holds {why}"))
+        return None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        problems.append(Problem(shown, 1, f"not UTF-8 text ({exc.reason})"))
+        return None
+
+
 def _read_folder(folder: str) -> tuple[list[Metric], list[Problem]]:
     path = Path(folder)
     if not path.exists():
         raise MetricFileError([f"{folder}: metrics folder not found"])
     if not path.is_dir():
         raise MetricFileError([f"{folder}: not a folder (--metrics-dir takes a folder)"])
-    files = sorted(p.name for p in path.iterdir() if p.name.endswith(".sql") and p.is_file())
+    # Every *.sql entry but a folder: a link to a device or a FIFO is reported, not skipped.
+    files = sorted(p.name for p in path.iterdir() if p.name.endswith(".sql") and not p.is_dir())
     if not files:
         raise MetricFileError([f"{folder}: no metric file (*.sql) in this folder"])
     metrics: list[Metric] = []
@@ -155,13 +189,8 @@ def _read_folder(folder: str) -> tuple[list[Metric], list[Problem]]:
     defined: dict[str, Metric] = {}
     for name in files:
         shown = str(Path(folder) / name)
-        try:
-            text = (path / name).read_text(encoding="utf-8")
-        except UnicodeDecodeError as exc:
-            problems.append(Problem(shown, 1, f"not UTF-8 text ({exc.reason})"))
-            continue
-        except OSError as exc:
-            problems.append(Problem(shown, 1, f"cannot be read ({exc.strerror})"))
+        text = _read_text(path / name, shown, problems)
+        if text is None:
             continue
         metric, found = parse_metric_file(text, shown)
         if metric is None:

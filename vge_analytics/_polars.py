@@ -27,7 +27,8 @@ def _scan(out: Path, table: str) -> pl.LazyFrame:
     files = sorted(str(p) for p in root.rglob("*.parquet"))
     if not files:
         raise OutputDirError(f"{root}: no Parquet files")
-    return pl.scan_parquet(files, hive_partitioning=False, missing_columns="insert")
+    # glob=False: each path is a file, whatever characters OUT's name holds (`out[12]`).
+    return pl.scan_parquet(files, hive_partitioning=False, missing_columns="insert", glob=False)
 
 
 def _ratio(num: pl.Expr, den: pl.Expr, scale: float) -> pl.Expr:

@@ -117,9 +117,12 @@ def _filter_condition(expr: str, sql_type: str, value: object, params: list[obje
     values, allow_null = _normalise_filter(value)
     terms = []
     if values:
-        # The type name comes from DuckDB's own DESCRIBE of a scalar column.
-        terms.append(f"{expr} IN (SELECT unnest(CAST(? AS {sql_type}[])))")
-        params.append(values)
+        # The type name comes from DuckDB's own DESCRIBE of a scalar column. One parameter
+        # per value: a list of constants is a filter DuckDB hands to the table's scan (a
+        # file of another run is then not read at all); `IN (SELECT unnest(?))` is a join.
+        one = f"CAST(? AS {sql_type})"
+        terms.append(f"{expr} IN ({', '.join([one] * len(values))})")
+        params.extend(values)
     if allow_null:
         terms.append(f"{expr} IS NULL")
     return "(" + " OR ".join(terms) + ")" if terms else "FALSE"

@@ -1,7 +1,7 @@
 """`python -m vge_analytics._serve <streamlit run arguments>`: Streamlit, warmed up first.
 
 `vge app` starts the dashboard through this module rather than `python -m streamlit`: before
-the server listens it imports the heavy libraries and opens the replay output (DuckDB views,
+the server listens it imports the heavy libraries and opens the replay output (its tables,
 Parquet footers) and runs the leaderboard's default query, all in the server process, so the
 first page a person opens does not pay for them (they are most of a cold first load). It
 also starts the forkserver the SQL page's query processes come from.

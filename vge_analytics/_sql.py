@@ -2,16 +2,21 @@
 
 Two independent guards keep a query read-only:
 
-1. DuckDB's own settings on the connection (see `_store._secure`): file access limited to
-   OUT (`allowed_directories` + `enable_external_access = false`), no extension install or
-   load, and `lock_configuration = true` so no statement can undo them. `read_csv('/etc/
-   passwd')`, `read_parquet` of another path, `COPY ... TO`, `ATTACH`, `EXPORT DATABASE`
-   fail inside DuckDB with a permission error, whatever the SQL text looks like.
+1. The connection itself (`_locked`, opened by `_store`): DuckDB opens no file
+   (`enable_external_access = false`, no allowed directory; the tables are Arrow datasets
+   that pyarrow reads), its catalog is an empty database opened read-only, no extension can
+   be installed or loaded, and `lock_configuration = true` makes that final. `read_csv('/etc/
+   passwd')`, `read_parquet` of any path (inside OUT too), `COPY ... TO`, `ATTACH`, `EXPORT
+   DATABASE` fail with a permission error, `CREATE`, `DROP`, `INSERT` as writes to a read-only
+   database, whatever the SQL text looks like.
 2. The statement type, as DuckDB's parser classifies it (`duckdb.extract_statements`, not
    string matching): exactly one statement, of type SELECT (which covers `WITH`, `FROM ...`,
    `VALUES`, `DESCRIBE`, `SHOW`, `SUMMARIZE`) or EXPLAIN of such a statement. INSERT, CREATE,
-   COPY, ATTACH, PRAGMA, SET, INSTALL, LOAD, CALL, ... are refused before they run, so the
-   views of the shared connection cannot be replaced or dropped.
+   COPY, ATTACH, PRAGMA, SET, INSTALL, LOAD, CALL, ... are refused before they run, with a
+   message that says so.
+
+The query's text is refused past `MAX_SQL_TEXT` bytes before it is parsed (DuckDB's parser
+takes hundreds of times the text's size in memory).
 
 And every query runs within `SqlLimits` (`_limits`): DuckDB's memory and spill limits on the
 connection, a timer that interrupts the query, and a result that is read batch by batch
@@ -34,7 +39,7 @@ import polars as pl
 import pyarrow as pa
 
 from ._errors import QueryError, QueryLimitError, QueryRefused
-from ._limits import CLI_TIMEOUT, SqlLimits, format_size
+from ._limits import CLI_TIMEOUT, MAX_SQL_TEXT, SqlLimits, format_size, text_too_large
 from ._store import Store, open_store
 
 _ALLOWED = {duckdb.StatementType.SELECT}
@@ -47,15 +52,33 @@ def _kind(statement) -> str:
     return str(statement.type).rsplit(".", 1)[-1]
 
 
+def check_size(query: str) -> str:
+    """The query if its text is at most `MAX_SQL_TEXT` bytes, else `QueryRefused` (checked
+    without parsing it)."""
+    # A character is at most 4 bytes in UTF-8: most texts need no encoding to be measured.
+    if len(query) * 4 > MAX_SQL_TEXT:
+        why = text_too_large(len(query.encode("utf-8", "surrogatepass")))
+        if why is not None:
+            raise QueryRefused(f"the query holds {why}")
+    return query
+
+
 def check_read_only(query: str, con: duckdb.DuckDBPyConnection | None = None) -> str:
-    """The query if it is one read-only statement, else `QueryRefused` (one line).
+    """The query if it is one read-only statement, else `QueryRefused` (one line). Its size
+    is checked first (`check_size`).
 
     `con`: the connection whose parser to use; without one, DuckDB's module-level default
     connection is opened (a database of its own, with its threads: a long-lived process
     that has a connection passes it)."""
+    check_size(query)
     parser = con if con is not None else duckdb
     try:
         statements = parser.extract_statements(query)
+    except duckdb.OutOfMemoryException:  # a long, deeply nested text, under the size cap
+        raise QueryLimitError(
+            "parsing the query needed more memory than it may use: shorten it, or nest it less",
+            limit="memory",
+        ) from None
     except duckdb.Error as exc:
         raise QueryError(f"cannot parse the query: {str(exc).splitlines()[0]}") from None
     if not statements:
@@ -130,9 +153,7 @@ def analytics_timeout() -> float | None:
     return _ANALYTICS_TIMEOUT.get()
 
 
-def _limit_error(
-    exc: BaseException, store: Store, limits: SqlLimits, deadline: Deadline
-) -> Exception:
+def _limit_error(exc: BaseException, limits: SqlLimits, deadline: Deadline) -> Exception:
     """The one-line error for a failure while a query ran or its result was read.
 
     DuckDB's errors reach us as duckdb exceptions, or, while the Arrow reader pulls batches,
@@ -151,7 +172,10 @@ def _limit_error(
             limit="memory",
         )
     if isinstance(exc, duckdb.PermissionException) or first.startswith("Permission Error"):
-        return QueryRefused(f"access outside {store.out} is not allowed ({first})")
+        return QueryRefused(
+            "access outside the tables steps, episodes, goals, runs is not allowed: no file "
+            f"is opened, in OUT or elsewhere ({first})"
+        )
     return QueryError(first)
 
 
@@ -227,7 +251,7 @@ def stream(
     deadline = Deadline(cursor, limits.timeout)
 
     def fail(exc: BaseException) -> Exception:
-        return _limit_error(exc, store, limits, deadline)
+        return _limit_error(exc, limits, deadline)
 
     reader = None
     try:
@@ -313,6 +337,7 @@ __all__ = [
     "SqlHead",
     "analytics_timeout",
     "check_read_only",
+    "check_size",
     "query_time_limit",
     "sql",
     "sql_head",

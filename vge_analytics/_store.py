@@ -1,21 +1,18 @@
-"""A replay output directory (PROTOCOL §7) opened as DuckDB views, cached per directory.
+"""A replay output directory (PROTOCOL §7) opened for DuckDB, cached per directory.
 
-`open_store(out)` returns one `Store` per OUT directory (re-opened when the directory's
-contents change): an in-memory DuckDB connection with the views `steps episodes goals runs`
-reading the Parquet files directly, plus the column catalogue used to validate every
-grouping or filter column before it is quoted into a query.
+`open_store(out)` returns one `Store` per OUT (re-opened when its contents change): a DuckDB
+connection on which every cursor sees the tables `steps episodes goals runs`, plus the column
+catalogue used to validate every grouping or filter column before it is quoted into a query.
 
-The connection is locked down as soon as the views exist: file access is limited to OUT
-(`allowed_directories`, then `enable_external_access = false`), extensions cannot be
-installed or loaded, its memory is capped (`memory_limit`, spilling to a private temporary
-directory capped by `max_temp_directory_size`; see `_limits`), and `lock_configuration =
-true` makes those settings final. Every query, ours or a user's (`vge sql`), runs on a cursor
-of that connection. A store is cached per (directory, memory limits).
-
-OUT may also be a URI (`s3://bucket/out?...`, `gs://...`; docs/SCALE.md): its Parquet files are
-then read through pyarrow's filesystem (`replay.Location`, the replay's own), as Arrow
-datasets that DuckDB scans, so no DuckDB extension is needed, and DuckDB is given no file
-access at all. A `file://` URI is the local directory.
+The tables are Arrow datasets over exactly the Parquet files OUT's manifest lists
+(`_datasets`), read by pyarrow, locally or through its filesystem for a URI (`s3://bucket/out
+?...`, `gs://...`; docs/SCALE.md; `file://` is the local directory). DuckDB scans them and
+reads no file itself: its connection (`_locked`) has no file access at all, an empty catalog
+opened read-only, no extensions, its memory capped (`memory_limit`, spilling to a private
+temporary directory capped by `max_temp_directory_size`; see `_limits`), and
+`lock_configuration = true` makes all of it final. Every query, ours or a user's (`vge sql`),
+runs on a cursor of that connection (`Store.cursor`, which registers the tables on it). A
+store is cached per (directory, memory limits).
 """
 
 from __future__ import annotations
@@ -32,15 +29,13 @@ from pathlib import Path
 
 import duckdb
 import pyarrow as pa
-import pyarrow.dataset as pads
 
 import replay
 
+from ._datasets import PARTITIONED, TABLES, table_sources
 from ._errors import OutputDirError
 from ._limits import SqlLimits
-
-TABLES: tuple[str, ...] = ("steps", "episodes", "goals", "runs")
-PARTITIONED: tuple[str, ...] = ("steps", "episodes", "goals")
+from ._locked import locked_connection, register_all
 
 RUN_COLUMNS_FIXED: tuple[str, ...] = ("run_id", "model", "agent_kind", "lambda")
 """Columns every runs table has (meta facets add `meta_<key>` columns and `meta`)."""
@@ -75,18 +70,6 @@ def quote_ident(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
 
-def _empty_runs() -> pa.Table:
-    return pa.table(
-        {
-            "run_id": pa.array([], pa.string()),
-            "model": pa.array([], pa.string()),
-            "agent_kind": pa.array([], pa.string()),
-            "lambda": pa.array([], pa.float64()),
-            "meta": pa.array([], pa.string()),
-        }
-    )
-
-
 def _signature(out: Path) -> tuple:
     """Cheap fingerprint of OUT: changes when a replay rewrites it."""
     parts = []
@@ -113,14 +96,17 @@ class Store:
     columns: dict[str, dict[str, str]]
     """table -> {column: DuckDB type}, in table order."""
     manifest: dict
-    sources: tuple = ()
-    """The Arrow datasets the views of a remote OUT scan (kept alive with the connection)."""
+    sources: Mapping[str, object] = field(default_factory=dict)
+    """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`)."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
-        """A cursor for one query (cursors of one connection may run in different threads)."""
+        """A cursor for one query, the tables registered on it (cursors of one connection may
+        run in different threads; what one registers or creates, no other sees)."""
         with self._lock:
-            return self.con.cursor()
+            cursor = self.con.cursor()
+        register_all(cursor, self.sources)
+        return cursor
 
     def has_column(self, table: str, name: str) -> bool:
         return name in self.columns[table]
@@ -138,68 +124,6 @@ class Store:
         return [r[0] for r in rows]
 
 
-def _files(root: Path) -> list[str]:
-    return sorted(str(p) for p in root.rglob("*.parquet") if p.is_file())
-
-
-def _create_views(con: duckdb.DuckDBPyConnection, out: Path) -> None:
-    for table in PARTITIONED:
-        root = out / table
-        if _files(root):
-            # run_id is a column of every file; the directory name (`run_id=<id>`, possibly
-            # percent-encoded by the writer) is not read back.
-            rel = con.read_parquet(
-                str(root / "**" / "*.parquet"), hive_partitioning=False, union_by_name=True
-            )
-        else:
-            schema = replay.arrow_schema(replay.TABLE_ROWS[table])
-            rel = con.from_arrow(schema.empty_table())
-        rel.create_view(table)
-    runs_root = out / "runs"
-    if _files(runs_root):
-        rel = con.read_parquet(str(runs_root / "*.parquet"), union_by_name=True)
-    else:
-        rel = con.from_arrow(_empty_runs())
-    rel.create_view("runs")
-
-
-def _remote_source(loc: replay.Location, names: list[str]) -> pads.Dataset:
-    """The Parquet files `names` (relative to `loc`) as one Arrow dataset, their schemas
-    unified by column name as DuckDB's `union_by_name` does (a column some files lack is
-    null there)."""
-    paths = [f"{loc.path.rstrip('/')}/{name}" for name in names]
-    found = pads.dataset(paths, filesystem=loc.fs, format="parquet")
-    schema = pa.unify_schemas(
-        [fragment.physical_schema for fragment in found.get_fragments()],
-        promote_options="permissive",
-    )
-    return found.replace_schema(schema)  # the same files, not listed or opened again
-
-
-def _create_remote_views(
-    con: duckdb.DuckDBPyConnection, out: replay.Location, manifest: dict
-) -> tuple:
-    """The four views over a remote OUT; returns the datasets they scan. The tables' files
-    are the ones the manifest lists (`runs[].outputs`), not a listing of the prefix: on object
-    storage a listing may catch a run mid-commit, the manifest never does (docs/SCALE.md)."""
-    sources = []
-    for table in TABLES:
-        if table == "runs":
-            names = [f"runs/{n}" for n in (out / "runs").names() if n.endswith(".parquet")]
-            empty = _empty_runs()
-        else:
-            names = sorted(f for run in manifest.get("runs", []) for f in run["outputs"][table])
-            empty = replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
-        if names:
-            source = _remote_source(out, names)
-            sources.append(source)
-            rel = con.from_arrow(source)
-        else:
-            rel = con.from_arrow(empty)
-        rel.create_view(table)
-    return tuple(sources)
-
-
 _SPILL_DIRS = itertools.count()
 
 
@@ -211,19 +135,15 @@ def _spill_directory() -> str:
     return str(Path(tempfile.gettempdir()) / name)
 
 
-def _secure(con: duckdb.DuckDBPyConnection, out: Path | None, limits: SqlLimits) -> None:
-    """Lock the connection down; `out`: the one directory it may read (None: none, the views
-    of a remote OUT scan Arrow datasets, not files)."""
-    # Order matters: allowed_directories can only be set while external access is on, and
-    # lock_configuration must come last (it freezes every setting, including itself).
-    con.execute("SET memory_limit = ?", [f"{limits.memory}B"])
-    con.execute("SET temp_directory = ?", [_spill_directory()])
-    con.execute("SET max_temp_directory_size = ?", [f"{limits.spill}B"])
-    con.execute("SET allowed_directories = ?", [[str(out) + "/"] if out is not None else []])
-    con.execute("SET enable_external_access = false")
-    con.execute("SET autoinstall_known_extensions = false")
-    con.execute("SET autoload_known_extensions = false")
-    con.execute("SET lock_configuration = true")
+def _connection(limits: SqlLimits) -> duckdb.DuckDBPyConnection:
+    """A locked connection (`_locked`) within `limits`."""
+    return locked_connection(
+        settings=[
+            ("memory_limit", f"{limits.memory}B"),
+            ("temp_directory", _spill_directory()),
+            ("max_temp_directory_size", f"{limits.spill}B"),
+        ]
+    )
 
 
 def resolve_input(out: str | Path | replay.Location, recorded: str) -> Path | replay.Location:
@@ -245,15 +165,33 @@ def resolve_input(out: str | Path | replay.Location, recorded: str) -> Path | re
     return beside if beside.exists() else path
 
 
-def _read_manifest(out: Path | replay.Location) -> dict:
+def _read_manifest(out: Path | replay.Location) -> dict | None:
+    """OUT's manifest; None when it has none."""
     path = out / "manifest.json"
     if not path.exists():
-        return {}
+        return None
     try:
         data = json.loads(path.read_bytes().decode("utf-8"))
     except (OSError, ValueError) as exc:
         raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
     return data if isinstance(data, dict) else {}
+
+
+def _store(out: Path | replay.Location, manifest: dict | None, limits: SqlLimits) -> Store:
+    """The store over OUT's tables (`manifest` None: a local OUT without one)."""
+    try:
+        sources = table_sources(replay.location(out), manifest)
+    except (OSError, ValueError, pa.ArrowException) as exc:  # pyarrow's ArrowInvalid: both
+        first = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise OutputDirError(f"{out}: cannot read the Parquet tables ({first})") from None
+    con = _connection(limits)
+    store = Store(out=out, con=con, columns={}, manifest=manifest or {}, sources=sources)
+    try:
+        store.columns = _catalogue(store)
+    except duckdb.Error as exc:
+        con.close()
+        raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
+    return store
 
 
 def _open(out: Path, limits: SqlLimits) -> Store:
@@ -265,16 +203,7 @@ def _open(out: Path, limits: SqlLimits) -> Store:
             f"{out}: not a replay output directory (no {'/, '.join(missing)}/); "
             "run `vge replay ... --out` first"
         )
-    con = duckdb.connect(":memory:")
-    con.execute("SET parquet_metadata_cache = true")
-    try:
-        _create_views(con, out)
-    except duckdb.Error as exc:
-        con.close()
-        raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
-    columns = _catalogue(con)
-    _secure(con, out, limits)
-    return Store(out=out, con=con, columns=columns, manifest=_read_manifest(out))
+    return _store(out, _read_manifest(out), limits)
 
 
 def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:
@@ -288,20 +217,22 @@ def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:
         raise OutputDirError(f"{out}: cannot read it ({exc})") from None
     try:
         manifest = json.loads(data.decode("utf-8"))
-        con = duckdb.connect(":memory:")
-        sources = _create_remote_views(con, out, manifest)
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise OutputDirError(f"{out}: cannot read the replay output ({exc})") from None
-    columns = _catalogue(con)
-    _secure(con, None, limits)
-    return Store(out=out, con=con, columns=columns, manifest=manifest, sources=sources)
+    except ValueError as exc:
+        raise OutputDirError(f"{out}: unreadable manifest ({exc})") from None
+    if not isinstance(manifest, dict):
+        raise OutputDirError(f"{out}: unreadable manifest (not a JSON object)")
+    return _store(out, manifest, limits)
 
 
-def _catalogue(con: duckdb.DuckDBPyConnection) -> dict[str, dict[str, str]]:
+def _catalogue(store: Store) -> dict[str, dict[str, str]]:
     columns: dict[str, dict[str, str]] = {}
-    for table in TABLES:
-        rows = con.execute(f"DESCRIBE {table}").fetchall()  # table names are constants
-        columns[table] = {r[0]: str(r[1]) for r in rows}
+    cursor = store.cursor()
+    try:
+        for table in TABLES:
+            rows = cursor.execute(f"DESCRIBE {table}").fetchall()  # table names are constants
+            columns[table] = {r[0]: str(r[1]) for r in rows}
+    finally:
+        cursor.close()
     return columns
 
 

@@ -25,7 +25,7 @@ import polars as pl
 import replay
 
 from ._errors import OutputDirError, UnknownRunError
-from ._isolated import IsolatedResult, run_isolated
+from ._isolated import SLOT_WAIT, IsolatedResult, run_isolated
 from ._limits import SqlLimits, format_size
 from ._metric_set import MetricSet, MetricsSource, fingerprint, metric_set
 from ._registry import Metric
@@ -606,20 +606,26 @@ def error_step_sample(
     in the query, so a common error type on the full benchmark (10^5 steps) stays cheap."""
     store = open_store(out)
     check_columns(store, [*(where or {}), *columns], ["steps"], "filter/column")
+    order = "ORDER BY g.run_id, g.episode_id, g.step LIMIT ?"
     scope = build_scope(store, "steps", [], where)
+    base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
+    params = [*scope.params, error_type, int(limit)]
+    total, runs = (
+        store.cursor()
+        .execute(
+            f"SELECT (SELECT count(*) {base}), "
+            f"(SELECT list(DISTINCT run_id) FROM (SELECT g.run_id {base} {order}))",
+            [*params[:-1], *params],
+        )
+        .fetchall()[0]
+    )
+    # The wide columns are read from the runs of the first rows only: the scan skips the
+    # other runs' files instead of reading every column of every step (same rows).
+    scope = build_scope(store, "steps", [], {**(where or {}), "run_id": runs or []})
     cols = ", ".join(f"g.{quote_ident(c)}" for c in columns)
     base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
-    params = [*scope.params, error_type]
-    total = store.cursor().execute(f"SELECT count(*) {base}", params).fetchall()[0][0]
-    df = (
-        store.cursor()
-        .sql(
-            f"SELECT {cols} {base} ORDER BY g.run_id, g.episode_id, g.step LIMIT ?",
-            params=[*params, int(limit)],
-        )
-        .pl()
-    )
-    return df, int(total)
+    df = store.cursor().sql(f"SELECT {cols} {base} {order}", params=[*scope.params, *params[-2:]])
+    return df.pl(), int(total)
 
 
 def error_share_wide(dist: pl.DataFrame) -> pl.DataFrame:
@@ -951,19 +957,26 @@ def table_columns_frame(out: str | Path) -> pl.DataFrame:
     return pl.DataFrame(rows, schema={"table": pl.String, "column": pl.String, "type": pl.String})
 
 
-def sql_preview(out: str | Path, query: str, rows: int, limits: SqlLimits) -> IsolatedResult:
-    """The SQL page's query: the first `rows` rows, computed in a process of its own within
-    `limits` (`vge_analytics._isolated`), so no query can take the dashboard down."""
-    return run_isolated(out, query, rows, limits)
+def sql_preview(
+    out: str | Path, query: str, rows: int, limits: SqlLimits, *, max_queries: int | None = None
+) -> IsolatedResult:
+    """The SQL page's query: the first `rows` rows, parsed and computed in a process of its
+    own within `limits`, with at most `max_queries` such processes at once across the
+    sessions (`vge_analytics._isolated`), so no query can take the dashboard down."""
+    return run_isolated(out, query, rows, limits, max_queries=max_queries)
 
 
-def sql_limits_note(limits: SqlLimits, rows: int) -> str:
-    """What the SQL page says about its limits."""
+def sql_limits_note(limits: SqlLimits, rows: int, max_queries: int | None = None) -> str:
+    """What the SQL page says about its limits (and, given, the number of queries at once)."""
     time = f"after {limits.timeout:g} s or " if limits.timeout is not None else ""
-    return (
+    note = (
         f"Each query runs in a process of its own and is stopped {time}past "
         f"{limits.describe()}; the page shows the first {rows:,} rows."
     )
+    if max_queries is not None:
+        many = "1 query runs" if max_queries == 1 else f"{max_queries} queries run"
+        note += f" At most {many} at once, for all visitors; another waits up to {SLOT_WAIT:g} s."
+    return note
 
 
 def sql_caption(result: IsolatedResult, rows: int) -> str:

@@ -7,11 +7,12 @@ from vge_analytics import AnalyticsError
 from vge_analytics import dashboard as dash
 
 limits, max_rows = ui.sql_settings()
+max_queries = ui.sql_max_queries()
 st.title("SQL")
 st.caption(
     "DuckDB SQL over the replay tables `steps`, `episodes`, `goals` and `runs` (one statement, "
-    "read-only; files outside OUT cannot be read). "
-    + dash.sql_limits_note(limits, max_rows)
+    "read-only; no file can be read or written). "
+    + dash.sql_limits_note(limits, max_rows, max_queries)
     + " Ctrl+Enter runs the query."
 )
 examples = dash.EXAMPLE_QUERIES
@@ -29,7 +30,7 @@ with st.expander("Columns of the tables"):
     st.dataframe(ui.call("table_columns"), hide_index=True)
 if query.strip():
     try:
-        result = ui.call("sql_preview", query, max_rows, limits)
+        result = ui.call("sql_preview", query, max_rows, limits, max_queries=max_queries)
     except AnalyticsError as exc:
         ui.show_error(exc)
         ui.stop()

@@ -1,6 +1,8 @@
 """The SQL page under runaway queries, in the browser: each ends with its one-line error (or
 its first rows) within the limit, the query's process stays within its memory bound, the
-dashboard's own process does not grow, and the next query on the same page works.
+dashboard's own process does not grow, and the next query on the same page works. The same
+for hostile text: a query past the 1 MB cap (refused unparsed) and one under it that costs
+GBs to parse (parsed in the query's process, never in the server's).
 
 The test server (`app_server`) runs with `SQL_LIMITS` (2 s, 256 MB, 1,000 rows) under an
 address-space bound; the memory of its process tree is sampled while each query runs
@@ -32,6 +34,14 @@ MEMORY_ERROR = (
     "the query needed more memory than its limit (256 MB in memory, 512 MB on disk) and was stopped"
 )
 TIME_ERROR = "the query ran past its time limit of 2 s and was stopped"
+# Text past the 1 MB cap is refused by the server unparsed; text under it that is costly to
+# parse (DuckDB's parser: about 1.4 GB for this one) is parsed in the query's process only.
+OVERSIZED = "select 1 as one -- " + "x" * (1_500_000 - 19)
+OVERSIZED_ERROR = (
+    "the query holds 1,500,000 bytes of text, more than the 1 MB (1,048,576 bytes) accepted"
+)
+NESTED = "select " + "(" * 500_000 + "1" + ")" * 500_000
+PARSE_ERROR = "parsing the query needed more memory than it may use: shorten it, or nest it less"
 
 
 def _process_memory(pid: int) -> int:
@@ -49,6 +59,8 @@ CASES = {
     "sorted-cross-join": (SORTED_CROSS_JOIN, "and was stopped", [TIME_ERROR, MEMORY_ERROR]),
     "growing-recursion": (GROWS, MEMORY_ERROR, [MEMORY_ERROR]),
     "endless-recursion": (NEVER_ENDS, TIME_ERROR, [TIME_ERROR]),
+    "oversized-text": (OVERSIZED, OVERSIZED_ERROR, [OVERSIZED_ERROR]),
+    "costly-to-parse": (NESTED, PARSE_ERROR, [PARSE_ERROR]),
 }
 
 

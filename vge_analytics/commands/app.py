@@ -22,6 +22,7 @@ from pathlib import Path
 
 import typer
 
+from vge_analytics._isolated import SLOT_WAIT, default_max_queries
 from vge_analytics._limits import (
     APP_MAX_ROWS,
     APP_TIMEOUT,
@@ -94,11 +95,13 @@ def streamlit_command(
     sql: tuple[SqlLimits, int] | None = None,
     metrics_dir: Path | None = None,
     query_timeout: float | None = None,
+    max_queries: int | None = None,
 ) -> list[str]:
     """The argument list that serves the dashboard for OUT on `host:port`: `streamlit run
     ...` through `vge_analytics._serve`, which warms the libraries and OUT up before the
     server listens. `sql`: the SQL page's limits and row cap, `metrics_dir`: the metrics
-    folder, `query_timeout`: the pages' analytics queries' time limit, passed on to the app."""
+    folder, `query_timeout`: the pages' analytics queries' time limit, `max_queries`: how many
+    SQL page queries run at once, passed on to the app."""
     cmd = [
         sys.executable,
         "-m",
@@ -135,6 +138,8 @@ def streamlit_command(
         cmd += ["--metrics-dir", str(metrics_dir)]
     if query_timeout is not None:
         cmd += ["--query-timeout", f"{query_timeout:g}"]
+    if max_queries is not None:
+        cmd += ["--sql-max-queries", str(max_queries)]
     return cmd
 
 
@@ -154,6 +159,14 @@ def app(
     sql_memory_limit: str = memory_limit_option("--sql-memory-limit", "a query of the SQL page"),
     sql_max_rows: int = typer.Option(
         APP_MAX_ROWS, "--sql-max-rows", min=1, help="Rows the SQL page shows and downloads."
+    ),
+    sql_max_queries: int = typer.Option(
+        None,
+        "--sql-max-queries",
+        min=1,
+        help="SQL page queries that run at once, for all visitors; another waits up to "
+        f"{SLOT_WAIT:g} s, then is refused (default: as many as fit in this machine's memory "
+        "at --sql-memory-limit and half again, 2 with the default limit).",
     ),
     query_timeout: float = typer.Option(
         CLI_TIMEOUT,
@@ -175,6 +188,7 @@ def app(
         load_metrics(metrics_dir)  # every problem of its files, before the server starts
         folder = Path(metrics_dir).resolve()
     limits = SqlLimits.make(memory=sql_memory_limit, timeout=sql_timeout)
+    max_queries = sql_max_queries or default_max_queries(limits)
     cmd = streamlit_command(
         resolved,
         port=port,
@@ -183,12 +197,14 @@ def app(
         sql=(limits, sql_max_rows),
         metrics_dir=folder,
         query_timeout=query_timeout,
+        max_queries=max_queries,
     )
     env = {**os.environ, OUT_ENV: str(resolved)}
     shown = "localhost" if is_loopback(host) else host
     typer.echo(
         f"Dashboard for {resolved} on http://{shown}:{port} (Ctrl-C stops it); SQL page "
-        f"queries stop after {limits.timeout or 0:g} s or {format_size(limits.memory)}",
+        f"queries stop after {limits.timeout or 0:g} s or {format_size(limits.memory)}, "
+        f"{max_queries} at most at once",
         err=True,
     )
     serve(

@@ -1,0 +1,179 @@
+"""The four tables of an OUT as Arrow datasets over exactly its Parquet files, for DuckDB to scan.
+
+Which files: the ones the manifest lists per run (`runs[].outputs`; on object storage a
+listing may catch a run mid-commit, the manifest never does, docs/SCALE.md), and the Parquet
+files of `runs/`. A local OUT without a manifest is listed directory by directory. Every path
+is a name joined to OUT, never a pattern: pyarrow opens it as it is, so an OUT named
+`out[12]` reads its own files, not those of `out1` and `out2` (DuckDB's `read_parquet` would
+expand the brackets, and has no escape for every name). A listed path must stay inside OUT
+(relative, no `..`, under its table's folder; on the local disk, symbolic links resolved);
+anything else is refused in one line naming the manifest.
+
+How they are read, so that scanning them costs about what DuckDB's own reader does:
+- each file of a run is a fragment known to hold that run's rows only (its partition
+  expression), so `WHERE run_id = ...` skips the other runs' files;
+- the string columns stored with a dictionary in every file (all but the long free texts)
+  are read as dictionaries: grouping on `run_id` or `error_type` hashes small integers;
+- scans read ahead little (`SCAN_OPTIONS`): a `LIMIT 100` decodes a few thousand rows, not
+  several row groups of every column.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping
+from pathlib import PurePosixPath
+
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.dataset as pads
+import pyarrow.fs as pafs
+
+import replay
+
+from ._errors import OutputDirError
+
+TABLES: tuple[str, ...] = ("steps", "episodes", "goals", "runs")
+PARTITIONED: tuple[str, ...] = ("steps", "episodes", "goals")
+
+SCAN_OPTIONS: Mapping[str, int] = {
+    "batch_size": 16_384,
+    "batch_readahead": 2,
+    "fragment_readahead": 2,
+}
+"""Scanner options of every scan: batches of 16,384 rows (8 of DuckDB's vectors), two batches
+and two files read ahead (pyarrow's defaults, 131,072 rows, 16 batches and 4 files, decode
+dozens of MB before a LIMIT can stop them)."""
+
+
+class _Dataset(pads.FileSystemDataset):
+    """A pyarrow dataset whose scanners take `SCAN_OPTIONS`. DuckDB asks the dataset for a
+    scanner with the columns and filter it pushes down; the rest is set here."""
+
+    def scanner(self, *args, **kwargs) -> pads.Scanner:  # type: ignore[override]
+        return super().scanner(*args, **{**SCAN_OPTIONS, **kwargs})
+
+
+def _empty_runs() -> pa.Table:
+    return pa.table(
+        {
+            "run_id": pa.array([], pa.string()),
+            "model": pa.array([], pa.string()),
+            "agent_kind": pa.array([], pa.string()),
+            "lambda": pa.array([], pa.float64()),
+            "meta": pa.array([], pa.string()),
+        }
+    )
+
+
+def _empty(table: str) -> pa.Table:
+    if table == "runs":
+        return _empty_runs()
+    return replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
+
+
+def _refuse(out: replay.Location, what: str) -> OutputDirError:
+    return OutputDirError(f"{out / 'manifest.json'}: {what}")
+
+
+def _checked(out: replay.Location, table: str, name: object, who: str) -> str:
+    """`name` if it is the path of a file of `table` inside OUT, else the error; `who`: what
+    listed it, as the message says it (`OUT/manifest.json: run 'x' lists`)."""
+    if not isinstance(name, str):
+        raise OutputDirError(f"{who} {name!r} as a {table} file (not a path)")
+    parts = PurePosixPath(name).parts
+    if name.startswith("/") or ".." in parts or parts[:1] != (table,):
+        raise OutputDirError(f"{who} {name!r}, which is not a file of {table}/ in OUT")
+    if out.local is not None:
+        inside = os.path.realpath(out.local)
+        real = os.path.realpath(out.local / name)
+        if os.path.commonpath([inside, real]) != inside:
+            raise OutputDirError(f"{who} {name!r}, which leads outside OUT ({real})")
+    return name
+
+
+def _listed(out: replay.Location, manifest: Mapping, table: str) -> list[tuple[str, str | None]]:
+    """(path, run) of each file of `table` the manifest lists, checked."""
+    runs = manifest.get("runs", [])
+    if not isinstance(runs, list):
+        raise _refuse(out, "'runs' is not a list")
+    found: list[tuple[str, str | None]] = []
+    for run in runs:
+        run_id = run.get("run_id") if isinstance(run, dict) else None
+        outputs = run.get("outputs") if isinstance(run, dict) else None
+        names = outputs.get(table) if isinstance(outputs, dict) else None
+        if not isinstance(run_id, str) or not isinstance(names, list):
+            raise _refuse(out, f"a run without a run_id and its {table} files ({str(run)[:80]})")
+        who = f"{out / 'manifest.json'}: run {run_id!r} lists"
+        found += [(_checked(out, table, name, who), run_id) for name in names]
+    return sorted(found)
+
+
+def table_files(
+    out: replay.Location, manifest: Mapping | None, table: str
+) -> list[tuple[str, str | None]]:
+    """(path relative to OUT, the run whose rows it holds, or None) of each file of a table."""
+    if table == "runs":
+        names = [f"runs/{n}" for n in (out / "runs").names() if n.endswith(".parquet")]
+    elif manifest is None:  # a local OUT without a manifest: its folders, file by file
+        names = [f"{table}/{rel}" for rel in (out / table).files() if rel.endswith(".parquet")]
+    else:
+        return _listed(out, manifest, table)
+    return [(_checked(out, table, name, f"{out}: OUT holds"), None) for name in names]
+
+
+def _dictionary_columns(fragments: Iterable[pads.ParquetFileFragment], schema: pa.Schema) -> set:
+    """String columns stored with a dictionary page in every row group of every file."""
+    columns = {f.name for f in schema if pa.types.is_string(f.type)}
+    for fragment in fragments:
+        meta = fragment.metadata
+        names = meta.schema.names
+        for group in range(meta.num_row_groups):
+            row_group = meta.row_group(group)
+            columns = {
+                c
+                for c in columns
+                if c not in names or row_group.column(names.index(c)).has_dictionary_page
+            }
+    return columns
+
+
+def _dataset(out: replay.Location, files: list[tuple[str, str | None]]) -> pads.Dataset:
+    """One dataset over `files`, their schemas unified by column name as DuckDB's
+    `union_by_name` does (a column some files lack is null there)."""
+    fs = out.fs if out.fs is not None else pafs.LocalFileSystem()
+    base = out.path.rstrip("/")
+    paths = [f"{base}/{name}" for name, _ in files]
+    plain = pads.ParquetFileFormat()
+    first = [plain.make_fragment(p, fs) for p in paths]
+    schema = pa.unify_schemas([f.physical_schema for f in first], promote_options="permissive")
+    dictionaries = _dictionary_columns(first, schema)
+    read_as = pads.ParquetFileFormat(
+        read_options=pads.ParquetReadOptions(dictionary_columns=sorted(dictionaries))
+    )
+    schema = pa.schema(
+        f.with_type(pa.dictionary(pa.int32(), f.type)) if f.name in dictionaries else f
+        for f in schema
+    ).with_metadata(schema.metadata)
+    fragments = [
+        read_as.make_fragment(
+            path, fs, partition_expression=None if run is None else pc.field("run_id") == run
+        )
+        for path, (_, run) in zip(paths, files, strict=True)
+    ]
+    for fragment in fragments:  # the footer again (these read as dictionaries), kept now
+        fragment.ensure_complete_metadata()
+    return _Dataset(fragments, schema, read_as, fs)
+
+
+def table_sources(out: replay.Location, manifest: Mapping | None) -> dict[str, object]:
+    """Each table of OUT as an Arrow dataset over its files (an empty Arrow table when it has
+    none). Raises `OutputDirError` for a path outside OUT; pyarrow's errors pass through."""
+    sources: dict[str, object] = {}
+    for table in TABLES:
+        files = table_files(out, manifest, table)
+        sources[table] = _dataset(out, files) if files else _empty(table)
+    return sources
+
+
+__all__ = ["PARTITIONED", "SCAN_OPTIONS", "TABLES", "table_files", "table_sources"]
