@@ -2,6 +2,10 @@
 
 - `run_bounded(cmd, ...)`: a real process under an address-space limit (`RLIMIT_AS`), its
   stdout read and counted (not kept), its peak resident memory from the kernel (`wait4`).
+  It is started by a small launcher process, not forked from the test: Linux counts in a
+  process's peak the memory of the process it was forked from (a forked child starts with
+  its parent's pages, and `exec` keeps that high-water mark), so a command forked from a
+  test worker holding 500 MB would report at least 500 MB whatever it used.
 - `TreeMemory(pid)`: samples the peak resident memory (VmHWM) of a process and of every
   process below it, while a block runs (the dashboard's query processes are grandchildren
   of the test, out of reach of `wait4`).
@@ -14,7 +18,9 @@ from __future__ import annotations
 
 import os
 import resource
+import signal
 import subprocess
+import sys
 import threading
 import time
 from collections.abc import Sequence
@@ -45,9 +51,16 @@ def run_bounded(
         resource.setrlimit(resource.RLIMIT_AS, (address_space, address_space))
 
     started = time.monotonic()
+    report_read, report_write = os.pipe()
     proc = subprocess.Popen(
-        list(cmd), stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=limit
+        [sys.executable, "-c", _LAUNCHER, str(report_write), *cmd],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        preexec_fn=limit,
+        pass_fds=(report_write,),
+        start_new_session=True,  # a timeout kills the launcher and the command together
     )
+    os.close(report_write)
     counted = {"bytes": 0, "head": b""}
     errors: list[bytes] = []
 
@@ -71,22 +84,45 @@ def run_bounded(
         if pid:
             break
         if time.monotonic() > deadline:
-            proc.kill()
+            os.killpg(proc.pid, signal.SIGKILL)
             pid, status, usage = os.wait4(proc.pid, 0)
             break
         time.sleep(0.02)
     seconds = time.monotonic() - started
     for reader in readers:
         reader.join()
+    with os.fdopen(report_read, "rb") as fh:
+        report = fh.read().split()
+    if report:  # the command's own status and peak, as the launcher's wait4 saw them
+        status, maxrss = int(report[0]), int(report[1])
+    else:  # the launcher was killed (timeout)
+        maxrss = usage.ru_maxrss
     proc.returncode = os.waitstatus_to_exitcode(status)
     return Finished(
         returncode=proc.returncode,
         stdout_bytes=counted["bytes"],
         stdout_head=counted["head"],
         stderr=b"".join(errors).decode(errors="replace"),
-        peak_memory=usage.ru_maxrss * 1024,
+        peak_memory=maxrss * 1024,
         seconds=seconds,
     )
+
+
+_LAUNCHER = """
+import os, sys
+fd, cmd = int(sys.argv[1]), sys.argv[2:]
+pid = os.fork()
+if pid == 0:
+    os.close(fd)
+    try:
+        os.execvp(cmd[0], cmd)
+    finally:
+        os._exit(127)
+_, status, usage = os.wait4(pid, 0)
+os.write(fd, b"%d %d" % (status, usage.ru_maxrss))
+"""
+"""Forks and execs the command from a process of a few MB, waits for it and reports its
+wait status and peak resident memory (KB) on the descriptor it is given."""
 
 
 def _children(pid: int) -> list[int]:
