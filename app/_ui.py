@@ -22,9 +22,9 @@ import streamlit as st
 import vge_analytics as va
 from vge_analytics import dashboard as dash
 from vge_analytics import play
-from vge_analytics._isolated import default_max_queries
-from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, CLI_TIMEOUT, SqlLimits
-from vge_analytics._metric_set import default_folder
+from vge_analytics.metrics._set import default_folder
+from vge_analytics.store._isolated import default_max_queries
+from vge_analytics.store._limits import APP_MAX_ROWS, APP_TIMEOUT, CLI_TIMEOUT, SqlLimits
 
 API: dict[str, Callable[..., Any]] = {
     "metrics": va.metrics,

@@ -79,7 +79,7 @@ def _trim(png: Path, width: int = 900) -> None:
 
 
 def save_screenshots(browser: AppPage, out: Path, folder: Path) -> None:
-    from vge_analytics import _browse as browse
+    from vge_analytics.store import _tables as browse
     from vge_analytics import dashboard as dash
 
     runs = browse.runs(out)
@@ -104,7 +104,7 @@ def main() -> None:
     parser.add_argument("--screenshots", type=Path, help="save docs screenshots here")
     args = parser.parse_args()
 
-    from vge_analytics import _browse as browse
+    from vge_analytics.store import _tables as browse
     from vge_analytics import dashboard as dash
 
     out = dash.check_out(args.out)

@@ -72,9 +72,9 @@ def main() -> None:
     args = parser.parse_args()
 
     import vge_analytics as va
-    from vge_analytics import _isolated
+    from vge_analytics.store import _isolated
     from vge_analytics import dashboard as dash
-    from vge_analytics._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits
+    from vge_analytics.store._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits
 
     out = dash.check_out(args.out)
     summary = dash.out_summary(out)

@@ -42,8 +42,6 @@ Errors are `replay.VGEError` subclasses with one-line messages.
 """
 
 from . import dashboard  # the functions behind the Streamlit pages
-from ._browse import episode_steps, episodes, facets, goals, runs, steps, steps_with_error
-from ._compare import Comparison, compare, mcnemar_exact
 from ._errors import (
     AgentError,
     AnalyticsError,
@@ -64,18 +62,16 @@ from ._errors import (
     UnknownMetricError,
     UnknownRunError,
 )
-from ._format import FORMATS, render, render_latex, render_markdown
-from ._metric_set import METRICS_DIR_ENV, MetricSet, load_metrics
-from ._metrics import episode_terms, metric_table, metrics
-from ._polars import polars_metrics
-from ._ranking import competition_ranks, kendall_tau_b
-from ._registry import MAIN_TABLE, METRIC_NAMES, Metric, get_metric, registry
-from ._rescore import Rescore, rescore
-from ._scope import DEFAULT_BY, groupable_columns
-from ._sql import query_time_limit, sql
-from ._store import clear_cache, open_store, table_columns
-from ._sweep import parse_lambdas, sweep
-from ._taxonomy import (
+from .metrics._compute import episode_terms, metric_table, metrics
+from .metrics._polars import polars_metrics
+from .metrics._registry import MAIN_TABLE, METRIC_NAMES, Metric, get_metric, registry
+from .metrics._set import METRICS_DIR_ENV, MetricSet, load_metrics
+from .reports._compare import Comparison, compare, mcnemar_exact
+from .reports._format import FORMATS, render, render_latex, render_markdown
+from .reports._ranking import competition_ranks, kendall_tau_b
+from .reports._rescore import Rescore, rescore
+from .reports._sweep import parse_lambdas, sweep
+from .reports._taxonomy import (
     ERROR_GROUPS,
     ERROR_LABELS,
     ERROR_TYPES,
@@ -84,6 +80,10 @@ from ._taxonomy import (
     error_groups,
     switch_classes,
 )
+from .store._scope import DEFAULT_BY, groupable_columns
+from .store._sql import query_time_limit, sql
+from .store._store import clear_cache, open_store, table_columns
+from .store._tables import episode_steps, episodes, facets, goals, runs, steps, steps_with_error
 
 __all__ = [
     "dashboard",

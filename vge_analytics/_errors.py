@@ -53,7 +53,7 @@ class QueryError(AnalyticsError):
 
 
 class QueryLimitError(QueryError):
-    """A query went past its memory or time limit and was stopped (`vge_analytics._limits`)."""
+    """A query went past its memory or time limit and was stopped (`vge_analytics.store._limits`)."""
 
     def __init__(self, message: str, *, limit: str) -> None:
         self.limit = limit

@@ -17,7 +17,7 @@ import pytest
 
 import vge_analytics as va
 from tests.bounded import TreeMemory
-from vge_analytics._limits import SqlLimits, memory_headroom
+from vge_analytics.store._limits import SqlLimits, memory_headroom
 
 from .conftest import ARTIFACTS, SQL_LIMITS
 

@@ -6,10 +6,10 @@ from pathlib import Path
 
 from app import _ui
 from vge_analytics import dashboard as dash
-from vge_analytics._limits import SqlLimits
 from vge_analytics.cli import main
 from vge_analytics.commands.app import is_loopback, streamlit_command
 from vge_analytics.commands.play import play_command
+from vge_analytics.store._limits import SqlLimits
 
 from ..vge_analytics.metric_files import SR_MULTI
 
@@ -32,7 +32,7 @@ def test_not_a_replay_output(tmp_path, capsys):
 
 def test_streamlit_command(tiny_out):
     cmd = streamlit_command(tiny_out, port=8600, headless=True)
-    assert cmd[1:4] == ["-m", "vge_analytics._serve", "run"]  # streamlit run, warmed up
+    assert cmd[1:4] == ["-m", "vge_analytics.commands._serve", "run"]  # streamlit run, warmed up
     assert Path(cmd[4]) == dash.app_script() and dash.app_script().name == "streamlit_app.py"
     assert cmd[cmd.index("--server.port") + 1] == "8600"
     assert cmd[cmd.index("--server.headless") + 1] == "true"
@@ -103,7 +103,7 @@ def test_metrics_dir_precedence(monkeypatch):
 def test_play_command(tiny_out, tmp_path):
     bench, run = tiny_out.parent / "synth" / "bench", tmp_path / "run"
     cmd = play_command(bench, run, port=8600, headless=True)
-    assert cmd[1:4] == ["-m", "vge_analytics._serve", "run"]  # as `vge app` serves
+    assert cmd[1:4] == ["-m", "vge_analytics.commands._serve", "run"]  # as `vge app` serves
     assert Path(cmd[4]) == dash.app_script()
     assert cmd[cmd.index("--server.address") + 1] == "127.0.0.1"  # this machine only
     assert cmd[cmd.index("--server.port") + 1] == "8600"

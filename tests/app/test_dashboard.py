@@ -16,8 +16,8 @@ import replay
 import vge_analytics as va
 from vge_analytics import OutputDirError, compare, error_distribution, sql, switch_classes
 from vge_analytics import dashboard as dash
-from vge_analytics._limits import SqlLimits
 from vge_analytics.play._page import RESULT_HEADLINES
+from vge_analytics.store._limits import SqlLimits
 
 from ..vge_analytics.metric_files import SR_MULTI, write_folder
 

@@ -26,12 +26,17 @@ from polars.testing import assert_frame_equal
 import replay
 import vge_analytics as va
 from tests.bounded import run_bounded
-from vge_analytics import _isolated
+from vge_analytics.store import _isolated
 from vge_analytics import dashboard as dash
-from vge_analytics._limits import SqlLimits, default_memory_limit, machine_memory, memory_headroom
-from vge_analytics._metric_check import _schema_connection
 from vge_analytics.cli import main
 from vge_analytics.commands.app import streamlit_command
+from vge_analytics.metrics._check import _schema_connection
+from vge_analytics.store._limits import (
+    SqlLimits,
+    default_memory_limit,
+    machine_memory,
+    memory_headroom,
+)
 
 from ..vge_analytics.metric_files import metric_text
 
@@ -260,7 +265,7 @@ SCRIPT_SERVER = """
 import json, resource, sys
 import vge_analytics as va
 from vge_analytics import dashboard as dash
-from vge_analytics._limits import SqlLimits
+from vge_analytics.store._limits import SqlLimits
 
 def own_peak():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 import vge_analytics as va
-from vge_analytics._metric_check import check_metric
-from vge_analytics._metric_file import parse_metric_file
 from vge_analytics.cli import main
+from vge_analytics.metrics._check import check_metric
+from vge_analytics.metrics._file import parse_metric_file
 
 from .metric_files import SR_MULTI, metric_text, write_folder
 

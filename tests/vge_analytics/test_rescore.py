@@ -34,8 +34,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import vge_analytics as va
-from vge_analytics._ranking import kendall_tau_b_pairs
 from vge_analytics.cli import main
+from vge_analytics.reports._ranking import kendall_tau_b_pairs
 
 from .metric_files import GOALS_DONE, SR_AS_SSR, SR_MULTI, metric_text, write_folder
 

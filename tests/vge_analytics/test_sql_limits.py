@@ -17,8 +17,8 @@ import pytest
 import vge_analytics as va
 from replay import ConfigError
 from tests.bounded import run_bounded
-from vge_analytics._limits import SqlLimits, memory_headroom, parse_size, process_memory_cap
-from vge_analytics._sql import sql_head, stream, unique_names
+from vge_analytics.store._limits import SqlLimits, memory_headroom, parse_size, process_memory_cap
+from vge_analytics.store._sql import sql_head, stream, unique_names
 
 TIMEOUT = 2.0
 MEMORY = "256MB"
@@ -128,8 +128,8 @@ def test_head_reads_only_what_it_shows(sample_out):
 
 
 def test_streamed_csv_and_json_equal_the_whole_rendering(hand_out, capsys):
-    from vge_analytics._format import render
-    from vge_analytics._output import emit_stream
+    from vge_analytics.commands._output import emit_stream
+    from vge_analytics.reports._format import render
 
     query = (
         "select run_id, episode_id, step, params, x, success "

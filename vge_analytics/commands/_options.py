@@ -6,9 +6,9 @@ import typer
 
 from replay import MAX_RECORD_BYTES, ConfigError
 
-from .._limits import CLI_TIMEOUT
-from .._metric_set import METRICS_DIR_ENV
-from .._output import FORMAT_HELP
+from ..metrics._set import METRICS_DIR_ENV
+from ..store._limits import CLI_TIMEOUT
+from ._output import FORMAT_HELP
 
 METRICS_DIR_HELP = (
     "A folder of metric files (.sql, in the format of the built-in metrics; see "

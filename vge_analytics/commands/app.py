@@ -1,7 +1,7 @@
 """`vge app [OUT]`: the Streamlit dashboard over a replay output directory.
 
 Runs `streamlit run app/streamlit_app.py -- --out OUT` with the same Python (through
-`vge_analytics._serve`, which warms the libraries and OUT up first). The app reads
+`vge_analytics.commands._serve`, which warms the libraries and OUT up first). The app reads
 OUT from `--out` (and from the `VGE_APP_OUT` environment variable, which this command also
 sets), so it can be started by hand with either. `--metrics-dir DIR` is checked here (a
 problem in a metric file stops the command with its line) and passed on as `--metrics-dir`:
@@ -22,16 +22,16 @@ from pathlib import Path
 
 import typer
 
-from vge_analytics._isolated import SLOT_WAIT, default_max_queries
-from vge_analytics._limits import (
+from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
+from vge_analytics.metrics._set import load_metrics
+from vge_analytics.store._isolated import SLOT_WAIT, default_max_queries
+from vge_analytics.store._limits import (
     APP_MAX_ROWS,
     APP_TIMEOUT,
     CLI_TIMEOUT,
     SqlLimits,
     format_size,
 )
-from vge_analytics._metric_set import load_metrics
-from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
 
 from ._options import memory_limit_option, metrics_dir_option
 
@@ -98,14 +98,14 @@ def streamlit_command(
     max_queries: int | None = None,
 ) -> list[str]:
     """The argument list that serves the dashboard for OUT on `host:port`: `streamlit run
-    ...` through `vge_analytics._serve`, which warms the libraries and OUT up before the
+    ...` through `vge_analytics.commands._serve`, which warms the libraries and OUT up before the
     server listens. `sql`: the SQL page's limits and row cap, `metrics_dir`: the metrics
     folder, `query_timeout`: the pages' analytics queries' time limit, `max_queries`: how many
     SQL page queries run at once, passed on to the app."""
     cmd = [
         sys.executable,
         "-m",
-        "vge_analytics._serve",
+        "vge_analytics.commands._serve",
         "run",
         str(app_script()),
         "--server.address",

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import typer
 
-from .._compare import DEFAULT_RESAMPLES, DEFAULT_SEED
-from .._compare import compare as compute_compare
-from .._format import check_format
-from .._output import emit_sections
-from .._sql import query_time_limit
+from ..reports._compare import DEFAULT_RESAMPLES, DEFAULT_SEED
+from ..reports._compare import compare as compute_compare
+from ..reports._format import check_format
+from ..store._sql import query_time_limit
 from ._options import format_option, metrics_dir_option, out_argument, timeout_option
+from ._output import emit_sections
 
 
 def compare(

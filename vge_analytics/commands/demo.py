@@ -13,11 +13,11 @@ from rich.console import Console
 
 from replay import replay_runs
 
-from .._metric_set import MetricSet
-from .._metrics import metrics as compute_metrics
-from .._output import emit
-from .._scope import DEFAULT_BY
+from ..metrics._compute import metrics as compute_metrics
+from ..metrics._set import MetricSet
+from ..store._scope import DEFAULT_BY
 from ..synth import image_source
+from ._output import emit
 from .metrics import for_people
 
 _REPO_SAMPLE = Path(__file__).resolve().parents[2] / "logs"

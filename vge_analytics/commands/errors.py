@@ -5,12 +5,12 @@ from __future__ import annotations
 import polars as pl
 import typer
 
-from .._format import check_format
-from .._output import emit_sections
-from .._scope import parse_by
-from .._sql import query_time_limit
-from .._taxonomy import ERROR_LABELS, error_distribution, groups_of, switch_classes
+from ..reports._format import check_format
+from ..reports._taxonomy import ERROR_LABELS, error_distribution, groups_of, switch_classes
+from ..store._scope import parse_by
+from ..store._sql import query_time_limit
 from ._options import format_option, out_argument, timeout_option, where_option
+from ._output import emit_sections
 from .metrics import parse_where
 
 

@@ -8,15 +8,15 @@ import polars as pl
 import typer
 
 from .._errors import UnknownColumnError
-from .._format import check_format
-from .._metric_set import MetricSet, load_metrics
-from .._metrics import metric_table
-from .._metrics import metrics as compute_metrics
-from .._output import emit
-from .._registry import MAIN_TABLE
-from .._scope import DEFAULT_BY, parse_by
-from .._sql import query_time_limit
+from ..metrics._compute import metric_table
+from ..metrics._compute import metrics as compute_metrics
+from ..metrics._registry import MAIN_TABLE
+from ..metrics._set import MetricSet, load_metrics
+from ..reports._format import check_format
+from ..store._scope import DEFAULT_BY, parse_by
+from ..store._sql import query_time_limit
 from ._options import format_option, metrics_dir_option, timeout_option, where_option
+from ._output import emit
 
 LIST_COLUMNS: tuple[str, ...] = (
     "metric",

@@ -2,7 +2,7 @@
 
 Creates (or opens) the human run RUN_DIR, then runs the Streamlit app as `vge app` does
 (`streamlit run app/streamlit_app.py -- --bench BENCH --run RUN_DIR`, through
-`vge_analytics._serve`); with a benchmark the app shows the Play page alone.
+`vge_analytics.commands._serve`); with a benchmark the app shows the Play page alone.
 
 The server listens on 127.0.0.1 (this machine only) unless `--host` says otherwise: whoever
 reaches the page plays into RUN_DIR, so opening it to the network is a choice this command

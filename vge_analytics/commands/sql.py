@@ -1,16 +1,16 @@
 """`vge sql OUT "QUERY"`: read-only SQL over the views steps, episodes, goals, runs, with
-memory and time limits (see `vge_analytics._limits`)."""
+memory and time limits (see `vge_analytics.store._limits`)."""
 
 from __future__ import annotations
 
 import typer
 
 from .._errors import QueryLimitError
-from .._format import check_format
-from .._limits import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap
-from .._output import emit, emit_stream
-from .._sql import sql_head, stream
+from ..reports._format import check_format
+from ..store._limits import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap
+from ..store._sql import sql_head, stream
 from ._options import format_option, memory_limit_option, out_argument
+from ._output import emit, emit_stream
 
 _HINTS = {
     "time": "--timeout sets the limit",

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import replay
 
-from .._metrics import metrics
-from .._sql import sql
-from .._taxonomy import error_distribution, error_groups
+from ..metrics._compute import metrics
+from ..reports._taxonomy import error_distribution, error_groups
+from ..store._sql import sql
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,4 +1,4 @@
-"""`python -m vge_analytics._serve <streamlit run arguments>`: Streamlit, warmed up first.
+"""`python -m vge_analytics.commands._serve <streamlit run arguments>`: Streamlit, warmed up first.
 
 `vge app` starts the dashboard through this module rather than `python -m streamlit`: before
 the server listens it imports the heavy libraries and opens the replay output (its tables,
@@ -17,7 +17,7 @@ def _warm(out: str) -> None:
     import importlib
 
     import vge_analytics as va
-    from vge_analytics import _isolated as isolated
+    from vge_analytics.store import _isolated as isolated
 
     # The dashboard's own helpers (and through them streamlit, altair, pandas, polars):
     # the page scripts import the same module objects.

@@ -16,9 +16,9 @@ import polars as pl
 
 import replay
 
-from ._metrics import run_query
-from ._scope import Filters, GroupBy, check_columns, grouped_aggregate, parse_by
-from ._store import Store, open_store, quote_ident
+from ..metrics._compute import run_query
+from ..store._scope import Filters, GroupBy, check_columns, grouped_aggregate, parse_by
+from ..store._store import Store, open_store, quote_ident
 
 ERROR_TYPES: tuple[str, ...] = tuple(replay.ERROR_TYPES)
 """The paper's seven error types, in the order of its tables."""

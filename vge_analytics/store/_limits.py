@@ -24,7 +24,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from ._errors import ConfigError
+from .._errors import ConfigError
 
 MEMORY_SHARE = 0.25
 """Default memory limit: this share of the machine's memory (or of the cgroup's limit)."""

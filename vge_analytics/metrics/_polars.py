@@ -13,9 +13,9 @@ from pathlib import Path
 
 import polars as pl
 
-from ._errors import OutputDirError, UnknownColumnError
+from .._errors import OutputDirError, UnknownColumnError
+from ..store._scope import GroupBy, parse_by
 from ._registry import METRIC_NAMES, resolve_metrics
-from ._scope import GroupBy, parse_by
 
 _EPISODE_METRICS = ("SR", "SSR", "SPL", "State-F1", "VSPS", "GVPE")
 _STEP_METRICS = ("EIR", "TIR", "EER", "AvgDist", "AvgWDist")

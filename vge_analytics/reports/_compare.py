@@ -23,10 +23,10 @@ from math import comb
 import numpy as np
 import polars as pl
 
-from ._errors import AnalyticsError, UnknownRunError
-from ._metric_set import MetricsSource, metric_set
-from ._metrics import episode_terms, run_query
-from ._store import open_store
+from .._errors import AnalyticsError, UnknownRunError
+from ..metrics._compute import episode_terms, run_query
+from ..metrics._set import MetricsSource, metric_set
+from ..store._store import open_store
 from ._taxonomy import ERROR_LABELS, error_distribution
 
 DEFAULT_RESAMPLES = 2000

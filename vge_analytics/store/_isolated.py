@@ -30,7 +30,7 @@ from pathlib import Path
 import polars as pl
 import pyarrow as pa
 
-from ._errors import AnalyticsError, OutputDirError, QueryError, QueryLimitError, QueryRefused
+from .._errors import AnalyticsError, OutputDirError, QueryError, QueryLimitError, QueryRefused
 from ._limits import (
     SqlLimits,
     format_size,

@@ -22,13 +22,13 @@ from dataclasses import dataclass
 
 import polars as pl
 
-from ._errors import ConfigError, UnknownMetricError
-from ._metric_set import MetricSet, MetricsSource, default_folder, metric_set, same_definition
-from ._metrics import metrics as compute_metrics
+from .._errors import ConfigError, UnknownMetricError
+from ..metrics._compute import metrics as compute_metrics
+from ..metrics._registry import Metric
+from ..metrics._set import MetricSet, MetricsSource, default_folder, metric_set, same_definition
+from ..store._scope import Filters, GroupBy, parse_by
+from ..store._store import open_store
 from ._ranking import competition_ranks, kendall_tau_b
-from ._registry import Metric
-from ._scope import Filters, GroupBy, parse_by
-from ._store import open_store
 
 DEFAULT_RESCORE_BY: tuple[str, ...] = ("run_id",)
 CHANGES: tuple[str, ...] = ("changed", "added", "removed")

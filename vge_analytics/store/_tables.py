@@ -11,8 +11,8 @@ from collections.abc import Sequence
 
 import polars as pl
 
-from ._errors import UnknownColumnError, UnknownRunError
-from ._metrics import run_query
+from .._errors import UnknownColumnError, UnknownRunError
+from ..metrics._compute import run_query
 from ._scope import Filters, build_scope, check_columns
 from ._store import open_store, quote_ident
 
@@ -102,7 +102,7 @@ def steps_with_error(
     """Scored steps whose error type is `error_type` (one or several; an error group name
     such as `grounding` selects its types), optionally filtered further, sorted by run_id,
     episode_id, step; `limit` keeps the first rows."""
-    from ._taxonomy import ERROR_GROUPS
+    from ..reports._taxonomy import ERROR_GROUPS
 
     wanted = [error_type] if isinstance(error_type, str) else list(error_type)
     types: list[str] = []

@@ -32,8 +32,8 @@ import pyarrow as pa
 
 import replay
 
+from .._errors import OutputDirError
 from ._datasets import PARTITIONED, TABLES, table_sources
-from ._errors import OutputDirError
 from ._limits import SqlLimits
 from ._locked import locked_connection, register_all
 

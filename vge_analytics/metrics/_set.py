@@ -29,10 +29,10 @@ from functools import cache
 from pathlib import Path
 from typing import Literal
 
-from ._errors import MetricFileError, UnknownMetricError
-from ._limits import MAX_METRIC_FILE, text_too_large
-from ._metric_check import check_metric
-from ._metric_file import Metric, Problem, parse_metric_file
+from .._errors import MetricFileError, UnknownMetricError
+from ..store._limits import MAX_METRIC_FILE, text_too_large
+from ._check import check_metric
+from ._file import Metric, Problem, parse_metric_file
 from ._registry import registry
 
 METRICS_DIR_ENV = "VGE_METRICS_DIR"

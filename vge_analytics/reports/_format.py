@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import polars as pl
 
-from ._errors import AnalyticsError
-from ._metric_set import MetricSet
-from ._registry import Metric
+from .._errors import AnalyticsError
+from ..metrics._registry import Metric
+from ..metrics._set import MetricSet
 
 FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown", "latex")
 

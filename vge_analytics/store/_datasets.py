@@ -31,7 +31,7 @@ import pyarrow.fs as pafs
 
 import replay
 
-from ._errors import OutputDirError
+from .._errors import OutputDirError
 
 TABLES: tuple[str, ...] = ("steps", "episodes", "goals", "runs")
 PARTITIONED: tuple[str, ...] = ("steps", "episodes", "goals")

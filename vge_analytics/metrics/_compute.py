@@ -14,10 +14,8 @@ from collections.abc import Sequence
 import duckdb
 import polars as pl
 
-from ._errors import QueryError, QueryLimitError, UnknownColumnError
-from ._metric_set import MetricSet, MetricsSource, metric_set
-from ._registry import Metric
-from ._scope import (
+from .._errors import QueryError, QueryLimitError, UnknownColumnError
+from ..store._scope import (
     Filters,
     GroupBy,
     check_columns,
@@ -27,8 +25,10 @@ from ._scope import (
     parse_by,
     run_keys_scope,
 )
-from ._sql import Deadline, analytics_timeout, check_read_only
-from ._store import Store, open_store, quote_ident
+from ..store._sql import Deadline, analytics_timeout, check_read_only
+from ..store._store import Store, open_store, quote_ident
+from ._registry import Metric
+from ._set import MetricSet, MetricsSource, metric_set
 
 MetricNames = str | Sequence[str] | None
 

@@ -25,8 +25,8 @@ from __future__ import annotations
 from functools import cache
 from importlib import resources
 
-from ._errors import UnknownMetricError
-from ._metric_file import Direction, Grain, Level, Metric, Unit, parse_metric_file
+from .._errors import UnknownMetricError
+from ._file import Direction, Grain, Level, Metric, Unit, parse_metric_file
 
 METRIC_NAMES: tuple[str, ...] = (
     "SR",

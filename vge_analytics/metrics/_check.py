@@ -35,9 +35,9 @@ import pyarrow as pa
 
 import replay
 
-from ._locked import locked_connection, register_all
-from ._metric_file import Metric, Problem
-from ._store import NUMERIC_TYPES
+from ..store._locked import locked_connection, register_all
+from ..store._store import NUMERIC_TYPES
+from ._file import Metric, Problem
 
 _LINE = re.compile(r"\bLINE (\d+):")
 _DEPTH = "Max expression depth limit"

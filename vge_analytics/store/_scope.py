@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-from ._errors import UnknownColumnError
+from .._errors import UnknownColumnError
 from ._store import Store, quote_ident
 
 GroupBy = str | Sequence[str] | None

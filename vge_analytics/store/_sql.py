@@ -38,7 +38,7 @@ import duckdb
 import polars as pl
 import pyarrow as pa
 
-from ._errors import QueryError, QueryLimitError, QueryRefused
+from .._errors import QueryError, QueryLimitError, QueryRefused
 from ._limits import CLI_TIMEOUT, MAX_SQL_TEXT, SqlLimits, format_size, text_too_large
 from ._store import Store, open_store
 

@@ -46,11 +46,11 @@ import pyarrow as pa
 
 import replay
 
-from ._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
-from ._metric_set import MetricsSource, metric_set
-from ._metrics import compose, run_query
-from ._registry import Metric
-from ._store import Store, open_store, resolve_input
+from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
+from ..metrics._compute import compose, run_query
+from ..metrics._registry import Metric
+from ..metrics._set import MetricsSource, metric_set
+from ..store._store import Store, open_store, resolve_input
 
 DEFAULT_SWEEP_METRICS: tuple[str, ...] = ("SR", "SSR")
 
