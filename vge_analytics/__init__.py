@@ -62,28 +62,58 @@ from ._errors import (
     UnknownMetricError,
     UnknownRunError,
 )
-from .metrics._compute import episode_terms, metric_table, metrics
-from .metrics._polars import polars_metrics
-from .metrics._registry import MAIN_TABLE, METRIC_NAMES, Metric, get_metric, registry
-from .metrics._set import METRICS_DIR_ENV, MetricSet, load_metrics
-from .reports._compare import Comparison, compare, mcnemar_exact
-from .reports._format import FORMATS, render, render_latex, render_markdown
-from .reports._ranking import competition_ranks, kendall_tau_b
-from .reports._rescore import Rescore, rescore
-from .reports._sweep import parse_lambdas, sweep
-from .reports._taxonomy import (
+from .metrics import (
+    MAIN_TABLE,
+    METRIC_NAMES,
+    METRICS_DIR_ENV,
+    Metric,
+    MetricSet,
+    episode_terms,
+    get_metric,
+    load_metrics,
+    metric_table,
+    metrics,
+    polars_metrics,
+    registry,
+)
+from .reports import (
     ERROR_GROUPS,
     ERROR_LABELS,
     ERROR_TYPES,
+    FORMATS,
     SWITCH_CLASSES,
+    Comparison,
+    Rescore,
+    compare,
+    competition_ranks,
     error_distribution,
     error_groups,
+    kendall_tau_b,
+    mcnemar_exact,
+    parse_lambdas,
+    render,
+    render_latex,
+    render_markdown,
+    rescore,
+    sweep,
     switch_classes,
 )
-from .store._scope import DEFAULT_BY, groupable_columns
-from .store._sql import query_time_limit, sql
-from .store._store import clear_cache, open_store, table_columns
-from .store._tables import episode_steps, episodes, facets, goals, runs, steps, steps_with_error
+from .store import (
+    DEFAULT_BY,
+    clear_cache,
+    episode_steps,
+    episodes,
+    facets,
+    goals,
+    groupable_columns,
+    open_store,
+    query_time_limit,
+    runs,
+    sql,
+    steps,
+    steps_with_error,
+    table_columns,
+)
 
 __all__ = [
     "dashboard",

@@ -25,13 +25,21 @@ import polars as pl
 import replay
 
 from ._errors import OutputDirError, UnknownRunError
-from .metrics._registry import Metric
-from .metrics._set import MetricSet, MetricsSource, fingerprint, metric_set
-from .reports._rescore import Rescore, group_label
-from .store._isolated import SLOT_WAIT, IsolatedResult, run_isolated
-from .store._limits import SqlLimits, format_size
-from .store._scope import Filters, build_scope, check_columns
-from .store._store import open_store, quote_ident, resolve_input
+from .metrics import Metric, MetricSet, MetricsSource, fingerprint, metric_set
+from .reports import Rescore, group_label
+from .store import (
+    SLOT_WAIT,
+    Filters,
+    IsolatedResult,
+    SqlLimits,
+    build_scope,
+    check_columns,
+    format_size,
+    open_store,
+    quote_ident,
+    resolve_input,
+    run_isolated,
+)
 from .synth import image_source
 
 DEFAULT_OUT = "logs-replayed"
@@ -424,7 +432,7 @@ def draw_step(
 def step_picture(out: str | Path, run_id: str, episode_id: str, step: int) -> bytes:
     """The episode viewer's picture of one step: the view the agent saw, the click (red x),
     the components it hit (orange) and the target components of the current goal (green)."""
-    from .store._tables import steps
+    from .store import steps
 
     rows = steps(out, where={"run_id": run_id, "episode_id": episode_id, "step": int(step)})
     if rows.height == 0:
@@ -631,7 +639,7 @@ def error_step_sample(
 def error_share_wide(dist: pl.DataFrame) -> pl.DataFrame:
     """An `error_distribution(..., labels=True)` result with a `group` column as one row per
     group: `errors` (their number), then each error type's share in percent (paper names)."""
-    from .reports._taxonomy import ERROR_LABELS, ERROR_TYPES
+    from .reports import ERROR_LABELS, ERROR_TYPES
 
     labels = [ERROR_LABELS[t] for t in ERROR_TYPES]
     order = dist["group"].unique(maintain_order=True)
@@ -669,7 +677,7 @@ def switch_summary(classes: pl.DataFrame, ratios: pl.DataFrame) -> pl.DataFrame:
 
     `classes` is a `switch_classes` result and `ratios` a `metrics(..., ["VSPS", "GVPE"])`
     result, both with a `group` column."""
-    from .reports._taxonomy import SWITCH_CLASSES
+    from .reports import SWITCH_CLASSES
 
     wide = classes.pivot(
         on="switch_class", index="group", values="share", aggregate_function="first"
@@ -1030,7 +1038,7 @@ def sweep_size(out: str | Path, runs: Sequence[str], lambdas: Sequence[float]) -
 def _sweep_cache_file(
     out: str | Path, runs: Sequence[str], lambdas: Sequence[float], metrics_dir: MetricsSource
 ) -> Path:
-    from .reports._sweep import DEFAULT_SWEEP_METRICS
+    from .reports import DEFAULT_SWEEP_METRICS
     from .synth import cache_dir
 
     chosen = metric_set(metrics_dir).resolve(list(DEFAULT_SWEEP_METRICS))
@@ -1076,7 +1084,7 @@ def computed_sweep(
     """`sweep(out, lambdas, runs=runs)`, kept in the on-disk cache (keyed by OUT, its
     manifest hash, the runs, the lambdas and the metrics' definitions) so the budgets page
     shows it at once next time, across restarts of the app."""
-    from .reports._sweep import sweep
+    from .reports import sweep
 
     table = sweep(out, sorted(lambdas), runs=sorted(runs), workers=workers, metrics_dir=metrics_dir)
     path = _sweep_cache_file(out, runs, lambdas, metrics_dir)

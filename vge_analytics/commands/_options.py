@@ -6,8 +6,8 @@ import typer
 
 from replay import MAX_RECORD_BYTES, ConfigError
 
-from ..metrics._set import METRICS_DIR_ENV
-from ..store._limits import CLI_TIMEOUT
+from ..metrics import METRICS_DIR_ENV
+from ..store import CLI_TIMEOUT
 from ._output import FORMAT_HELP
 
 METRICS_DIR_HELP = (

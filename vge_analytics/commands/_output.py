@@ -11,9 +11,9 @@ import polars as pl
 import typer
 from rich.console import Console
 
-from ..metrics._set import MetricSet
-from ..reports._format import render, render_sections, stream_chunks
-from ..store._sql import Batches
+from ..metrics import MetricSet
+from ..reports import render, render_sections, stream_chunks
+from ..store import Batches
 
 FORMAT_HELP = "Output format: table (for people), json, csv, markdown or latex."
 

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import typer
 
-from ..reports._compare import DEFAULT_RESAMPLES, DEFAULT_SEED
-from ..reports._compare import compare as compute_compare
-from ..reports._format import check_format
-from ..store._sql import query_time_limit
+from ..reports import DEFAULT_RESAMPLES, DEFAULT_SEED, check_format
+from ..reports import compare as compute_compare
+from ..store import query_time_limit
 from ._options import format_option, metrics_dir_option, out_argument, timeout_option
 from ._output import emit_sections
 

@@ -13,9 +13,9 @@ from rich.console import Console
 
 from replay import replay_runs
 
-from ..metrics._compute import metrics as compute_metrics
-from ..metrics._set import MetricSet
-from ..store._scope import DEFAULT_BY
+from ..metrics import MetricSet
+from ..metrics import metrics as compute_metrics
+from ..store import DEFAULT_BY
 from ..synth import image_source
 from ._output import emit
 from .metrics import for_people

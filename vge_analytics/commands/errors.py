@@ -5,10 +5,8 @@ from __future__ import annotations
 import polars as pl
 import typer
 
-from ..reports._format import check_format
-from ..reports._taxonomy import ERROR_LABELS, error_distribution, groups_of, switch_classes
-from ..store._scope import parse_by
-from ..store._sql import query_time_limit
+from ..reports import ERROR_LABELS, check_format, error_distribution, groups_of, switch_classes
+from ..store import parse_by, query_time_limit
 from ._options import format_option, out_argument, timeout_option, where_option
 from ._output import emit_sections
 from .metrics import parse_where

@@ -8,13 +8,10 @@ import polars as pl
 import typer
 
 from .._errors import UnknownColumnError
-from ..metrics._compute import metric_table
-from ..metrics._compute import metrics as compute_metrics
-from ..metrics._registry import MAIN_TABLE
-from ..metrics._set import MetricSet, load_metrics
-from ..reports._format import check_format
-from ..store._scope import DEFAULT_BY, parse_by
-from ..store._sql import query_time_limit
+from ..metrics import MAIN_TABLE, MetricSet, load_metrics, metric_table
+from ..metrics import metrics as compute_metrics
+from ..reports import check_format
+from ..store import DEFAULT_BY, parse_by, query_time_limit
 from ._options import format_option, metrics_dir_option, timeout_option, where_option
 from ._output import emit
 

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import typer
 
-from ..reports._format import check_format
-from ..reports._rescore import DEFAULT_RESCORE_BY
-from ..reports._rescore import rescore as compute_rescore
-from ..store._scope import parse_by
-from ..store._sql import query_time_limit
+from ..reports import DEFAULT_RESCORE_BY, check_format
+from ..reports import rescore as compute_rescore
+from ..store import parse_by, query_time_limit
 from ._options import format_option, metrics_dir_option, out_argument, timeout_option, where_option
 from ._output import emit, emit_sections
 from .metrics import parse_where

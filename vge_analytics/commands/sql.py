@@ -6,9 +6,8 @@ from __future__ import annotations
 import typer
 
 from .._errors import QueryLimitError
-from ..reports._format import check_format
-from ..store._limits import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap
-from ..store._sql import sql_head, stream
+from ..reports import check_format
+from ..store import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap, sql_head, stream
 from ._options import format_option, memory_limit_option, out_argument
 from ._output import emit, emit_stream
 

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import typer
 
-from ..reports._format import check_format
-from ..reports._sweep import DEFAULT_SWEEP_METRICS
-from ..reports._sweep import sweep as compute_sweep
-from ..store._sql import query_time_limit
+from ..reports import DEFAULT_SWEEP_METRICS, check_format
+from ..reports import sweep as compute_sweep
+from ..store import query_time_limit
 from ._options import format_option, metrics_dir_option, timeout_option
 from ._output import emit
 

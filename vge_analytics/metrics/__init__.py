@@ -1,0 +1,50 @@
+"""The metrics (PROTOCOL §6): each defined once, in its `.sql` file, in one registry, with the
+metric files users add, their checks, the computation in DuckDB and the polars cross-check."""
+
+from ._compute import (
+    compose,
+    episode_terms,
+    metric_table,
+    metrics,
+)
+from ._polars import (
+    polars_metrics,
+)
+from ._registry import (
+    MAIN_TABLE,
+    METRIC_NAMES,
+    Metric,
+    get_metric,
+    registry,
+)
+from ._set import (
+    METRICS_DIR_ENV,
+    MetricSet,
+    MetricsSource,
+    default_folder,
+    fingerprint,
+    load_metrics,
+    metric_set,
+    same_definition,
+)
+
+__all__ = [
+    "compose",
+    "default_folder",
+    "episode_terms",
+    "fingerprint",
+    "get_metric",
+    "load_metrics",
+    "MAIN_TABLE",
+    "Metric",
+    "METRIC_NAMES",
+    "metric_set",
+    "metric_table",
+    "metrics",
+    "METRICS_DIR_ENV",
+    "MetricSet",
+    "MetricsSource",
+    "polars_metrics",
+    "registry",
+    "same_definition",
+]

@@ -35,8 +35,7 @@ import pyarrow as pa
 
 import replay
 
-from ..store._locked import locked_connection, register_all
-from ..store._store import NUMERIC_TYPES
+from ..store import NUMERIC_TYPES, locked_connection, register_all
 from ._file import Metric, Problem
 
 _LINE = re.compile(r"\bLINE (\d+):")

@@ -11,22 +11,23 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import duckdb
 import polars as pl
 
-from .._errors import QueryError, QueryLimitError, UnknownColumnError
-from ..store._scope import (
+from .._errors import UnknownColumnError
+from ..store import (
     Filters,
     GroupBy,
+    Store,
     check_columns,
     grouped_aggregate,
     null_safe_join,
+    open_store,
     order_by,
     parse_by,
+    quote_ident,
     run_keys_scope,
+    run_query,
 )
-from ..store._sql import Deadline, analytics_timeout, check_read_only
-from ..store._store import Store, open_store, quote_ident
 from ._registry import Metric
 from ._set import MetricSet, MetricsSource, metric_set
 
@@ -135,31 +136,6 @@ def compose(
     if not terms:
         params.extend(m.scale for m in metrics)
     return sql, params
-
-
-def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
-    """Run one of the analytics' queries on the store's locked-down connection (files outside
-    OUT unreadable, settings final). It must be one read-only statement, checked as `vge
-    sql` checks a user's: the metric expressions in it may come from a user's files. It is
-    stopped at the time limit of `query_time_limit`, if one is set."""
-    cursor = store.cursor()
-    timeout = analytics_timeout()
-    deadline = Deadline(cursor, timeout)
-    try:
-        check_read_only(sql, cursor)
-        return cursor.sql(sql, params=list(params)).pl()
-    except duckdb.Error as exc:
-        if deadline.stopped(exc):
-            raise QueryLimitError(
-                f"{store.out}: a query ran past its time limit of {timeout:g} s and was "
-                "stopped (--timeout sets it)",
-                limit="time",
-            ) from None
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise QueryError(f"{store.out}: query failed: {first}") from None
-    finally:
-        deadline.cancel()
-        cursor.close()
 
 
 def metrics(

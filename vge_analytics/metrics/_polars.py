@@ -14,7 +14,7 @@ from pathlib import Path
 import polars as pl
 
 from .._errors import OutputDirError, UnknownColumnError
-from ..store._scope import GroupBy, parse_by
+from ..store import GroupBy, parse_by
 from ._registry import METRIC_NAMES, resolve_metrics
 
 _EPISODE_METRICS = ("SR", "SSR", "SPL", "State-F1", "VSPS", "GVPE")

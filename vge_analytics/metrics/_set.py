@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Literal
 
 from .._errors import MetricFileError, UnknownMetricError
-from ..store._limits import MAX_METRIC_FILE, text_too_large
+from ..store import MAX_METRIC_FILE, text_too_large
 from ._check import check_metric
 from ._file import Metric, Problem, parse_metric_file
 from ._registry import registry

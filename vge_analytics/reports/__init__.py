@@ -1,0 +1,76 @@
+"""What is built on the metrics: paired comparisons, the error taxonomy and switch classes,
+budget sweeps, rescoring and rankings, and tables rendered for people and for other tools."""
+
+from ._compare import (
+    DEFAULT_RESAMPLES,
+    DEFAULT_SEED,
+    Comparison,
+    compare,
+    mcnemar_exact,
+)
+from ._format import (
+    FORMATS,
+    check_format,
+    render,
+    render_latex,
+    render_markdown,
+    render_sections,
+    stream_chunks,
+)
+from ._ranking import (
+    competition_ranks,
+    kendall_tau_b,
+)
+from ._rescore import (
+    DEFAULT_RESCORE_BY,
+    Rescore,
+    group_label,
+    rescore,
+)
+from ._sweep import (
+    DEFAULT_SWEEP_METRICS,
+    parse_lambdas,
+    sweep,
+)
+from ._taxonomy import (
+    ERROR_GROUPS,
+    ERROR_LABELS,
+    ERROR_TYPES,
+    SWITCH_CLASSES,
+    error_distribution,
+    error_groups,
+    groups_of,
+    switch_classes,
+)
+
+__all__ = [
+    "check_format",
+    "compare",
+    "Comparison",
+    "competition_ranks",
+    "DEFAULT_RESAMPLES",
+    "DEFAULT_RESCORE_BY",
+    "DEFAULT_SEED",
+    "DEFAULT_SWEEP_METRICS",
+    "error_distribution",
+    "ERROR_GROUPS",
+    "error_groups",
+    "ERROR_LABELS",
+    "ERROR_TYPES",
+    "FORMATS",
+    "group_label",
+    "groups_of",
+    "kendall_tau_b",
+    "mcnemar_exact",
+    "parse_lambdas",
+    "render",
+    "render_latex",
+    "render_markdown",
+    "render_sections",
+    "Rescore",
+    "rescore",
+    "stream_chunks",
+    "sweep",
+    "SWITCH_CLASSES",
+    "switch_classes",
+]

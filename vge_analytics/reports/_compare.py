@@ -24,9 +24,8 @@ import numpy as np
 import polars as pl
 
 from .._errors import AnalyticsError, UnknownRunError
-from ..metrics._compute import episode_terms, run_query
-from ..metrics._set import MetricsSource, metric_set
-from ..store._store import open_store
+from ..metrics import MetricsSource, episode_terms, metric_set
+from ..store import open_store, run_query
 from ._taxonomy import ERROR_LABELS, error_distribution
 
 DEFAULT_RESAMPLES = 2000

@@ -22,8 +22,7 @@ from dataclasses import dataclass
 import polars as pl
 
 from .._errors import AnalyticsError
-from ..metrics._registry import Metric
-from ..metrics._set import MetricSet
+from ..metrics import Metric, MetricSet
 
 FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown", "latex")
 

@@ -23,11 +23,9 @@ from dataclasses import dataclass
 import polars as pl
 
 from .._errors import ConfigError, UnknownMetricError
-from ..metrics._compute import metrics as compute_metrics
-from ..metrics._registry import Metric
-from ..metrics._set import MetricSet, MetricsSource, default_folder, metric_set, same_definition
-from ..store._scope import Filters, GroupBy, parse_by
-from ..store._store import open_store
+from ..metrics import Metric, MetricSet, MetricsSource, default_folder, metric_set, same_definition
+from ..metrics import metrics as compute_metrics
+from ..store import Filters, GroupBy, open_store, parse_by
 from ._ranking import competition_ranks, kendall_tau_b
 
 DEFAULT_RESCORE_BY: tuple[str, ...] = ("run_id",)

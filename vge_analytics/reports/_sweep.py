@@ -47,10 +47,8 @@ import pyarrow as pa
 import replay
 
 from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
-from ..metrics._compute import compose, run_query
-from ..metrics._registry import Metric
-from ..metrics._set import MetricsSource, metric_set
-from ..store._store import Store, open_store, resolve_input
+from ..metrics import Metric, MetricsSource, compose, metric_set
+from ..store import Store, open_store, resolve_input, run_query
 
 DEFAULT_SWEEP_METRICS: tuple[str, ...] = ("SR", "SSR")
 

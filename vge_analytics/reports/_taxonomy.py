@@ -16,9 +16,17 @@ import polars as pl
 
 import replay
 
-from ..metrics._compute import run_query
-from ..store._scope import Filters, GroupBy, check_columns, grouped_aggregate, parse_by
-from ..store._store import Store, open_store, quote_ident
+from ..store import (
+    Filters,
+    GroupBy,
+    Store,
+    check_columns,
+    grouped_aggregate,
+    open_store,
+    parse_by,
+    quote_ident,
+    run_query,
+)
 
 ERROR_TYPES: tuple[str, ...] = tuple(replay.ERROR_TYPES)
 """The paper's seven error types, in the order of its tables."""

@@ -1,0 +1,107 @@
+"""Reading OUT safely (PROTOCOL §9): a DuckDB connection that opens no file, over exactly the
+Parquet files the manifest lists; the limits of user SQL, queries in a process of their own,
+the read-only guard; filters and groupings; the tables as frames."""
+
+from ._isolated import (
+    SLOT_WAIT,
+    IsolatedResult,
+    run_isolated,
+)
+from ._limits import (
+    CLI_MAX_ROWS,
+    CLI_TIMEOUT,
+    MAX_METRIC_FILE,
+    SqlLimits,
+    format_size,
+    process_memory_cap,
+    text_too_large,
+)
+from ._locked import (
+    locked_connection,
+    register_all,
+)
+from ._scope import (
+    DEFAULT_BY,
+    Filters,
+    GroupBy,
+    build_scope,
+    check_columns,
+    groupable_columns,
+    grouped_aggregate,
+    null_safe_join,
+    order_by,
+    parse_by,
+    run_keys_scope,
+)
+from ._sql import (
+    Batches,
+    query_time_limit,
+    run_query,
+    sql,
+    sql_head,
+    stream,
+)
+from ._store import (
+    NUMERIC_TYPES,
+    Store,
+    clear_cache,
+    open_store,
+    quote_ident,
+    resolve_input,
+    table_columns,
+)
+from ._tables import (
+    episode_steps,
+    episodes,
+    facets,
+    goals,
+    runs,
+    steps,
+    steps_with_error,
+)
+
+__all__ = [
+    "Batches",
+    "build_scope",
+    "check_columns",
+    "clear_cache",
+    "CLI_MAX_ROWS",
+    "CLI_TIMEOUT",
+    "DEFAULT_BY",
+    "episode_steps",
+    "episodes",
+    "facets",
+    "Filters",
+    "format_size",
+    "goals",
+    "groupable_columns",
+    "GroupBy",
+    "grouped_aggregate",
+    "IsolatedResult",
+    "locked_connection",
+    "MAX_METRIC_FILE",
+    "null_safe_join",
+    "NUMERIC_TYPES",
+    "open_store",
+    "order_by",
+    "parse_by",
+    "process_memory_cap",
+    "query_time_limit",
+    "quote_ident",
+    "register_all",
+    "resolve_input",
+    "run_isolated",
+    "run_keys_scope",
+    "run_query",
+    "runs",
+    "SLOT_WAIT",
+    "sql",
+    "sql_head",
+    "SqlLimits",
+    "steps",
+    "steps_with_error",
+    "Store",
+    "stream",
+    "table_columns",
+    "text_too_large",
+]

@@ -29,7 +29,7 @@ from __future__ import annotations
 import contextlib
 import re
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
@@ -151,6 +151,31 @@ def query_time_limit(seconds: float | None) -> Iterator[None]:
 def analytics_timeout() -> float | None:
     """The time limit of the analytics' queries here (`query_time_limit`)."""
     return _ANALYTICS_TIMEOUT.get()
+
+
+def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
+    """Run one of the analytics' queries on the store's locked-down connection (files outside
+    OUT unreadable, settings final). It must be one read-only statement, checked as `vge
+    sql` checks a user's: the metric expressions in it may come from a user's files. It is
+    stopped at the time limit of `query_time_limit`, if one is set."""
+    cursor = store.cursor()
+    timeout = analytics_timeout()
+    deadline = Deadline(cursor, timeout)
+    try:
+        check_read_only(sql, cursor)
+        return cursor.sql(sql, params=list(params)).pl()
+    except duckdb.Error as exc:
+        if deadline.stopped(exc):
+            raise QueryLimitError(
+                f"{store.out}: a query ran past its time limit of {timeout:g} s and was "
+                "stopped (--timeout sets it)",
+                limit="time",
+            ) from None
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise QueryError(f"{store.out}: query failed: {first}") from None
+    finally:
+        deadline.cancel()
+        cursor.close()
 
 
 def _limit_error(exc: BaseException, limits: SqlLimits, deadline: Deadline) -> Exception:

@@ -11,9 +11,11 @@ from collections.abc import Sequence
 
 import polars as pl
 
+import replay
+
 from .._errors import UnknownColumnError, UnknownRunError
-from ..metrics._compute import run_query
 from ._scope import Filters, build_scope, check_columns
+from ._sql import run_query
 from ._store import open_store, quote_ident
 
 
@@ -102,18 +104,16 @@ def steps_with_error(
     """Scored steps whose error type is `error_type` (one or several; an error group name
     such as `grounding` selects its types), optionally filtered further, sorted by run_id,
     episode_id, step; `limit` keeps the first rows."""
-    from ..reports._taxonomy import ERROR_GROUPS
-
     wanted = [error_type] if isinstance(error_type, str) else list(error_type)
     types: list[str] = []
     for item in wanted:
-        if item in ERROR_GROUPS:
+        if item in replay.ERROR_GROUPS:
             types.append(item)
-        elif item in ERROR_GROUPS.values():
-            types.extend(t for t, g in ERROR_GROUPS.items() if g == item)
+        elif item in replay.ERROR_GROUPS.values():
+            types.extend(t for t, g in replay.ERROR_GROUPS.items() if g == item)
         else:
             raise UnknownColumnError(
-                f"unknown error type {item!r}; types: {', '.join(ERROR_GROUPS)}; "
+                f"unknown error type {item!r}; types: {', '.join(replay.ERROR_GROUPS)}; "
                 "groups: grounding, execution, navigation"
             )
     filters = dict(where or {})

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import replay
 
-from ..metrics._compute import metrics
-from ..reports._taxonomy import error_distribution, error_groups
-from ..store._sql import sql
+from ..metrics import metrics
+from ..reports import error_distribution, error_groups
+from ..store import sql
 
 
 @dataclass(frozen=True, slots=True)
