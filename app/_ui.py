@@ -1,18 +1,17 @@
 """Plumbing shared by the dashboard pages: which OUT, the sidebar, cached analytics calls.
 
-Every number a page shows comes from `call(name, ...)`: one function of the analytics API
-(`API` below), run through `st.cache_data` with the OUT path and `out_version(OUT)` (the hash
-of OUT's manifest) in the key, so a re-replay of OUT invalidates the cache. The functions
-that compute metrics (`METRIC_API`) also get the app's metrics folder (`--metrics-dir`, else
-`$VGE_METRICS_DIR`), with the fingerprint of its definitions in the key.
+Every number a page shows comes from a function of `app/_data.py`: a function of the
+analytics API or of `vge_analytics.dashboard` wrapped by `cached`, which runs it through
+`st.cache_data` with the OUT path and `out_version(OUT)` (the hash of OUT's manifest) in the
+key, so a re-replay of OUT invalidates the cache. The functions that compute metrics also
+get the app's metrics folder (`--metrics-dir`, else `$VGE_METRICS_DIR`), with the
+fingerprint of its definitions in the key.
 """
 
 from __future__ import annotations
 
 import os
-import sys
-from collections.abc import Callable, Sequence
-from pathlib import Path
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import pandas as pd
@@ -20,42 +19,11 @@ import polars as pl
 import streamlit as st
 
 import vge_analytics as va
+from app import _data as data
+from app._data import metric_set, out_dir, script_option
 from vge_analytics import dashboard as dash
 from vge_analytics import play
-from vge_analytics.metrics._set import default_folder
-from vge_analytics.store._isolated import default_max_queries
-from vge_analytics.store._limits import APP_MAX_ROWS, APP_TIMEOUT, CLI_TIMEOUT, SqlLimits
-
-API: dict[str, Callable[..., Any]] = {
-    "metrics": va.metrics,
-    "error_distribution": va.error_distribution,
-    "error_groups": va.error_groups,
-    "switch_classes": va.switch_classes,
-    "compare": va.compare,
-    "sql_preview": dash.sql_preview,
-    "runs": va.runs,
-    "facets": va.facets,
-    "episodes": va.episodes,
-    "goals": va.goals,
-    "episode_steps": va.episode_steps,
-    "error_step_sample": dash.error_step_sample,
-    "out_summary": dash.out_summary,
-    "column_values": dash.column_values,
-    "step_picture": dash.step_picture,
-    "episode_mcap": dash.episode_mcap,
-    "interaction_views": dash.interaction_views,
-    "click_points": dash.click_points,
-    "scatter_boxes": dash.scatter_boxes,
-    "view_picture": dash.view_picture,
-    "table_columns": dash.table_columns_frame,
-    "sweep_size": dash.sweep_size,
-    "computed_sweep": dash.computed_sweep,
-    "rescore": va.rescore,
-}
-"""The functions pages may call, by name: first argument OUT, the rest as given."""
-
-METRIC_API: frozenset[str] = frozenset({"metrics", "compare", "computed_sweep", "rescore"})
-"""The functions of `API` that take `metrics_dir` (given the app's folder by `call`)."""
+from vge_analytics.store import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits, default_max_queries
 
 PAGES: dict[str, str] = {
     "leaderboard": "views/leaderboard.py",
@@ -72,29 +40,6 @@ PAGES: dict[str, str] = {
 
 
 # --------------------------------------------------------------------------------- OUT
-
-
-def script_option(name: str, argv: Sequence[str] | None = None) -> str | None:
-    """The value of `--name VALUE` (or `--name=VALUE`) among the script arguments (what
-    `vge app` passes after `--`)."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    flag = f"--{name}"
-    for i, arg in enumerate(args):
-        if arg == flag and i + 1 < len(args):
-            return args[i + 1]
-        if arg.startswith(f"{flag}="):
-            return arg.split("=", 1)[1]
-    return None
-
-
-def out_argument(argv: Sequence[str] | None = None) -> str:
-    """OUT from the script arguments (`-- --out OUT`), else `$VGE_APP_OUT`, else the default."""
-    return script_option("out", argv) or os.environ.get(dash.OUT_ENV) or dash.DEFAULT_OUT
-
-
-def out_dir() -> Path:
-    """The checked OUT directory (raises `OutputDirError` with what to run if it is not one)."""
-    return dash.check_out(out_argument())
 
 
 class PlayTarget(NamedTuple):
@@ -126,43 +71,6 @@ def play_target(argv: Sequence[str] | None = None) -> PlayTarget | None:
 def human_run(bench: str, run: str) -> play.HumanRun:
     """The human run the Play page writes (one per server: its files are the state)."""
     return play.HumanRun.open(run, bench)
-
-
-@st.cache_data(show_spinner=False, max_entries=1024)
-def _cached(name: str, out: str, version: str, args: tuple, kwargs: dict) -> Any:
-    del version  # part of the cache key only
-    with va.query_time_limit(query_timeout()):
-        return API[name](out, *args, **kwargs)
-
-
-def query_timeout(argv: Sequence[str] | None = None) -> float | None:
-    """The pages' analytics queries' time limit: `--query-timeout` among the script arguments
-    (what `vge app` passes; 0: none), else the command line's default."""
-    value = script_option("query-timeout", argv)
-    return CLI_TIMEOUT if value is None else (float(value) or None)
-
-
-def call(name: str, *args: Any, **kwargs: Any) -> Any:
-    """`API[name](OUT, *args, **kwargs)`, cached per (OUT, manifest hash, arguments); the
-    metric functions also get `metrics_dir` (the app's folder, see `metrics_dir`)."""
-    out = out_dir()
-    version = dash.out_version(out)
-    if name in METRIC_API:
-        kwargs = {**kwargs, "metrics_dir": metrics_dir()}
-        version += "/" + metric_set().fingerprint
-    return _cached(name, str(out), version, args, kwargs)
-
-
-def metrics_dir(argv: Sequence[str] | None = None) -> str | None:
-    """The metrics folder: `--metrics-dir` among the script arguments (what `vge app
-    --metrics-dir` passes), else `$VGE_METRICS_DIR`, else None (the built-in metrics)."""
-    return script_option("metrics-dir", argv) or default_folder()
-
-
-def metric_set() -> va.MetricSet:
-    """The metrics every page shows: the built-ins with the app's folder (read once per
-    process, again when a file of the folder changes)."""
-    return va.load_metrics(metrics_dir())
 
 
 def show_error(exc: Exception) -> None:
@@ -201,8 +109,8 @@ def sidebar() -> bool:
     """The OUT indicator and the run-facet filters; False (after saying why) if OUT is unusable."""
     try:
         out = out_dir()
-        summary = call("out_summary")
-        facets = call("facets")
+        summary = data.out_summary()
+        facets = data.facets()
     except va.AnalyticsError as exc:
         st.sidebar.error("No usable replay output")
         show_error(exc)
@@ -273,7 +181,7 @@ GROUPINGS: dict[str, tuple[str, ...]] = {
 def group_by_picker(key: str, *, label: str = "Group by") -> tuple[str, ...]:
     """A selectbox of groupings (run, model, agent kind, category, goal count, each facet)."""
     options = dict(GROUPINGS)
-    for column in call("facets"):
+    for column in data.facets():
         options[f"model × {column.removeprefix('meta_')}"] = ("model", column)
     choice = st.selectbox(label, list(options), key=key)
     return options[choice]
@@ -291,9 +199,9 @@ class Selection(NamedTuple):
 def filter_row(key: str) -> Selection:
     """The row of pickers shared by the analysis pages: runs, category, group by."""
     c1, c2, c3 = st.columns([3, 2, 2])
-    runs = c1.multiselect("Runs", call("runs")["run_id"].to_list(), placeholder="all runs")
+    runs = c1.multiselect("Runs", data.runs()["run_id"].to_list(), placeholder="all runs")
     categories = c2.multiselect(
-        "Category", call("column_values", "episodes", "category"), placeholder="all"
+        "Category", data.column_values("episodes", "category"), placeholder="all"
     )
     with c3:
         by = group_by_picker(f"{key}_by")

@@ -79,10 +79,10 @@ def _trim(png: Path, width: int = 900) -> None:
 
 
 def save_screenshots(browser: AppPage, out: Path, folder: Path) -> None:
-    from vge_analytics.store import _tables as browse
+    import vge_analytics as va
     from vge_analytics import dashboard as dash
 
-    runs = browse.runs(out)
+    runs = va.runs(out)
     _, models = dash.run_choices(runs)
     steps, _ = dash.error_step_sample(out, "component_selection", {"run_id": models[:1]}, limit=1)
     row = steps.row(0, named=True)
@@ -104,14 +104,14 @@ def main() -> None:
     parser.add_argument("--screenshots", type=Path, help="save docs screenshots here")
     args = parser.parse_args()
 
-    from vge_analytics.store import _tables as browse
+    import vge_analytics as va
     from vge_analytics import dashboard as dash
 
     out = dash.check_out(args.out)
     summary = dash.out_summary(out)
     sweep_note = ""
     if args.sweep:
-        runs = browse.runs(out)["run_id"].to_list()
+        runs = va.runs(out)["run_id"].to_list()
         started = time.perf_counter()
         dash.computed_sweep(out, runs, [2, 3, 4, 5], workers=2)
         sweep_note = (

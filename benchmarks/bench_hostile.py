@@ -186,9 +186,8 @@ def killed_parent(work: Path) -> list[str]:
 
 
 def label_response(work: Path) -> list[str]:
-    from replay.kernel._text import parse_fields
-
     from replay import parse_action
+    from replay.kernel import parse_fields
 
     text = "-" * 7_000_000 + "action:" * 1_000_000
     rows = []

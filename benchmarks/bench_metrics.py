@@ -37,7 +37,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 import vge_analytics as va
-from vge_analytics.reports._taxonomy import groups_of
+from vge_analytics.reports import groups_of
 
 WORK = Path(__file__).resolve().parent / "_work"
 BY = ("run_id", "model")

@@ -37,8 +37,7 @@ import time
 from pathlib import Path
 
 import replay
-from replay.io._load import episode_decoder
-from replay.io._worker import as_image_tuple
+from replay.io import episode_decoder
 from vge_analytics.commands.replay import image_source
 
 CORES = os.cpu_count() or 1
@@ -232,7 +231,7 @@ def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
         views = {r.view_before for r in result.steps if r.view_before} | {
             result.episode.initial_view
         }
-        cache = {v: as_image_tuple(images(machine, v)) for v in sorted(views)}
+        cache = {v: replay.as_view_image(images(machine, v)) for v in sorted(views)}
         image_total += time.perf_counter() - t0
         buf = io.BytesIO()
         t0 = time.perf_counter()
@@ -255,8 +254,8 @@ def engine_core(data: Path) -> dict[str, float]:
     decoded episodes with their plans (prepared beforehand, not timed) to the same three
     Arrow tables, by `replay_episode` + `rows_to_table` and by the kernel, in batches of
     4,096 episodes; each timed twice, the second time (machines and goals warm) kept."""
-    from replay.io._worker import reference_tables, worker_state
-    from replay.kernel._batch import EpisodeInput, replay_kernel
+    from replay.io import reference_tables, worker_state
+    from replay.kernel import EpisodeInput, replay_kernel
 
     state = worker_state(str(data / "bench"))
     largest = max(_episode_files(data), key=lambda p: p.stat().st_size)

@@ -72,14 +72,13 @@ def main() -> None:
     args = parser.parse_args()
 
     import vge_analytics as va
-    from vge_analytics.store import _isolated
     from vge_analytics import dashboard as dash
-    from vge_analytics.store._limits import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits
+    from vge_analytics.store import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits, warm_query_processes
 
     out = dash.check_out(args.out)
     summary = dash.out_summary(out)
     limits = SqlLimits.make(timeout=APP_TIMEOUT)
-    _isolated.warm()
+    warm_query_processes()
     queries = {"SELECT 1": "SELECT 1 AS one", **dash.EXAMPLE_QUERIES}
     rows = []
     for name, query in queries.items():

@@ -1,5 +1,10 @@
 """VGE Analytics: metrics, error taxonomy, comparisons and sweeps over replay output.
 
+The package is in rooms (docs/ARCHITECTURE.md): `store` reads OUT safely, `metrics` holds
+the registry and the metric files, `reports` what is built on them, `dashboard` the data
+behind each page of the app, `synth` the synthetic benchmark, `live` and `play` the live
+runs, `commands` the CLI. The names below are the public API of the first three.
+
 Every function takes `out`, a replay output directory (PROTOCOL §7; the views are opened once per
 directory and cached), and returns polars DataFrames with stable column names.
 
@@ -31,7 +36,7 @@ prompt, the run writer; docs/LIVE.md). `vge_analytics.envs` registers the Gymnas
 environments with the rendered synthetic views:
 `gymnasium.make("vge_analytics.envs:vge/DeviceRL-v0", bench=...)`.
 
-Read-only SQL (within a memory and a time limit, see `_limits`):
+Read-only SQL (within a memory and a time limit, see `store`):
     sql(out, "SELECT ...", timeout=300, memory_limit=None)   views steps, episodes, goals, runs
     with query_time_limit(60): ...       the analytics above stop a query after 60 s (default:
                                          no limit; the CLI's and the app's: 300 s)
@@ -41,7 +46,6 @@ of steps/goals where the result is computed from them); `by` lists grouping colu
 Errors are `replay.VGEError` subclasses with one-line messages.
 """
 
-from . import dashboard  # the functions behind the Streamlit pages
 from ._errors import (
     AgentError,
     AnalyticsError,
@@ -116,7 +120,6 @@ from .store import (
 )
 
 __all__ = [
-    "dashboard",
     "DEFAULT_BY",
     "ERROR_GROUPS",
     "ERROR_LABELS",

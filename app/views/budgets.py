@@ -3,6 +3,7 @@
 import streamlit as st
 
 from app import _charts as charts
+from app import _data as data
 from app import _ui as ui
 from vge_analytics import AnalyticsError
 from vge_analytics import dashboard as dash
@@ -14,7 +15,7 @@ st.caption(
     "a run was recorded with needs logs that go beyond that budget."
 )
 
-runs = ui.call("runs")
+runs = data.runs()
 facet_runs = ui.runs_matching_facets(runs)
 c1, c2, c3 = st.columns([3, 2, 2])
 chosen = c1.multiselect("Runs", facet_runs, placeholder="all runs (of the facet filter)")
@@ -25,9 +26,9 @@ if len(lambdas) < 2 or not facet_runs:
     ui.stop()
 
 selected = sorted(chosen or facet_runs)
-table = dash.stored_sweep(ui.out_dir(), selected, lambdas, metrics_dir=ui.metrics_dir())
+table = dash.stored_sweep(data.out_dir(), selected, lambdas, metrics_dir=data.metrics_dir())
 if table is None:
-    size = ui.call("sweep_size", selected, lambdas)
+    size = data.sweep_size(selected, lambdas)
     if size > dash.SWEEP_AUTO_LIMIT and not st.button(
         f"Compute the sweep: {size:,} episode replays, about "
         f"{size * dash.SWEEP_SECONDS_PER_REPLAY / 2:.0f} s",
@@ -40,7 +41,7 @@ if table is None:
         ui.stop()
     try:
         with st.spinner("Replaying every episode at each λ..."):
-            table = ui.call("computed_sweep", selected, lambdas, workers=ui.sweep_workers(size))
+            table = data.computed_sweep(selected, lambdas, workers=ui.sweep_workers(size))
     except AnalyticsError as exc:
         ui.show_error(exc)
         ui.stop()

@@ -4,11 +4,12 @@ import functools
 
 import streamlit as st
 
+from app import _data as data
 from app import _ui as ui
 from vge_analytics import dashboard as dash
 
 st.title("Episode viewer")
-run_ids = ui.runs_matching_facets(ui.call("runs"))
+run_ids = ui.runs_matching_facets(data.runs())
 ui.apply_viewer_query(run_ids)
 ui.keep_choice("viewer_run", run_ids)
 c1, c2 = st.columns([2, 3])
@@ -16,7 +17,7 @@ run = c1.selectbox("Run", run_ids, key="viewer_run")
 if run is None:
     st.info("No run matches the facet filter.")
     ui.stop()
-episodes = ui.call("episodes", where={"run_id": run}, columns=list(ui.EPISODE_COLUMNS))
+episodes = data.episodes(where={"run_id": run}, columns=list(ui.EPISODE_COLUMNS))
 if episodes.height == 0:
     st.info(f"Run {run} has no replayed episode.")
     ui.stop()
@@ -28,8 +29,8 @@ episode = c2.selectbox(
     key="viewer_episode",
 )
 ep = episodes.filter(episodes["episode_id"] == episode).row(0, named=True)
-steps = ui.call("episode_steps", run, episode)
-goals = ui.call("goals", where={"run_id": run, "episode_id": episode})
+steps = data.episode_steps(run, episode)
+goals = data.goals(where={"run_id": run, "episode_id": episode})
 
 m = st.columns([2, 1, 1, 1, 1])
 m[0].metric("Result", dash.termination_label(ep["termination"]))
@@ -52,7 +53,7 @@ with left:
         st.info("This step was logged after the episode ended (truncated): it was not replayed.")
     else:
         st.image(
-            ui.call("step_picture", run, episode, step),
+            data.step_picture(run, episode, step),
             caption=dash.step_caption(row),
         )
 with right:
@@ -65,7 +66,7 @@ with right:
 
 st.download_button(
     "Download episode as MCAP (Foxglove)",
-    data=functools.partial(dash.episode_mcap, str(ui.out_dir()), run, episode),
+    data=functools.partial(dash.episode_mcap, str(data.out_dir()), run, episode),
     file_name=f"{run}-{episode}.mcap",
     mime="application/octet-stream",
     icon=":material/download:",

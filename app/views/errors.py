@@ -3,6 +3,7 @@
 import streamlit as st
 
 from app import _charts as charts
+from app import _data as data
 from app import _ui as ui
 from vge_analytics import ERROR_LABELS, ERROR_TYPES
 from vge_analytics import dashboard as dash
@@ -15,8 +16,8 @@ st.caption(
 
 chosen_runs, categories, by, where = ui.filter_row("errors")
 
-dist = ui.labelled(ui.call("error_distribution", by=list(by), where=where, labels=True), by)
-groups = ui.call("error_groups", by=list(by), where=where)
+dist = ui.labelled(data.error_distribution(by=list(by), where=where, labels=True), by)
+groups = data.error_groups(by=list(by), where=where)
 order = dist["group"].unique(maintain_order=True).to_list()
 
 compare_tab, pie_tab, table_tab = st.tabs(["Compare groups", "Pie of one group", "Table"])
@@ -42,13 +43,12 @@ error_type = d1.selectbox(
 )
 drill_runs = d2.multiselect(
     "Runs",
-    ui.call("runs")["run_id"].to_list(),
+    data.runs()["run_id"].to_list(),
     default=chosen_runs,
     placeholder="all runs",
     key="errors_drill_runs",
 )
-steps, total = ui.call(
-    "error_step_sample",
+steps, total = data.error_step_sample(
     error_type,
     where=ui.where(run_id=drill_runs, category=categories),
     columns=ui.STEP_COLUMNS,

@@ -3,6 +3,7 @@
 import streamlit as st
 
 from app import _charts as charts
+from app import _data as data
 from app import _ui as ui
 from vge_analytics import dashboard as dash
 
@@ -16,7 +17,7 @@ st.caption(
 chosen_runs, categories, by, where = ui.filter_row("grounding")
 
 names = ["AvgDist", "AvgWDist", "EIR", "TIR"]
-table = ui.labelled(ui.call("metrics", by=list(by), metrics=names, where=where), by)
+table = ui.labelled(data.metrics(by=list(by), metrics=names, where=where), by)
 order = table["group"].to_list()
 left, right = st.columns(2)
 left.altair_chart(charts.ratio_bars(table, "AvgDist", order))
@@ -26,7 +27,7 @@ st.dataframe(
 )
 
 st.subheader("Click points on a device view")
-views = ui.call("interaction_views", where=where)
+views = data.interaction_views(where=where)
 if views.height == 0:
     st.info("No interaction in the selection.")
     ui.stop()
@@ -42,8 +43,8 @@ view = d2.selectbox(
     format_func=lambda v: ui.view_label(device_views, v),
     key="grounding_view",
 )
-points = ui.call("click_points", device, view, where=where)
-boxes = ui.call("scatter_boxes", device, view, dash.clicked_targets(points))
-picture = ui.call("view_picture", device, view)
+points = data.click_points(device, view, where=where)
+boxes = data.scatter_boxes(device, view, dash.clicked_targets(points))
+picture = data.view_picture(device, view)
 st.altair_chart(charts.click_scatter(picture, boxes, points), width="content")
 st.caption(ui.click_summary(points))

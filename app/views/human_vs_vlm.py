@@ -3,6 +3,7 @@
 import streamlit as st
 
 from app import _charts as charts
+from app import _data as data
 from app import _ui as ui
 from vge_analytics import AnalyticsError
 from vge_analytics import dashboard as dash
@@ -13,7 +14,7 @@ st.caption(
     "the paper's tables) with a 95% paired bootstrap interval over episodes."
 )
 
-runs = ui.call("runs")
+runs = data.runs()
 humans, models = dash.run_choices(runs.filter(runs["run_id"].is_in(ui.runs_matching_facets(runs))))
 c1, c2 = st.columns(2)
 human = c1.selectbox("Human (or reference) run", humans, key="hvv_human")
@@ -22,7 +23,7 @@ if human is None or model is None:
     st.info("This needs two runs.")
     ui.stop()
 try:
-    cmp = ui.call("compare", model, human)
+    cmp = data.compare(model, human)
 except AnalyticsError as exc:
     ui.show_error(exc)
     ui.stop()
@@ -33,7 +34,7 @@ st.markdown(
     f"{human}). Solved by both {mc['both']}, only {model} {mc['a_only']}, only {human} "
     f"{mc['b_only']}, neither {mc['neither']}; McNemar exact p = {mc['p_value']:.3g}."
 )
-table = dash.comparison_rows(cmp.metrics, model, human, ui.metric_set())
+table = dash.comparison_rows(cmp.metrics, model, human, data.metric_set())
 st.dataframe(
     table,
     hide_index=True,

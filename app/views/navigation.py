@@ -3,6 +3,7 @@
 import streamlit as st
 
 from app import _charts as charts
+from app import _data as data
 from app import _ui as ui
 from vge_analytics import dashboard as dash
 
@@ -16,8 +17,8 @@ st.caption(
 
 chosen_runs, categories, by, where = ui.filter_row("navigation")
 
-classes = ui.labelled(ui.call("switch_classes", by=list(by), where=where), by)
-ratios = ui.labelled(ui.call("metrics", by=list(by), metrics=["VSPS", "GVPE"], where=where), by)
+classes = ui.labelled(data.switch_classes(by=list(by), where=where), by)
+ratios = ui.labelled(data.metrics(by=list(by), metrics=["VSPS", "GVPE"], where=where), by)
 order = ratios["group"].to_list()
 
 st.altair_chart(charts.switch_stacked(classes, order))

@@ -3,6 +3,7 @@
 import streamlit as st
 
 from app import _charts as charts
+from app import _data as data
 from app import _ui as ui
 from vge_analytics import AnalyticsError
 from vge_analytics import dashboard as dash
@@ -15,7 +16,7 @@ st.caption(
     "reversed)."
 )
 
-folder = ui.metrics_dir()
+folder = data.metrics_dir()
 if folder is None:
     st.info(
         "The app runs with the built-in metrics only. Start it with "
@@ -28,7 +29,7 @@ c1, c2 = st.columns([2, 3])
 with c1:
     by = ui.group_by_picker("rescore_by")
 try:
-    result = ui.call("rescore", by=list(by), where=ui.where())
+    result = data.rescore(by=list(by), where=ui.where())
 except AnalyticsError as exc:
     ui.show_error(exc)
     ui.stop()

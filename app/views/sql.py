@@ -2,6 +2,7 @@
 
 import streamlit as st
 
+from app import _data as data
 from app import _ui as ui
 from vge_analytics import AnalyticsError
 from vge_analytics import dashboard as dash
@@ -27,10 +28,10 @@ st.selectbox(
 ui.init_state("sql_query", next(iter(examples.values())))
 query = st.text_area("Query", height=160, key="sql_query")
 with st.expander("Columns of the tables"):
-    st.dataframe(ui.call("table_columns"), hide_index=True)
+    st.dataframe(data.table_columns(), hide_index=True)
 if query.strip():
     try:
-        result = ui.call("sql_preview", query, max_rows, limits, max_queries=max_queries)
+        result = data.sql_preview(query, max_rows, limits, max_queries=max_queries)
     except AnalyticsError as exc:
         ui.show_error(exc)
         ui.stop()

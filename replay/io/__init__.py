@@ -2,20 +2,26 @@
 MCAP, the runner, and the one run-directory writer with its crash-safe file primitives.
 
 The names below are public for the tools that write run directories (`vge run`, `vge play`,
-`vge synth`); the rest of the layer is reached through `replay`'s own exports.
+`vge synth`) and for the benchmarks (the episode decoder, a worker's state, the reference's
+tables of a batch); the rest of the layer is reached through `replay`'s own exports.
 """
 
 from ._durable import append_record, fsync_dir, truncate, write_all, write_atomic
+from ._load import episode_decoder
 from ._rundir import EPISODES, RUN_JSON, RunDirectory, keep_aside
+from ._worker import reference_tables, worker_state
 
 __all__ = [
     "EPISODES",
     "RUN_JSON",
     "RunDirectory",
     "append_record",
+    "episode_decoder",
     "fsync_dir",
     "keep_aside",
+    "reference_tables",
     "truncate",
     "write_all",
+    "worker_state",
     "write_atomic",
 ]

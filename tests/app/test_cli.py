@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from app import _ui
+from app import _data, _ui
 from vge_analytics import dashboard as dash
 from vge_analytics.cli import main
 from vge_analytics.commands.app import is_loopback, streamlit_command
@@ -60,9 +60,9 @@ def test_streamlit_command(tiny_out):
     cmd = streamlit_command(tiny_out, port=1, headless=True, query_timeout=7.5)
     script_args = cmd[cmd.index("--") + 1 :]
     assert script_args[-2:] == ["--query-timeout", "7.5"]
-    assert _ui.query_timeout(script_args) == 7.5
-    assert _ui.query_timeout(["--query-timeout", "0"]) is None  # no limit
-    assert _ui.query_timeout([]) == 300.0  # the command line's default
+    assert _data.query_timeout(script_args) == 7.5
+    assert _data.query_timeout(["--query-timeout", "0"]) is None  # no limit
+    assert _data.query_timeout([]) == 300.0  # the command line's default
 
 
 def test_loopback_hosts():
@@ -74,17 +74,17 @@ def test_loopback_hosts():
 
 def test_out_argument_precedence(monkeypatch):
     monkeypatch.setenv("VGE_APP_OUT", "/from/env")
-    assert _ui.out_argument(["--out", "/from/args"]) == "/from/args"
-    assert _ui.out_argument(["--out=/x"]) == "/x"
-    assert _ui.out_argument([]) == "/from/env"
+    assert _data.out_argument(["--out", "/from/args"]) == "/from/args"
+    assert _data.out_argument(["--out=/x"]) == "/x"
+    assert _data.out_argument([]) == "/from/env"
     monkeypatch.delenv("VGE_APP_OUT")
-    assert _ui.out_argument([]) == dash.DEFAULT_OUT
+    assert _data.out_argument([]) == dash.DEFAULT_OUT
 
 
 def test_metrics_dir_is_checked_then_passed_on(tiny_out, metrics_folder, tmp_path, capsys):
     cmd = streamlit_command(tiny_out, port=1, headless=True, metrics_dir=metrics_folder)
     assert cmd[-2:] == ["--metrics-dir", str(metrics_folder)]
-    assert _ui.metrics_dir(cmd[cmd.index("--") + 1 :]) == str(metrics_folder)
+    assert _data.metrics_dir(cmd[cmd.index("--") + 1 :]) == str(metrics_folder)
     (tmp_path / "x.sql").write_text(SR_MULTI.replace("-- grain: episodes", "-- grain: runs"))
     # A problem in a metric file stops `vge app` with its line, before any server starts.
     assert main(["app", str(tiny_out), "--metrics-dir", str(tmp_path)]) == 1
@@ -94,10 +94,10 @@ def test_metrics_dir_is_checked_then_passed_on(tiny_out, metrics_folder, tmp_pat
 
 def test_metrics_dir_precedence(monkeypatch):
     monkeypatch.setenv("VGE_METRICS_DIR", "/from/env")
-    assert _ui.metrics_dir(["--metrics-dir", "/from/args"]) == "/from/args"
-    assert _ui.metrics_dir([]) == "/from/env"
+    assert _data.metrics_dir(["--metrics-dir", "/from/args"]) == "/from/args"
+    assert _data.metrics_dir([]) == "/from/env"
     monkeypatch.setenv("VGE_METRICS_DIR", "")
-    assert _ui.metrics_dir([]) is None
+    assert _data.metrics_dir([]) is None
 
 
 def test_play_command(tiny_out, tmp_path):

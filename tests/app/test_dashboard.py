@@ -16,7 +16,9 @@ import replay
 import vge_analytics as va
 from vge_analytics import OutputDirError, compare, error_distribution, sql, switch_classes
 from vge_analytics import dashboard as dash
+from vge_analytics.dashboard._budgets import _sweep_cache_file
 from vge_analytics.play._page import RESULT_HEADLINES
+from vge_analytics.store import resolve_input
 from vge_analytics.store._limits import SqlLimits
 
 from ..vge_analytics.metric_files import SR_MULTI, write_folder
@@ -63,8 +65,8 @@ def test_input_path_falls_back_to_outs_parent(tmp_path, monkeypatch):
     out = tmp_path / "out"
     out.mkdir()
     monkeypatch.chdir("/")
-    assert dash.resolve_input(out, "bench") == tmp_path / "bench"
-    assert dash.resolve_input(out, "/abs/bench") == Path("/abs/bench")
+    assert resolve_input(out, "bench") == tmp_path / "bench"
+    assert resolve_input(out, "/abs/bench") == Path("/abs/bench")
 
 
 # ---------------------------------------------------------------------- leaderboard
@@ -459,8 +461,8 @@ def test_rescore_tables(tiny_out, metrics_folder):
 
 def test_stored_sweeps_are_kept_per_metric_definitions(tiny_out, metrics_folder, tmp_path):
     runs = ["sim-human"]
-    builtin = dash._sweep_cache_file(tiny_out, runs, [2, 3], None)
-    overridden = dash._sweep_cache_file(tiny_out, runs, [2, 3], metrics_folder)
+    builtin = _sweep_cache_file(tiny_out, runs, [2, 3], None)
+    overridden = _sweep_cache_file(tiny_out, runs, [2, 3], metrics_folder)
     assert builtin != overridden  # SR is defined differently: another stored sweep
     only_added = write_folder(tmp_path / "added", {"multi.sql": SR_MULTI})
-    assert dash._sweep_cache_file(tiny_out, runs, [2, 3], only_added) == builtin
+    assert _sweep_cache_file(tiny_out, runs, [2, 3], only_added) == builtin

@@ -26,11 +26,11 @@ from polars.testing import assert_frame_equal
 import replay
 import vge_analytics as va
 from tests.bounded import run_bounded
-from vge_analytics.store import _isolated
 from vge_analytics import dashboard as dash
 from vge_analytics.cli import main
 from vge_analytics.commands.app import streamlit_command
 from vge_analytics.metrics._check import _schema_connection
+from vge_analytics.store import _isolated
 from vge_analytics.store._limits import (
     SqlLimits,
     default_memory_limit,
@@ -331,7 +331,7 @@ def _taken(slots: threading.BoundedSemaphore) -> bool:
 def test_query_processes_are_capped_across_sessions(out: Path, monkeypatch):
     """With a cap of 1: a second query while one runs waits, then is refused in one line; a
     query that waits long enough gets the slot when the first ends, and runs."""
-    _isolated.warm()
+    _isolated.warm_query_processes()
     slow = SqlLimits.make(memory="256MB", timeout=2)
     quick = SqlLimits.make(memory="256MB", timeout=20)
 

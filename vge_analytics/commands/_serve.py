@@ -17,7 +17,7 @@ def _warm(out: str) -> None:
     import importlib
 
     import vge_analytics as va
-    from vge_analytics.store import _isolated as isolated
+    from vge_analytics.store import warm_query_processes
 
     # The dashboard's own helpers (and through them streamlit, altair, pandas, polars):
     # the page scripts import the same module objects.
@@ -30,7 +30,7 @@ def _warm(out: str) -> None:
     except va.AnalyticsError:
         pass  # the app itself reports a bad OUT to the person, in the page
     # The SQL page's query processes fork from a server that has the libraries loaded.
-    isolated.warm()
+    warm_query_processes()
 
 
 def main() -> int:

@@ -5,9 +5,13 @@ the read-only guard; filters and groupings; the tables as frames."""
 from ._isolated import (
     SLOT_WAIT,
     IsolatedResult,
+    default_max_queries,
     run_isolated,
+    warm_query_processes,
 )
 from ._limits import (
+    APP_MAX_ROWS,
+    APP_TIMEOUT,
     CLI_MAX_ROWS,
     CLI_TIMEOUT,
     MAX_METRIC_FILE,
@@ -61,6 +65,10 @@ from ._tables import (
 )
 
 __all__ = [
+    "warm_query_processes",
+    "APP_MAX_ROWS",
+    "APP_TIMEOUT",
+    "default_max_queries",
     "Batches",
     "build_scope",
     "check_columns",

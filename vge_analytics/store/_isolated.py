@@ -66,7 +66,7 @@ class IsolatedResult:
     """Peak resident memory of the query's process (bytes)."""
 
 
-def warm() -> None:
+def warm_query_processes() -> None:
     """Start the forkserver now (it imports the libraries once), not on the first query."""
     _CONTEXT.set_forkserver_preload([__name__])
     from multiprocessing import forkserver
@@ -189,4 +189,4 @@ def _run_child(out: str | Path, query: str, rows: int, limits: SqlLimits) -> Iso
     )
 
 
-__all__ = ["GRACE", "SLOT_WAIT", "IsolatedResult", "default_max_queries", "run_isolated", "warm"]
+__all__ = ["GRACE", "SLOT_WAIT", "IsolatedResult", "default_max_queries", "run_isolated", "warm_query_processes"]

@@ -1,0 +1,131 @@
+"""The data every page shows: each a function of the analytics API or of
+`vge_analytics.dashboard`, called as `data.metrics(by=..., where=...)` with the app's OUT
+filled in and the result cached (`cached`), typed as the function it wraps.
+
+OUT, the query time limit and the metrics folder come from the script arguments `vge app`
+passes after `--` (`script_option`).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, Concatenate, ParamSpec, TypeVar
+
+import streamlit as st
+
+import vge_analytics as va
+from vge_analytics import dashboard as dash
+from vge_analytics.metrics import default_folder
+from vge_analytics.store import CLI_TIMEOUT
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+# --------------------------------------------------------------------------------- OUT
+
+
+def script_option(name: str, argv: Sequence[str] | None = None) -> str | None:
+    """The value of `--name VALUE` (or `--name=VALUE`) among the script arguments (what
+    `vge app` passes after `--`)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    flag = f"--{name}"
+    for i, arg in enumerate(args):
+        if arg == flag and i + 1 < len(args):
+            return args[i + 1]
+        if arg.startswith(f"{flag}="):
+            return arg.split("=", 1)[1]
+    return None
+
+
+def out_argument(argv: Sequence[str] | None = None) -> str:
+    """OUT from the script arguments (`-- --out OUT`), else `$VGE_APP_OUT`, else the default."""
+    return script_option("out", argv) or os.environ.get(dash.OUT_ENV) or dash.DEFAULT_OUT
+
+
+def out_dir() -> Path:
+    """The checked OUT directory (raises `OutputDirError` with what to run if it is not one)."""
+    return dash.check_out(out_argument())
+
+
+# -------------------------------------------------------------------------- caching
+
+
+_WRAPPED: dict[str, Callable[..., Any]] = {}
+"""The functions `cached` wraps, by qualified name (the cache key names the function)."""
+
+
+@st.cache_data(show_spinner=False, max_entries=1024)
+def _cached(key: str, out: str, version: str, args: tuple, kwargs: dict) -> Any:
+    del version  # part of the cache key only
+    with va.query_time_limit(query_timeout()):
+        return _WRAPPED[key](out, *args, **kwargs)
+
+
+def query_timeout(argv: Sequence[str] | None = None) -> float | None:
+    """The pages' analytics queries' time limit: `--query-timeout` among the script arguments
+    (what `vge app` passes; 0: none), else the command line's default."""
+    value = script_option("query-timeout", argv)
+    return CLI_TIMEOUT if value is None else (float(value) or None)
+
+
+def cached(fn: Callable[Concatenate[Any, P], R], *, metrics: bool = False) -> Callable[P, R]:
+    """`fn(OUT, ...)` as a page calls it, `fn(...)`: OUT is the app's, and the result is
+    cached per (OUT, manifest hash, arguments). With `metrics`, `fn` also gets `metrics_dir`
+    (the app's folder, see `metrics_dir`), and the folder's fingerprint joins the key."""
+    key = f"{fn.__module__}.{fn.__qualname__}"
+    _WRAPPED[key] = fn
+
+    @functools.wraps(fn)
+    def call(*args: P.args, **kwargs: P.kwargs) -> R:
+        out = out_dir()
+        version = dash.out_version(out)
+        if metrics:
+            kwargs = {**kwargs, "metrics_dir": metrics_dir()}  # type: ignore[assignment]
+            version += "/" + metric_set().fingerprint
+        return _cached(key, str(out), version, args, kwargs)
+
+    return call
+
+
+def metrics_dir(argv: Sequence[str] | None = None) -> str | None:
+    """The metrics folder: `--metrics-dir` among the script arguments (what `vge app
+    --metrics-dir` passes), else `$VGE_METRICS_DIR`, else None (the built-in metrics)."""
+    return script_option("metrics-dir", argv) or default_folder()
+
+
+def metric_set() -> va.MetricSet:
+    """The metrics every page shows: the built-ins with the app's folder (read once per
+    process, again when a file of the folder changes)."""
+    return va.load_metrics(metrics_dir())
+
+
+# ------------------------------------------------------------------------ the data
+
+metrics = cached(va.metrics, metrics=True)
+compare = cached(va.compare, metrics=True)
+rescore = cached(va.rescore, metrics=True)
+computed_sweep = cached(dash.computed_sweep, metrics=True)
+error_distribution = cached(va.error_distribution)
+error_groups = cached(va.error_groups)
+switch_classes = cached(va.switch_classes)
+runs = cached(va.runs)
+facets = cached(va.facets)
+episodes = cached(va.episodes)
+goals = cached(va.goals)
+episode_steps = cached(va.episode_steps)
+out_summary = cached(dash.out_summary)
+column_values = cached(dash.column_values)
+error_step_sample = cached(dash.error_step_sample)
+step_picture = cached(dash.step_picture)
+interaction_views = cached(dash.interaction_views)
+click_points = cached(dash.click_points)
+scatter_boxes = cached(dash.scatter_boxes)
+view_picture = cached(dash.view_picture)
+table_columns = cached(dash.table_columns_frame)
+sweep_size = cached(dash.sweep_size)
+sql_preview = cached(dash.sql_preview)

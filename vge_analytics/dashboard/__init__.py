@@ -1,0 +1,161 @@
+"""The data behind each page of the dashboard (`app/`): typed, tested functions a page calls
+directly, one module per page, with what several pages share (OUT and its version, pictures
+of a step, an episode's MCAP file). The pages cache them with `st.cache_data`, keyed by OUT
+and `out_version(OUT)`, the hash of its manifest, so a re-replay invalidates every result.
+Everything reads the tables through the analytics' locked store (values bound, never
+formatted into SQL).
+"""
+
+from ._budgets import (
+    SWEEP_AUTO_LIMIT,
+    SWEEP_SECONDS_PER_REPLAY,
+    computed_sweep,
+    stored_sweep,
+    sweep_curves,
+    sweep_size,
+)
+from ._episode_file import (
+    episode_mcap,
+)
+from ._episode_viewer import (
+    CLASSIFICATION_FIELDS,
+    TERMINATION_LABELS,
+    episode_labels,
+    step_caption,
+    step_classification,
+    step_markdown,
+    termination_label,
+)
+from ._error_page import (
+    error_share_wide,
+    error_step_sample,
+)
+from ._grounding import (
+    CLICK_OUTCOMES,
+    click_counts,
+    click_points,
+    clicked_targets,
+    device_labels,
+    interaction_views,
+    scatter_boxes,
+)
+from ._human_vs_vlm import (
+    comparison_rows,
+    error_difference_rows,
+    flip_rows,
+    run_choices,
+)
+from ._leaderboard import (
+    ORIGIN_MARKS,
+    best_rows,
+    group_labels,
+    metric_headers,
+    metric_help,
+    metrics_long,
+    metrics_note,
+)
+from ._navigation import (
+    switch_summary,
+)
+from ._out import (
+    DEFAULT_OUT,
+    OUT_ENV,
+    OutSummary,
+    app_script,
+    bench_dir,
+    check_out,
+    column_values,
+    out_summary,
+    out_version,
+    runs_matching,
+)
+from ._pictures import (
+    CLICK_COLOR,
+    ROLE_COLORS,
+    Box,
+    ViewPicture,
+    device_machine,
+    draw_step,
+    step_picture,
+    view_boxes,
+    view_picture,
+)
+from ._rescore_page import (
+    rank_slopes,
+    rescore_changes,
+    rescore_rankings,
+)
+from ._sql_page import (
+    EXAMPLE_QUERIES,
+    csv_bytes,
+    sql_caption,
+    sql_limits_note,
+    sql_preview,
+    table_columns_frame,
+)
+
+__all__ = [
+    "app_script",
+    "bench_dir",
+    "best_rows",
+    "Box",
+    "check_out",
+    "CLASSIFICATION_FIELDS",
+    "CLICK_COLOR",
+    "click_counts",
+    "CLICK_OUTCOMES",
+    "click_points",
+    "clicked_targets",
+    "column_values",
+    "comparison_rows",
+    "computed_sweep",
+    "csv_bytes",
+    "DEFAULT_OUT",
+    "device_labels",
+    "device_machine",
+    "draw_step",
+    "episode_labels",
+    "episode_mcap",
+    "error_difference_rows",
+    "error_share_wide",
+    "error_step_sample",
+    "EXAMPLE_QUERIES",
+    "flip_rows",
+    "group_labels",
+    "interaction_views",
+    "metric_headers",
+    "metric_help",
+    "metrics_long",
+    "metrics_note",
+    "ORIGIN_MARKS",
+    "OUT_ENV",
+    "out_summary",
+    "out_version",
+    "OutSummary",
+    "rank_slopes",
+    "rescore_changes",
+    "rescore_rankings",
+    "ROLE_COLORS",
+    "run_choices",
+    "runs_matching",
+    "scatter_boxes",
+    "sql_caption",
+    "sql_limits_note",
+    "sql_preview",
+    "step_caption",
+    "step_classification",
+    "step_markdown",
+    "step_picture",
+    "stored_sweep",
+    "SWEEP_AUTO_LIMIT",
+    "sweep_curves",
+    "SWEEP_SECONDS_PER_REPLAY",
+    "sweep_size",
+    "switch_summary",
+    "table_columns_frame",
+    "termination_label",
+    "TERMINATION_LABELS",
+    "view_boxes",
+    "view_picture",
+    "ViewPicture",
+]

@@ -1,0 +1,183 @@
+"""OUT: where it is, whether it is usable, its version, summary and facets."""
+
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import polars as pl
+
+import replay
+
+from .._errors import OutputDirError, UnknownRunError
+from ..store import (
+    check_columns,
+    open_store,
+    quote_ident,
+    resolve_input,
+)
+
+DEFAULT_OUT = "logs-replayed"
+"""Where `vge demo` writes the replayed bundled sample; `vge app` opens it by default."""
+OUT_ENV = "VGE_APP_OUT"
+"""Environment variable naming OUT for the app (set by `vge app`; `--out` wins)."""
+
+
+
+
+def app_script() -> Path:
+    """The Streamlit entry file `app/streamlit_app.py` (next to the package in the repo)."""
+    here = Path(__file__).resolve().parents[2] / "app" / "streamlit_app.py"
+    if here.is_file():
+        return here
+    import importlib.util
+
+    spec = importlib.util.find_spec("app")
+    if spec is not None and spec.submodule_search_locations:
+        for base in spec.submodule_search_locations:
+            candidate = Path(base) / "streamlit_app.py"
+            if candidate.is_file():
+                return candidate
+    raise OutputDirError("the dashboard files (app/streamlit_app.py) are not installed")
+
+
+def check_out(out: str | Path) -> Path:
+    """OUT, resolved, if it is a replay output directory; else an error saying what to run."""
+    shown = str(out)
+    if replay.is_uri(shown):
+        if not shown.startswith("file://"):  # opening it would reach the store: say so first
+            raise OutputDirError(
+                f"{shown}: the dashboard reads OUT on this machine (its viewer opens the "
+                "episodes' files); copy OUT down first, or query it where it is with vge "
+                "metrics, errors, compare, rescore, sweep and sql"
+            )
+        path = replay.location(shown).local
+        assert path is not None  # a file:// URI names a local path
+    else:
+        path = Path(shown).expanduser()
+    if not path.is_dir():
+        hint = (
+            "run `vge demo` first (it replays the bundled sample into ./logs-replayed)"
+            if path.name == DEFAULT_OUT
+            else f"run `vge demo`, or `vge replay RUN... --bench BENCH --out {shown}`, first"
+        )
+        raise OutputDirError(f"No replay output at {shown}: {hint}")
+    missing = [t for t in ("steps", "episodes", "goals", "runs") if not (path / t).is_dir()]
+    if missing or not (path / "manifest.json").is_file():
+        what = ", ".join(f"{m}/" for m in missing) or "manifest.json"
+        raise OutputDirError(
+            f"{shown} is not a replay output directory (no {what}): run `vge replay RUN... "
+            f"--bench BENCH --out {shown}` first"
+        )
+    return path.resolve()
+
+
+def out_version(out: str | Path) -> str:
+    """Content hash of OUT/manifest.json: the cache key of everything computed from OUT.
+
+    A replay rewrites the manifest (input hashes, counts, engine version), so any change of
+    the tables changes this value.
+    """
+    path = Path(out) / "manifest.json"
+    try:
+        data = path.read_bytes()
+    except OSError:
+        data = b""
+    return hashlib.sha256(data).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class OutSummary:
+    """What the sidebar says about OUT."""
+
+    out: str
+    engine_version: str
+    runs: int
+    episodes: int
+    steps: int
+    quarantined: int
+    benches: tuple[str, ...]
+
+
+def out_summary(out: str | Path) -> OutSummary:
+    """Counts and provenance of OUT from its manifest."""
+    manifest = _manifest(out)
+    totals = manifest.get("totals") or {}
+    benches = sorted({r["inputs"]["bench"] for r in manifest.get("runs", []) if "inputs" in r})
+    return OutSummary(
+        out=str(out),
+        engine_version=str(manifest.get("engine_version", "?")),
+        runs=int(totals.get("runs", len(manifest.get("runs", [])))),
+        episodes=int(totals.get("replayed", 0)),
+        steps=int(totals.get("steps", 0)),
+        quarantined=int(totals.get("quarantined", 0)),
+        benches=tuple(benches),
+    )
+
+
+def _manifest(out: str | Path) -> dict:
+    path = Path(out) / "manifest.json"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
+    return data if isinstance(data, dict) else {}
+
+
+def _run_entry(out: str | Path, run_id: str) -> dict:
+    for entry in _manifest(out).get("runs", []):
+        if entry.get("run_id") == run_id:
+            return entry
+    raise UnknownRunError(f"run {run_id!r} is not in {out}/manifest.json")
+
+
+def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Location:
+    """The benchmark directory a run (default: the first run) was replayed against."""
+    runs = _manifest(out).get("runs", [])
+    if not runs:
+        raise OutputDirError(f"{out}: the manifest lists no run")
+    entry = _run_entry(out, run_id) if run_id is not None else runs[0]
+    bench = resolve_input(out, entry["inputs"]["bench"])
+    if not bench.is_dir():
+        raise OutputDirError(
+            f"benchmark {entry['inputs']['bench']} (recorded in {out}/manifest.json) not found: "
+            "start the app from the directory `vge replay` ran in"
+        )
+    return bench
+
+
+
+
+def column_values(out: str | Path, table: str, column: str) -> list:
+    """Distinct non-null values of a scalar column of runs/episodes, sorted."""
+    store = open_store(out)
+    if table not in ("runs", "episodes"):
+        raise OutputDirError(f"no value list for table {table!r}")
+    check_columns(store, [column], [table], "filter")
+    col = quote_ident(column)
+    rows = (
+        store.cursor()
+        .execute(f"SELECT DISTINCT {col} FROM {table} WHERE {col} IS NOT NULL ORDER BY 1")
+        .fetchall()
+    )
+    return [r[0] for r in rows]
+
+
+
+
+def runs_matching(runs: pl.DataFrame, filters: Mapping[str, Sequence[object]]) -> list[str]:
+    """Run ids of a `runs` table whose columns take one of the filter values (run columns
+    only; a filter on another column is ignored here)."""
+    mask = pl.lit(True)
+    for column, values in filters.items():
+        if column in runs.columns and values:
+            wanted = list(values)
+            cond = pl.col(column).is_in([v for v in wanted if v is not None])
+            if any(v is None for v in wanted):
+                cond = cond | pl.col(column).is_null()
+            mask = mask & cond
+    return runs.filter(mask)["run_id"].to_list()

@@ -1,0 +1,180 @@
+"""Pictures of a step: a device view with its component boxes and the click."""
+
+
+from __future__ import annotations
+
+import io
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import replay
+
+from .._errors import OutputDirError, UnknownRunError
+from ..synth import image_source
+from ._out import bench_dir
+
+
+@dataclass(frozen=True)
+class Box:
+    """A component box on the 0..1000 scale of a view, with its role in the picture."""
+
+    component: str
+    x0: float
+    y0: float
+    x1: float
+    y1: float
+    role: str
+    """`target` (a target component of the current state for the current goal), `hit`
+    (hit by the click, not a target) or `component` (any other component of the view)."""
+
+
+ROLE_COLORS: dict[str, tuple[int, int, int]] = {
+    "target": (38, 191, 77),
+    "hit": (255, 153, 0),
+    "component": (120, 120, 120),
+}
+"""Box colours, as in the MCAP annotations: targets green, hits orange, others grey."""
+CLICK_COLOR = (230, 26, 26)
+
+
+@lru_cache(maxsize=64)
+def _machine(ssm_path: str, device_id: str) -> replay.Machine:
+    return replay.load_machine(ssm_path, device_id)
+
+
+def device_machine(out: str | Path, device_id: str, run_id: str | None = None) -> replay.Machine:
+    """The compiled SSM of a device, from the benchmark OUT was replayed against."""
+    bench = bench_dir(out, run_id)
+    path = bench / "ssm" / f"{device_id}.json"
+    if not path.is_file():
+        raise OutputDirError(f"{path}: SSM not found (the benchmark moved since the replay?)")
+    return _machine(str(path), device_id)
+
+
+def view_boxes(
+    machine: replay.Machine,
+    view: str,
+    *,
+    state: str | None = None,
+    goal: str | None = None,
+    hit: Sequence[str] = (),
+    targets: Sequence[str] | None = None,
+) -> list[Box]:
+    """Every component box of `view`, each with its role.
+
+    Targets are the target components of `state` for `goal` (PROTOCOL §4) drawn with their
+    transitions' bboxes from that state, or, with `targets`, those components' boxes.
+    """
+    boxes: list[Box] = []
+    target_names: set[str] = set()
+    if targets is not None:
+        target_names = set(targets)
+    elif state is not None and goal is not None and state in machine.state_index:
+        s, g = machine.state_index[state], machine.state_index.get(goal)
+        if g is not None:
+            for component, rect in replay.target_rects(machine, s, g, view):
+                target_names.add(component)
+                boxes.append(Box(component, *rect[:4], role="target"))
+    hit_names = set(hit)
+    for component, rect in machine.component_rects.get(view, ()):
+        if targets is None and component in target_names:
+            continue  # drawn with its state's target rects above
+        role = (
+            "target"
+            if component in target_names
+            else "hit"
+            if component in hit_names
+            else "component"
+        )
+        boxes.append(Box(component, *rect[:4], role=role))
+    order = {"component": 0, "hit": 1, "target": 2}
+    return sorted(boxes, key=lambda b: (order[b.role], b.component, b.x0, b.y0))
+
+
+@dataclass(frozen=True)
+class ViewPicture:
+    """A device view image, as PNG/JPEG bytes with its pixel size (or a blank stand-in)."""
+
+    data: bytes
+    format: str
+    width: int
+    height: int
+    rendered: bool
+    """False when the benchmark has no image for the view (a blank canvas stands in)."""
+
+
+def view_picture(
+    out: str | Path, device_id: str, view: str, run_id: str | None = None
+) -> ViewPicture:
+    """The image of a device view (rendered synthetic views included), or a blank canvas."""
+    bench = bench_dir(out, run_id)
+    machine = device_machine(out, device_id, run_id)
+    got = image_source(bench)(machine, view)
+    if got is not None:
+        return ViewPicture(*got, rendered=True)
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (600, 600), (236, 238, 242)).save(buf, format="PNG")
+    return ViewPicture(buf.getvalue(), "png", 600, 600, False)
+
+
+def draw_step(
+    picture: ViewPicture,
+    boxes: Sequence[Box],
+    click: tuple[float, float] | None,
+    *,
+    max_width: int = 720,
+) -> bytes:
+    """PNG of the view with the component boxes (by role) and the click drawn as a red x."""
+    from PIL import Image, ImageDraw
+
+    img = Image.open(io.BytesIO(picture.data)).convert("RGB")
+    if img.width > max_width:
+        img = img.resize((max_width, round(img.height * max_width / img.width)))
+    sx, sy = img.width / replay.SCALE, img.height / replay.SCALE
+    draw = ImageDraw.Draw(img)
+    if not picture.rendered:
+        draw.text((10, 10), "no image of this view in the benchmark", fill=(90, 90, 90))
+    for box in boxes:
+        width = {"target": 3, "hit": 3, "component": 1}[box.role]
+        color = ROLE_COLORS[box.role]
+        xy = (box.x0 * sx, box.y0 * sy, box.x1 * sx, box.y1 * sy)
+        draw.rectangle(xy, outline=color, width=width)
+        if box.role != "component" or not picture.rendered:
+            draw.text((xy[0] + 3, xy[1] + 2), box.component, fill=color)
+    if click is not None:
+        cx, cy = click[0] * sx, click[1] * sy
+        r = max(6.0, 0.015 * max(img.width, img.height))
+        draw.line((cx - r, cy - r, cx + r, cy + r), fill=CLICK_COLOR, width=4)
+        draw.line((cx - r, cy + r, cx + r, cy - r), fill=CLICK_COLOR, width=4)
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def step_picture(out: str | Path, run_id: str, episode_id: str, step: int) -> bytes:
+    """The episode viewer's picture of one step: the view the agent saw, the click (red x),
+    the components it hit (orange) and the target components of the current goal (green)."""
+    from ..store import steps
+
+    rows = steps(out, where={"run_id": run_id, "episode_id": episode_id, "step": int(step)})
+    if rows.height == 0:
+        raise UnknownRunError(f"no step {step} in episode {episode_id!r} of run {run_id!r}")
+    row = rows.row(0, named=True)
+    view = row["view_before"]
+    if view is None:
+        raise OutputDirError(f"step {step} has no view (it was logged after the episode ended)")
+    machine = device_machine(out, row["device_id"], run_id)
+    picture = view_picture(out, row["device_id"], view, run_id)
+    boxes = view_boxes(
+        machine,
+        view,
+        state=row["state_before"],
+        goal=row["goal_state"],
+        hit=list(row["hit_components"] or []),
+    )
+    click = (row["x"], row["y"]) if row["x"] is not None and row["y"] is not None else None
+    return draw_step(picture, boxes, click)
