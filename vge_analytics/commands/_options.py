@@ -60,6 +60,12 @@ def timeout_option() -> float:
     )
 
 
+def ids_option(name: str, help: str) -> str | None:
+    """`--runs` / `--episodes ID,...`: ids, comma-separated (a typer option default; parse it
+    with `episode_ids`)."""
+    return typer.Option(None, name, metavar="ID,...", help=help)
+
+
 def episode_ids(text: str | None, option: str) -> tuple[str, ...] | None:
     """The episode ids of a comma-separated option (`--episodes`, `--mcap-episodes`); None
     when the option is not given, an error when it names none."""
@@ -75,6 +81,7 @@ __all__ = [
     "METRICS_DIR_HELP",
     "episode_ids",
     "format_option",
+    "ids_option",
     "memory_limit_option",
     "metrics_dir_option",
     "out_argument",
