@@ -57,13 +57,12 @@ class PictureFiles:
         name = picture.name
         if name not in self.written:
             target = self.root / IMAGES_DIR / name
-            if not target.is_file() or target.read_bytes() != picture.data:
+            if not target.is_file():  # named by its content: one there is this picture
                 target.parent.mkdir(parents=True, exist_ok=True)
                 write_atomic(target, picture.data)
             self.written.add(name)
-        return ContentPart(
-            type="image", source=ImageSource(media_type="image/jpeg", path=f"{IMAGES_DIR}/{name}")
-        )
+        source = ImageSource(media_type=picture.media_type, path=f"{IMAGES_DIR}/{name}")
+        return ContentPart(type="image", source=source)
 
 
 def write_atomic(path: Path, data: bytes) -> None:
@@ -123,10 +122,9 @@ def _final_metrics(steps: list[Step], n_agent: int) -> FinalMetrics:
 
 
 def _agent(run: Run) -> Agent:
-    agent = run.meta.get("agent")
     version = run.meta.get("version")
     return Agent(
-        name=agent if isinstance(agent, str) and agent else run.agent_kind,
+        name=run.agent,
         version=str(version) if version is not None else "unrecorded",
         model_name=run.model,
         extra={

@@ -116,34 +116,32 @@ def _write_inspect(
     images: str,
     metrics_dir: str | Path | None,
 ) -> Path:
+    from inspect_ai.log import EvalResults, EvalSample, EvalStats
+    from inspect_ai.model import ModelUsage
+
     import vge_analytics as va
 
-    from ._inspect import eval_plan, eval_results, eval_sample, eval_spec, eval_stats, sample_usage
+    from ._inspect import eval_plan, eval_results, eval_sample, eval_spec, eval_stats
     from ._inspect_log import write_eval
 
     pictures = views if images == "embed" else None
-    totals: list = []
+    usage: list[ModelUsage] = []  # the run's, summed as the samples go by
 
-    def samples():
+    def samples() -> Iterator[EvalSample]:
         for episode in episodes:
-            usage = sample_usage(episode)
-            if usage is not None:
-                totals.append(usage)
-            yield eval_sample(run, episode, views.names(episode.row["device_id"]), pictures)
+            sample = eval_sample(run, episode, views.names(episode.row["device_id"]), pictures)
+            recorded = sample.model_usage.get(run.model)
+            if recorded is not None:
+                usage.append(usage.pop() + recorded if usage else recorded)
+            yield sample
 
-    def finish():
-        usage = sum(totals[1:], totals[0]) if totals else None
-        return eval_results(run, va.load_metrics(metrics_dir)), eval_stats(run, usage)
+    def finish() -> tuple[EvalResults, EvalStats]:
+        results = eval_results(run, va.load_metrics(metrics_dir))
+        return results, eval_stats(run, usage[0] if usage else None)
 
     path = root / f"{replay.safe_file_name(run.run_id)}.eval"
-    write_eval(
-        path,
-        eval_spec(run, images),
-        eval_plan(run),
-        samples(),
-        finish,
-        condense=pictures is not None,
-    )
+    spec, plan = eval_spec(run, images), eval_plan(run)
+    write_eval(path, spec, plan, samples(), finish, condense=pictures is not None)
     return path
 
 

@@ -63,12 +63,6 @@ def short_id(*parts: str) -> str:
     return hashlib.blake2b("\0".join(parts).encode("utf-8"), digest_size=11).hexdigest()
 
 
-def _agent(run: Run) -> str:
-    """What played the run: `vge run`'s agent spec when recorded, else its kind."""
-    agent = run.meta.get("agent")
-    return agent if isinstance(agent, str) and agent else run.agent_kind
-
-
 def eval_spec(run: Run, images: str) -> EvalSpec:
     """The log's header: the run as an eval of the `vgebench` task by the run's model."""
     return EvalSpec(
@@ -89,7 +83,7 @@ def eval_spec(run: Run, images: str) -> EvalSpec:
         metadata={
             "vge_run_id": run.run_id,
             "agent_kind": run.agent_kind,
-            "agent": _agent(run),
+            "agent": run.agent,
             "lambda": run.lam,
             "run_meta": run.meta,
             "engine_version": run.engine_version,
@@ -101,7 +95,7 @@ def eval_spec(run: Run, images: str) -> EvalSpec:
 
 def eval_plan(run: Run) -> EvalPlan:
     """The agent that played the run, with the settings its run recorded."""
-    return EvalPlan(steps=[EvalPlanStep(solver=_agent(run), params=dict(run.meta))])
+    return EvalPlan(steps=[EvalPlanStep(solver=run.agent, params=dict(run.meta))])
 
 
 def eval_results(run: Run, metrics: va.MetricSet) -> EvalResults:

@@ -2,9 +2,11 @@
 
 The pictures come from the one image resolver of the analytics, `vge_analytics.synth.
 image_source(bench)` (the benchmark's own images, else the synthetic renderings). A view is
-shown at every step spent in it, so each picture is encoded once and kept in a small cache
-(episodes are exported in id order, which keeps a device's episodes together). The device's
-list of views (what the agent is told it can switch to) comes from its compiled SSM.
+shown at every step spent in it, and in every run of the benchmark, so each picture is
+decoded, scaled and encoded once and kept, up to `CACHED_BYTES` of them (the least recently
+shown go first; episodes are exported in id order, which keeps a device's episodes
+together). The device's list of views (what the agent is told it can switch to) comes from
+its compiled SSM.
 """
 
 from __future__ import annotations
@@ -23,8 +25,11 @@ from vge_analytics.synth import image_source
 MAX_SIDE = 512
 """Longest side of an embedded picture, in pixels: the views stay readable, the logs small."""
 JPEG_QUALITY = 85
-CACHED = 64
-"""Pictures and machines kept (a device has at most nine views)."""
+CACHED_BYTES = 32 * 1024**2
+"""Encoded pictures kept: the views of about 2,000 devices, a whole benchmark of the
+bundled sample's size, so that its runs after the first reuse them."""
+CACHED_MACHINES = 64
+"""Compiled SSMs kept (devices come one after the other)."""
 
 
 @dataclass(frozen=True)
@@ -61,6 +66,7 @@ class Views:
         self._names: dict[str, tuple[str, ...]] = {}
         self._machines: OrderedDict[str, replay.Machine] = OrderedDict()
         self._pictures: OrderedDict[tuple[str, str], Picture | None] = OrderedDict()
+        self._held = 0  # bytes of the pictures kept
 
     def machine(self, device_id: str) -> replay.Machine:
         got = self._machines.get(device_id)
@@ -68,7 +74,7 @@ class Views:
             path = self.bench / "ssm" / f"{device_id}.json"
             got = replay.load_machine(path, device_id)
             self._machines[device_id] = got
-            if len(self._machines) > CACHED:
+            if len(self._machines) > CACHED_MACHINES:
                 self._machines.popitem(last=False)
         else:
             self._machines.move_to_end(device_id)
@@ -90,9 +96,11 @@ class Views:
         found = self._source(self.machine(device_id), view)
         got = shrink(found.data) if found is not None else None
         self._pictures[key] = got
-        if len(self._pictures) > CACHED:
-            self._pictures.popitem(last=False)
+        self._held += len(got.data) if got is not None else 0
+        while self._held > CACHED_BYTES:
+            _, dropped = self._pictures.popitem(last=False)
+            self._held -= len(dropped.data) if dropped is not None else 0
         return got
 
 
-__all__ = ["JPEG_QUALITY", "MAX_SIDE", "Picture", "Views", "shrink"]
+__all__ = ["CACHED_BYTES", "JPEG_QUALITY", "MAX_SIDE", "Picture", "Views", "shrink"]

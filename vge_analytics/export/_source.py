@@ -2,12 +2,14 @@
 episodes one batch at a time.
 
 Everything is read through the public analytics (`vge_analytics.runs/episodes/goals/steps/
-metrics/sql`), the manifest through `replay.read_manifest`, and the benchmark's location
-through `vge_analytics.dashboard.bench_dir`, so an export sees OUT exactly as `vge sql` and
-the dashboard do. Memory stays bounded whatever the size of a run: a run's episodes are
-fetched a batch at a time (their rows, goals and steps; a few megabytes of text at most, or
-one episode when it alone holds more), never the run at once. What a batch holds is known
-beforehand: one query per run measures each episode's text without fetching it.
+metrics`, and one query of ours on `vge_analytics.open_store`'s locked-down views), the
+manifest through `replay.read_manifest`, and the benchmark's location through
+`vge_analytics.dashboard.bench_dir`, so an export sees OUT exactly as `vge sql` and the
+dashboard do. Memory stays bounded whatever the size of a run: a run's episodes are fetched
+a batch at a time (their rows, goals and steps; a few megabytes of text at most, or one
+episode when it alone holds more), never the run at once. What a batch holds is known
+beforehand: one query per run measures each episode's text inside DuckDB, without fetching
+it.
 """
 
 from __future__ import annotations
@@ -25,8 +27,8 @@ import vge_analytics as va
 BATCH_STEPS = 5000
 """Steps fetched per query (the episodes whose steps add up to it); each query costs about
 50 ms on the full synthetic benchmark (it scans the steps table's ids)..."""
-BATCH_CHARS = 4 * 1024**2
-"""... or fewer, once their responses and feedback add up to this many characters."""
+BATCH_BYTES = 4 * 1024**2
+"""... or fewer, once their responses and feedback add up to this many bytes of text."""
 BATCH_EPISODES = 500
 """At most this many episodes per query (goal rows and the list of ids bound to the query)."""
 
@@ -75,8 +77,8 @@ class Contents(NamedTuple):
 
     episode_id: str
     steps: int
-    chars: int
-    """Characters of its responses and feedback texts: most of what its rows weigh."""
+    text_bytes: int
+    """Bytes of its responses and feedback texts: most of what its rows weigh."""
     first_time: float | None
     last_time: float | None
 
@@ -98,8 +100,11 @@ class Run:
     metrics: dict[str, float | None]
 
     @property
-    def episode_ids(self) -> list[str]:
-        return [c.episode_id for c in self.episodes]
+    def agent(self) -> str:
+        """What played the run: `vge run`'s agent spec when its run.json records it (e.g.
+        `openai:gpt-4o`, `sim:sim-vlm-f`), else the run's agent kind."""
+        agent = self.meta.get("agent")
+        return agent if isinstance(agent, str) and agent else self.agent_kind
 
     @property
     def first_time(self) -> float | None:
@@ -162,17 +167,17 @@ class Source:
 
 
 def _batches(episodes: Sequence[Contents]) -> Iterator[list[str]]:
-    """The episodes' ids in order, cut into batches of at most BATCH_CHARS characters,
+    """The episodes' ids in order, cut into batches of at most BATCH_BYTES of text,
     BATCH_STEPS steps and BATCH_EPISODES episodes (a larger episode is a batch of its own)."""
     batch: list[str] = []
-    steps = chars = 0
+    steps = size = 0
     for episode in episodes:
-        full = steps + episode.steps > BATCH_STEPS or chars + episode.chars > BATCH_CHARS
+        full = steps + episode.steps > BATCH_STEPS or size + episode.text_bytes > BATCH_BYTES
         if batch and (full or len(batch) == BATCH_EPISODES):
             yield batch
-            batch, steps, chars = [], 0, 0
+            batch, steps, size = [], 0, 0
         batch.append(episode.episode_id)
-        steps, chars = steps + episode.steps, chars + episode.chars
+        steps, size = steps + episode.steps, size + episode.text_bytes
     if batch:
         yield batch
 
@@ -268,8 +273,8 @@ WHERE e.run_id = ?
 GROUP BY e.episode_id, e.n_steps
 ORDER BY e.episode_id
 """
-"""Per episode of a run: its steps, the characters of its responses and feedback, and its
-first and last recorded times (one row per episode; the text is measured, not fetched)."""
+"""Per episode of a run: its steps, the bytes of its responses and feedback, and its first
+and last recorded times (one row per episode; the text is measured, not fetched)."""
 
 
 def _contents(out: str | Path, run_id: str) -> list[Contents]:
@@ -282,7 +287,7 @@ def _contents(out: str | Path, run_id: str) -> list[Contents]:
 
 __all__ = [
     "BATCH_EPISODES",
-    "BATCH_CHARS",
+    "BATCH_BYTES",
     "BATCH_STEPS",
     "Contents",
     "STEP_COLUMNS",
