@@ -9,7 +9,7 @@ if [ ! -x "$VENV/bin/python" ]; then
   "$PY" -m venv "$VENV"
 fi
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
-"$VENV/bin/python" -m pip install --quiet -e '.[test,ray]'
+"$VENV/bin/python" -m pip install --quiet -e '.[test,ray,export]'
 # The dashboard's browser tests (Playwright) drive Debian's Chromium: no browser download.
 if [ ! -x /usr/bin/chromium ]; then
   SUDO=""

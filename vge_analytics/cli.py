@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "rescore",
     "sweep",
     "sql",
+    "export",
     "app",
     "play",
 )

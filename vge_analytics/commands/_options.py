@@ -72,6 +72,12 @@ def max_record_bytes_option(outcome: str = "is quarantined as record_too_large")
     )
 
 
+def ids_option(name: str, help: str) -> str | None:
+    """`--runs` / `--episodes ID,...`: ids, comma-separated (a typer option default; parse it
+    with `episode_ids`)."""
+    return typer.Option(None, name, metavar="ID,...", help=help)
+
+
 def episode_ids(text: str | None, option: str) -> tuple[str, ...] | None:
     """The episode ids of a comma-separated option (`--episodes`, `--mcap-episodes`); None
     when the option is not given, an error when it names none."""
@@ -88,6 +94,7 @@ __all__ = [
     "episode_ids",
     "format_option",
     "max_record_bytes_option",
+    "ids_option",
     "memory_limit_option",
     "metrics_dir_option",
     "out_argument",

@@ -6,6 +6,7 @@ Everything reads the tables through the analytics' locked store (values bound, n
 formatted into SQL).
 """
 
+from ..store import bench_dir
 from ._budgets import (
     SWEEP_AUTO_LIMIT,
     SWEEP_SECONDS_PER_REPLAY,
@@ -62,7 +63,6 @@ from ._out import (
     OUT_ENV,
     OutSummary,
     app_script,
-    bench_dir,
     check_out,
     column_values,
     out_summary,

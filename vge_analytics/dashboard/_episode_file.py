@@ -13,10 +13,11 @@ import replay
 
 from .._errors import UnknownRunError
 from ..store import (
+    bench_dir,
     resolve_input,
+    run_entry,
 )
 from ..synth import image_source
-from ._out import _run_entry, bench_dir
 
 
 def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
@@ -26,7 +27,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     path = replay.episode_mcap_path(out, run_id, episode_id)
     if path.is_file():
         return path.read_bytes()
-    entry = _run_entry(out, run_id)
+    entry = run_entry(out, run_id)
     inputs = entry["inputs"]
     bench_root = bench_dir(out, run_id)
     bench = replay.Benchmark.open(bench_root)

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import hashlib
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,20 +12,17 @@ import polars as pl
 
 import replay
 
-from .._errors import OutputDirError, UnknownRunError
+from .._errors import OutputDirError
 from ..store import (
     check_columns,
     open_store,
     quote_ident,
-    resolve_input,
 )
 
 DEFAULT_OUT = "logs-replayed"
 """Where `vge demo` writes the replayed bundled sample; `vge app` opens it by default."""
 OUT_ENV = "VGE_APP_OUT"
 """Environment variable naming OUT for the app (set by `vge app`; `--out` wins)."""
-
-
 
 
 def app_script() -> Path:
@@ -105,7 +101,7 @@ class OutSummary:
 
 def out_summary(out: str | Path) -> OutSummary:
     """Counts and provenance of OUT from its manifest."""
-    manifest = _manifest(out)
+    manifest = open_store(out).manifest
     totals = manifest.get("totals") or {}
     benches = sorted({r["inputs"]["bench"] for r in manifest.get("runs", []) if "inputs" in r})
     return OutSummary(
@@ -117,39 +113,6 @@ def out_summary(out: str | Path) -> OutSummary:
         quarantined=int(totals.get("quarantined", 0)),
         benches=tuple(benches),
     )
-
-
-def _manifest(out: str | Path) -> dict:
-    path = Path(out) / "manifest.json"
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
-    return data if isinstance(data, dict) else {}
-
-
-def _run_entry(out: str | Path, run_id: str) -> dict:
-    for entry in _manifest(out).get("runs", []):
-        if entry.get("run_id") == run_id:
-            return entry
-    raise UnknownRunError(f"run {run_id!r} is not in {out}/manifest.json")
-
-
-def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Location:
-    """The benchmark directory a run (default: the first run) was replayed against."""
-    runs = _manifest(out).get("runs", [])
-    if not runs:
-        raise OutputDirError(f"{out}: the manifest lists no run")
-    entry = _run_entry(out, run_id) if run_id is not None else runs[0]
-    bench = resolve_input(out, entry["inputs"]["bench"])
-    if not bench.is_dir():
-        raise OutputDirError(
-            f"benchmark {entry['inputs']['bench']} (recorded in {out}/manifest.json) not found: "
-            "start the app from the directory `vge replay` ran in"
-        )
-    return bench
-
-
 
 
 def column_values(out: str | Path, table: str, column: str) -> list:
@@ -165,8 +128,6 @@ def column_values(out: str | Path, table: str, column: str) -> list:
         .fetchall()
     )
     return [r[0] for r in rows]
-
-
 
 
 def runs_matching(runs: pl.DataFrame, filters: Mapping[str, Sequence[object]]) -> list[str]:

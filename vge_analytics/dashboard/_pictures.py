@@ -12,8 +12,8 @@ from pathlib import Path
 import replay
 
 from .._errors import OutputDirError, UnknownRunError
+from ..store import bench_dir
 from ..synth import image_source
-from ._out import bench_dir
 
 
 @dataclass(frozen=True)

@@ -48,10 +48,12 @@ from ._sql import (
 from ._store import (
     NUMERIC_TYPES,
     Store,
+    bench_dir,
     clear_cache,
     open_store,
     quote_ident,
     resolve_input,
+    run_entry,
     table_columns,
 )
 from ._tables import (
@@ -65,6 +67,8 @@ from ._tables import (
 )
 
 __all__ = [
+    "bench_dir",
+    "run_entry",
     "warm_query_processes",
     "APP_MAX_ROWS",
     "APP_TIMEOUT",

@@ -149,7 +149,14 @@ def _dataset(out: replay.Location, files: list[tuple[str, str | None]]) -> pads.
     schema = pa.unify_schemas([f.physical_schema for f in first], promote_options="permissive")
     dictionaries = _dictionary_columns(first, schema)
     read_as = pads.ParquetFileFormat(
-        read_options=pads.ParquetReadOptions(dictionary_columns=sorted(dictionaries))
+        read_options=pads.ParquetReadOptions(dictionary_columns=sorted(dictionaries)),
+        # On the local disk, a row group's columns are read when it is scanned: pre-buffering
+        # reads every scanned column of the whole file at once, so memory grew with the part
+        # (a part of long responses held all of them). A store fetches them ahead, to save
+        # round trips.
+        default_fragment_scan_options=pads.ParquetFragmentScanOptions(
+            pre_buffer=out.local is None
+        ),
     )
     schema = pa.schema(
         f.with_type(pa.dictionary(pa.int32(), f.type)) if f.name in dictionaries else f

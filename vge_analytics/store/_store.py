@@ -32,7 +32,7 @@ import pyarrow as pa
 
 import replay
 
-from .._errors import OutputDirError
+from .._errors import OutputDirError, UnknownRunError
 from ._datasets import PARTITIONED, TABLES, table_sources
 from ._limits import SqlLimits
 from ._locked import locked_connection, register_all
@@ -175,6 +175,29 @@ def _read_manifest(out: Path | replay.Location) -> dict | None:
     except (OSError, ValueError) as exc:
         raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
     return data if isinstance(data, dict) else {}
+
+
+def run_entry(out: str | Path | replay.Location, run_id: str) -> dict:
+    """The manifest's entry of a run (its inputs, options, counts)."""
+    for entry in (_read_manifest(replay.location(out)) or {}).get("runs", []):
+        if entry.get("run_id") == run_id:
+            return entry
+    raise UnknownRunError(f"run {run_id!r} is not in {out}/manifest.json")
+
+
+def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Location:
+    """The benchmark directory a run (default: the first run) was replayed against."""
+    runs = (_read_manifest(replay.location(out)) or {}).get("runs", [])
+    if not runs:
+        raise OutputDirError(f"{out}: the manifest lists no run")
+    entry = run_entry(out, run_id) if run_id is not None else runs[0]
+    bench = resolve_input(out, entry["inputs"]["bench"])
+    if not bench.is_dir():
+        raise OutputDirError(
+            f"benchmark {entry['inputs']['bench']} (recorded in {out}/manifest.json) not found: "
+            "start the app from the directory `vge replay` ran in"
+        )
+    return bench
 
 
 def _store(out: Path | replay.Location, manifest: dict | None, limits: SqlLimits) -> Store:

@@ -1,0 +1,106 @@
+"""The pictures of a device's views as an export embeds them: downscaled JPEG.
+
+The pictures come from the one image resolver of the analytics, `vge_analytics.synth.
+image_source(bench)` (the benchmark's own images, else the synthetic renderings). A view is
+shown at every step spent in it, and in every run of the benchmark, so each picture is
+decoded, scaled and encoded once and kept, up to `CACHED_BYTES` of them (the least recently
+shown go first; episodes are exported in id order, which keeps a device's episodes
+together). The device's list of views (what the agent is told it can switch to) comes from
+its compiled SSM.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+from collections import OrderedDict
+from dataclasses import dataclass
+from pathlib import Path
+
+from PIL import Image
+
+import replay
+from vge_analytics.synth import image_source
+
+MAX_SIDE = 512
+"""Longest side of an embedded picture, in pixels: the views stay readable, the logs small."""
+JPEG_QUALITY = 85
+CACHED_BYTES = 32 * 1024**2
+"""Encoded pictures kept: the views of about 2,000 devices, a whole benchmark of the
+bundled sample's size, so that its runs after the first reuse them."""
+CACHED_MACHINES = 64
+"""Compiled SSMs kept (devices come one after the other)."""
+
+
+@dataclass(frozen=True)
+class Picture:
+    """A view's picture, ready to embed."""
+
+    data: bytes
+    media_type: str
+    width: int
+    height: int
+
+    @property
+    def name(self) -> str:
+        """A file name for it, from its content (the same picture, the same name)."""
+        return hashlib.sha256(self.data).hexdigest()[:20] + ".jpg"
+
+
+def shrink(data: bytes) -> Picture:
+    """The picture scaled down to MAX_SIDE (never up), as JPEG."""
+    with Image.open(io.BytesIO(data)) as img:
+        rgb = img.convert("RGB")
+    rgb.thumbnail((MAX_SIDE, MAX_SIDE))  # bicubic, reducing by 2 first when it can
+    buf = io.BytesIO()
+    rgb.save(buf, format="JPEG", quality=JPEG_QUALITY)
+    return Picture(buf.getvalue(), "image/jpeg", rgb.width, rgb.height)
+
+
+class Views:
+    """The views of a benchmark's devices: their names, and their pictures on request."""
+
+    def __init__(self, bench: Path | replay.Location) -> None:
+        self.bench = bench
+        self._source = image_source(bench)
+        self._names: dict[str, tuple[str, ...]] = {}
+        self._machines: OrderedDict[str, replay.Machine] = OrderedDict()
+        self._pictures: OrderedDict[tuple[str, str], Picture | None] = OrderedDict()
+        self._held = 0  # bytes of the pictures kept
+
+    def machine(self, device_id: str) -> replay.Machine:
+        got = self._machines.get(device_id)
+        if got is None:
+            path = self.bench / "ssm" / f"{device_id}.json"
+            got = replay.load_machine(path, device_id)
+            self._machines[device_id] = got
+            if len(self._machines) > CACHED_MACHINES:
+                self._machines.popitem(last=False)
+        else:
+            self._machines.move_to_end(device_id)
+        return got
+
+    def names(self, device_id: str) -> tuple[str, ...]:
+        """The views the device offers, in the SSM's order (kept for every device: small)."""
+        got = self._names.get(device_id)
+        if got is None:
+            got = self._names[device_id] = tuple(self.machine(device_id).views)
+        return got
+
+    def picture(self, device_id: str, view: str) -> Picture | None:
+        """The view's picture, downscaled; None when the benchmark has none."""
+        key = (device_id, view)
+        if key in self._pictures:
+            self._pictures.move_to_end(key)
+            return self._pictures[key]
+        found = self._source(self.machine(device_id), view)
+        got = shrink(found.data) if found is not None else None
+        self._pictures[key] = got
+        self._held += len(got.data) if got is not None else 0
+        while self._held > CACHED_BYTES:
+            _, dropped = self._pictures.popitem(last=False)
+            self._held -= len(dropped.data) if dropped is not None else 0
+        return got
+
+
+__all__ = ["CACHED_BYTES", "JPEG_QUALITY", "MAX_SIDE", "Picture", "Views", "shrink"]
