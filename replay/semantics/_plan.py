@@ -406,6 +406,20 @@ def _solver(machine: Machine, goals: tuple[int, ...]) -> _Solver:
     return solver
 
 
+def next_optimal_step(
+    machine: Machine, state: int, view: str, unlocked: bool, goals: tuple[int, ...]
+) -> PlannedStep | None:
+    """The first response of an optimal plan for `goals` from this situation (PROTOCOL §4.5):
+    what the planner would do next. None when the goals cannot be planned from here."""
+    if not goals:
+        return None
+    try:
+        plan = plan_goals(machine, state, view, unlocked, goals)
+    except TaskError:
+        return None
+    return plan.steps[0] if plan.steps else None
+
+
 def c_opt_dynamic(machine: Machine, state: int, view: str, unlocked: bool, goal: int) -> int | None:
     """C_opt of `goal` alone from the actual situation (PROTOCOL §4, for PSR); None if unreachable."""
     d = distances(machine, goal)[state]

@@ -13,6 +13,7 @@ from replay import (
     c_opt_dynamic,
     distances,
     load_machine,
+    next_optimal_step,
     plan_goals,
     setup_episode,
     target_components,
@@ -187,3 +188,18 @@ def test_unreachable_goal_is_reported() -> None:
     hidden = machine({"A": {"c": [tr("B", boxes=[box("front_top", 1, 1, 9, 9)])]}, "B": {}}, "A")
     with pytest.raises(TaskError, match="no interactable view"):
         plan_goals(hidden, hidden.state_id("A"), "front", False, (hidden.state_id("B"),))
+
+
+def test_the_optimal_next_step_follows_the_plan_from_wherever_the_episode_is() -> None:
+    """PROTOCOL §4.5 on the kettle from the axonometric view: at reset the next step is the
+    plan's first (switch to front); after it, the push; once Boiling is reached, the wait;
+    with every goal completed there is none."""
+    goals = (_s("Boiling"), _s("BoilingComplete"))
+    plan = plan_goals(KETTLE, _s("Standby"), "front_top", False, goals)
+    first = next_optimal_step(KETTLE, _s("Standby"), "front_top", False, goals)
+    assert first == plan.steps[0] and first.action.to_text() == "Switch_view(params=[front])"
+    after_switch = next_optimal_step(KETTLE, _s("Standby"), "front", False, goals)
+    assert after_switch == plan.steps[1] and after_switch.action.type == "push"
+    waiting = next_optimal_step(KETTLE, _s("Boiling"), "front", False, goals[1:])
+    assert waiting is not None and waiting.action.to_text() == "Timed_wait()"
+    assert next_optimal_step(KETTLE, _s("Standby"), "front", False, ()) is None
