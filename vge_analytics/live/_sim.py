@@ -16,6 +16,7 @@ import replay
 from .._errors import AgentError
 from ..synth import (
     PROFILES,
+    Agent,
     Catalog,
     Profile,
     StepPlayer,
@@ -85,7 +86,7 @@ class SimAgent:
             tuple(task.c_opt or ()),
         )
         rng = agent_rng(self.seed, episode.run_id, task.episode_id)
-        player = StepPlayer(machine, _catalog(machine.category), self.profile, record, rng)
+        player = StepPlayer(Agent(machine, _catalog(machine.category), self.profile, record, rng))
         return _SimPlayer(player, session)
 
 

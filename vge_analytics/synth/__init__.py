@@ -4,7 +4,7 @@ simulated agents (docs/SYNTHETIC.md).
 `generate` is what `vge synth` runs; the other names are its parts, for tests and tools.
 """
 
-from ._agent import AgentStep, StepPlayer, play_episode
+from ._agent import Agent, AgentStep
 from ._build import SCALES, Scale, Summary, SynthError, generate, plan_devices
 from ._catalog import (
     PAPER_DEVICE_COUNTS,
@@ -23,6 +23,7 @@ from ._instantiate import (
     scene_of,
 )
 from ._measure import RunMeasures, measure_output
+from ._play import StepPlayer, play_episode
 from ._profiles import PROFILES, Profile
 from ._render import png_bytes, render_view
 from ._runs import RunSpec, agent_rng, run_specs
@@ -33,6 +34,7 @@ __all__ = [
     "PAPER_DEVICE_COUNTS",
     "PROFILES",
     "SCALES",
+    "Agent",
     "AgentStep",
     "Catalog",
     "ComponentSpec",

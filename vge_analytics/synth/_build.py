@@ -33,9 +33,9 @@ import msgspec
 import replay
 from replay.io import RunDirectory
 
-from ._agent import play_episode
 from ._catalog import PAPER_DEVICE_COUNTS, UCSM_DIR, available_categories, load_catalog
 from ._instantiate import dashboard_probability, dump_ssm, instantiate_device
+from ._play import play_episode
 from ._rng import rng_for
 from ._runs import LAMBDA, RunSpec, agent_rng, episode_line, in_run, run_specs
 from ._tasks import sample_tasks

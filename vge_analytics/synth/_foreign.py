@@ -16,7 +16,8 @@ from ._geometry import (
     Part,
     Style,
 )
-from ._paint import centered_text, paint_part
+from ._lettering import centered_text
+from ._paint import paint_part
 from ._rng import derive_seed
 from ._shapes import ACCENT_COLORS, darker, ink_on
 

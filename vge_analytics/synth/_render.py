@@ -29,9 +29,10 @@ from ._geometry import (
 )
 from ._icons import draw_icon
 from ._layout import body_outline_points, pistol_solids
+from ._lettering import MIN_TEXT, centered_text, font, text_size
 from ._motifs import MOTIFS
 from ._motifs import PAINTERS as MOTIF_PAINTERS
-from ._paint import MIN_TEXT, PAINTERS, centered_text, font, paint_part, text_size
+from ._paint import PAINTERS, paint_part
 from ._shapes import ROUND_KINDS, darker, ink_on
 
 RENDER_VERSION = "render-v1"

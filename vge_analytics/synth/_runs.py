@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import orjson
 
-from ._agent import AgentStep, think_seconds
+from ._agent import AgentStep
+from ._play import think_seconds
 from ._profiles import PROFILES, STRONGEST_VLM, Profile
 from ._rng import derive_seed, rng_for
 
