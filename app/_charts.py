@@ -104,15 +104,17 @@ def error_donut(dist: pl.DataFrame):
     return alt.layer(arcs, text).properties(width=360, height=340)
 
 
+def _group_axis(group_order: Sequence[str]) -> alt.Y:
+    """One horizontal bar per group, in the given order, its whole name shown."""
+    return alt.Y(
+        "group:N", sort=list(group_order), title=None, axis=alt.Axis(labelLimit=200, labelOverlap=False)
+    )
+
+
 def _share_axes(group_order: Sequence[str]) -> dict:
     """One horizontal bar per group, its length the share of errors (0..100 %)."""
     return {
-        "y": alt.Y(
-            "group:N",
-            sort=list(group_order),
-            title=None,
-            axis=alt.Axis(labelLimit=200, labelOverlap=False),
-        ),
+        "y": _group_axis(group_order),
         "x": alt.X("share:Q", title="share of errors (%)", scale=alt.Scale(domain=[0, 100])),
     }
 
@@ -139,62 +141,68 @@ GROUP_COLORS: dict[str, str] = {
 }
 
 
-def error_group_stacked(groups: pl.DataFrame, group_order: Sequence[str]):
-    """Stacked bars of error-group shares (grounding, execution, navigation) per group."""
-    names = list(GROUP_COLORS)
-    data = groups.with_columns(
-        group_order=pl.col("error_group").replace_strict(
-            {g: i for i, g in enumerate(names)}, return_dtype=pl.Int64
-        )
+def _stacked_shares(
+    frame: pl.DataFrame,
+    column: str,
+    colors: dict[str, str],
+    group_order: Sequence[str],
+    *,
+    label: str,
+    x: alt.X,
+    title: str | None = None,
+    legend: alt.Legend | None = None,
+):
+    """Bars of shares per group, stacked by `column` in the order (and colours) of `colors`."""
+    names = list(colors)
+    order = f"{column}_order"
+    data = frame.with_columns(
+        pl.col(column)
+        .replace_strict({c: i for i, c in enumerate(names)}, return_dtype=pl.Int64)
+        .alias(order)
     )
+    chart = alt.Chart(data.to_pandas(), title=title) if title else alt.Chart(data.to_pandas())
     return (
-        alt.Chart(data.to_pandas(), title="Error groups")
-        .mark_bar()
+        chart.mark_bar()
         .encode(
-            **_share_axes(group_order),
+            y=_group_axis(group_order),
+            x=x,
             color=alt.Color(
-                "error_group:N",
-                title="Error group",
+                f"{column}:N",
+                title=label,
                 sort=names,
-                scale=alt.Scale(domain=names, range=[GROUP_COLORS[g] for g in names]),
-                legend=_bottom_legend(3),
+                scale=alt.Scale(domain=names, range=[colors[c] for c in names]),
+                legend=legend if legend is not None else alt.Undefined,
             ),
-            order=alt.Order("group_order:Q"),
-            tooltip=["group", "error_group", "count", alt.Tooltip("share:Q", format=".1f")],
+            order=alt.Order(f"{order}:Q"),
+            tooltip=["group", column, "count", alt.Tooltip("share:Q", format=".1f")],
         )
         .properties(height=alt.Step(24))
+    )
+
+
+def error_group_stacked(groups: pl.DataFrame, group_order: Sequence[str]):
+    """Stacked bars of error-group shares (grounding, execution, navigation) per group."""
+    return _stacked_shares(
+        groups,
+        "error_group",
+        GROUP_COLORS,
+        group_order,
+        label="Error group",
+        x=_share_axes(group_order)["x"],
+        title="Error groups",
+        legend=_bottom_legend(3),
     )
 
 
 def switch_stacked(classes: pl.DataFrame, group_order: Sequence[str]):
     """The paper's switch-view figure: NP/PN/NN/PP shares per group, stacked."""
-    order = list(SWITCH_CLASSES)
-    data = classes.with_columns(
-        class_order=pl.col("switch_class").replace_strict(
-            {c: i for i, c in enumerate(order)}, return_dtype=pl.Int64
-        )
-    )
-    return (
-        alt.Chart(data.to_pandas())
-        .mark_bar()
-        .encode(
-            y=alt.Y(
-                "group:N",
-                sort=list(group_order),
-                title=None,
-                axis=alt.Axis(labelLimit=200, labelOverlap=False),
-            ),
-            x=alt.X("share:Q", title="share of classified switches (%)"),
-            color=alt.Color(
-                "switch_class:N",
-                title="Switch class",
-                sort=order,
-                scale=alt.Scale(domain=order, range=[SWITCH_COLORS[c] for c in order]),
-            ),
-            order=alt.Order("class_order:Q"),
-            tooltip=["group", "switch_class", "count", alt.Tooltip("share:Q", format=".1f")],
-        )
-        .properties(height=alt.Step(24))
+    return _stacked_shares(
+        classes,
+        "switch_class",
+        {c: SWITCH_COLORS[c] for c in SWITCH_CLASSES},
+        group_order,
+        label="Switch class",
+        x=alt.X("share:Q", title="share of classified switches (%)"),
     )
 
 
@@ -204,12 +212,7 @@ def ratio_bars(df: pl.DataFrame, metric: str, group_order: Sequence[str]):
         alt.Chart(df.to_pandas(), title=metric)
         .mark_bar()
         .encode(
-            y=alt.Y(
-                "group:N",
-                sort=list(group_order),
-                title=None,
-                axis=alt.Axis(labelLimit=200, labelOverlap=False),
-            ),
+            y=_group_axis(group_order),
             x=alt.X(f"{metric}:Q", title=metric),
             tooltip=["group", alt.Tooltip(f"{metric}:Q", format=".2f")],
         )

@@ -233,6 +233,19 @@ def table_height(df: pl.DataFrame) -> int:
     return 38 + 35 * df.height
 
 
+def number_table(
+    df: pl.DataFrame, *, digits: int = 2, key: str | None = None, every_row: bool = False
+) -> None:
+    """A table of numbers with `digits` decimals; `every_row` shows all rows, no scrollbar."""
+    st.dataframe(
+        df,
+        hide_index=True,
+        column_config=number_config(df, digits),
+        height=table_height(df) if every_row else "auto",
+        key=key,
+    )
+
+
 def metric_column_config(names: Sequence[str]) -> dict[str, Any]:
     """Column formats for metric columns: 2 decimals, header with the paper's arrow (and ✎
     or ＋ for a metric the metrics folder overrides or adds), the definition on hover."""

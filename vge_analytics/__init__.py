@@ -46,26 +46,8 @@ of steps/goals where the result is computed from them); `by` lists grouping colu
 Errors are `replay.VGEError` subclasses with one-line messages.
 """
 
-from ._errors import (
-    AgentError,
-    AnalyticsError,
-    ContextExceededError,
-    InfrastructureError,
-    MetricFileError,
-    OutputDirError,
-    QueryError,
-    QueryLimitError,
-    QueryRefused,
-    RequestRefusedError,
-    RunDirError,
-    RunStoppedError,
-    ServerUnreachableError,
-    SweepInputError,
-    SweepRefused,
-    UnknownColumnError,
-    UnknownMetricError,
-    UnknownRunError,
-)
+from . import _errors
+from ._errors import *  # noqa: F403 - every error class is public (_errors.__all__)
 from .metrics import (
     MAIN_TABLE,
     METRIC_NAMES,
@@ -120,6 +102,7 @@ from .store import (
 )
 
 __all__ = [
+    *_errors.__all__,
     "DEFAULT_BY",
     "ERROR_GROUPS",
     "ERROR_LABELS",
@@ -129,28 +112,10 @@ __all__ = [
     "METRIC_NAMES",
     "METRICS_DIR_ENV",
     "SWITCH_CLASSES",
-    "AgentError",
-    "AnalyticsError",
     "Comparison",
-    "ContextExceededError",
     "Metric",
-    "InfrastructureError",
-    "MetricFileError",
     "MetricSet",
-    "OutputDirError",
-    "QueryError",
-    "QueryLimitError",
-    "QueryRefused",
-    "RequestRefusedError",
-    "RunDirError",
-    "RunStoppedError",
     "Rescore",
-    "ServerUnreachableError",
-    "SweepInputError",
-    "SweepRefused",
-    "UnknownColumnError",
-    "UnknownMetricError",
-    "UnknownRunError",
     "clear_cache",
     "compare",
     "competition_ranks",

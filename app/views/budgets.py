@@ -51,4 +51,4 @@ title = f"SR gain over λ = {min(lambdas):g}" + (
     " (% of SR at that λ)" if relative == "relative %" else " (pp)"
 )
 st.altair_chart(charts.sweep_lines(gain, title))
-st.dataframe(table, hide_index=True, column_config=ui.number_config(table))
+ui.number_table(table)

@@ -34,7 +34,7 @@ with pie_tab:
         st.altair_chart(charts.error_donut(part))
 with table_tab:
     shares = dash.error_share_wide(dist)
-    st.dataframe(shares, hide_index=True, column_config=ui.number_config(shares, 1))
+    ui.number_table(shares, digits=1)
 
 st.subheader("Drill down: steps with an error")
 d1, d2 = st.columns([2, 3])

@@ -35,13 +35,7 @@ st.markdown(
     f"{mc['b_only']}, neither {mc['neither']}; McNemar exact p = {mc['p_value']:.3g}."
 )
 table = dash.comparison_rows(cmp.metrics, model, human, data.metric_set())
-st.dataframe(
-    table,
-    hide_index=True,
-    column_config=ui.number_config(table),
-    height=ui.table_height(table),
-    key="hvv_metrics",
-)
+ui.number_table(table, key="hvv_metrics", every_row=True)
 st.altair_chart(charts.side_by_side(cmp.metrics, model, human), width="content")
 st.markdown(
     f"**{human} − {model}**, 95% paired bootstrap interval (green: {human} better, "
@@ -51,7 +45,7 @@ st.altair_chart(charts.diff_forest(cmp.metrics, model, human), width="content")
 
 st.subheader("Error distribution")
 errors = dash.error_difference_rows(cmp.errors, model, human)
-st.dataframe(errors, hide_index=True, column_config=ui.number_config(errors, 1))
+ui.number_table(errors, digits=1)
 
 st.subheader("Episodes that flip")
 flips = dash.flip_rows(cmp.flips, model, human)

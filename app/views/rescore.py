@@ -38,13 +38,7 @@ if not result.changes:
     ui.stop()
 
 rankings = dash.rescore_rankings(result)
-st.dataframe(
-    rankings,
-    hide_index=True,
-    column_config=ui.number_config(rankings),
-    height=ui.table_height(rankings),
-    key="rescore_rankings",
-)
+ui.number_table(rankings, key="rescore_rankings", every_row=True)
 
 names = rankings["metric"].to_list()
 metric = c2.selectbox("Metric", names, key="rescore_metric")
@@ -54,9 +48,7 @@ if slopes.height:
 
 changes = dash.rescore_changes(result)
 shown = changes.filter(changes["metric"] == metric)
-st.dataframe(
-    shown, hide_index=True, column_config=ui.number_config(shown), key="rescore_changes"
-)
+ui.number_table(shown, key="rescore_changes")
 st.download_button(
     "Download CSV (every metric)",
     result.rows.write_csv(),

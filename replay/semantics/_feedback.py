@@ -2,15 +2,7 @@
 
 from __future__ import annotations
 
-from ._vocab import (
-    FB_INVALID,
-    FB_NULL,
-    FB_OPERATIONAL,
-    FB_SWITCHED,
-    FB_TRANSITION,
-    FB_UNLOCKED,
-    FB_WAIT_NO_EFFECT,
-)
+from . import _vocab as v
 
 _INVALID_REASONS = {
     "no_action": "no action was found; answer with one 'Action:' line such as "
@@ -57,14 +49,14 @@ def transition_text(description: str, state_description: str) -> str:
 
 def text_for(kind: str, detail: str | None = None) -> str:
     """Text of the kinds whose text does not depend on the device."""
-    if kind == FB_INVALID:
+    if kind == v.FB_INVALID:
         return invalid_text(detail or "")
-    if kind == FB_OPERATIONAL:
+    if kind == v.FB_OPERATIONAL:
         return OPERATIONAL_TEXT
-    if kind == FB_NULL:
+    if kind == v.FB_NULL:
         return NULL_TEXT
-    if kind == FB_WAIT_NO_EFFECT:
+    if kind == v.FB_WAIT_NO_EFFECT:
         return WAIT_NO_EFFECT_TEXT
-    if kind == FB_UNLOCKED:
+    if kind == v.FB_UNLOCKED:
         return UNLOCKED_TEXT
-    raise ValueError(f"feedback kind {kind!r} needs context ({FB_SWITCHED}, {FB_TRANSITION})")
+    raise ValueError(f"feedback kind {kind!r} needs context ({v.FB_SWITCHED}, {v.FB_TRANSITION})")

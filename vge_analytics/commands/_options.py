@@ -33,6 +33,16 @@ def format_option() -> str:
     return typer.Option("table", "--format", "-f", help=FORMAT_HELP)
 
 
+def by_option(default: str, help: str) -> str:
+    """`--by COLUMN,...`: the grouping (a typer option default)."""
+    return typer.Option(default, "--by", help=help)
+
+
+def metric_names_option(help: str, default: str | None = None) -> str | None:
+    """`--metrics NAME,...`: which metrics (a typer option default)."""
+    return typer.Option(default, "--metrics", help=help)
+
+
 def where_option() -> list[str]:
     """`--where COLUMN=VALUE[,VALUE...]`, repeatable (a typer option default)."""
     return typer.Option(None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable).")
@@ -91,11 +101,13 @@ def episode_ids(text: str | None, option: str) -> tuple[str, ...] | None:
 
 __all__ = [
     "METRICS_DIR_HELP",
+    "by_option",
     "episode_ids",
     "format_option",
     "max_record_bytes_option",
     "ids_option",
     "memory_limit_option",
+    "metric_names_option",
     "metrics_dir_option",
     "out_argument",
     "timeout_option",

@@ -7,7 +7,13 @@ import typer
 from ..reports import DEFAULT_RESAMPLES, DEFAULT_SEED, check_format
 from ..reports import compare as compute_compare
 from ..store import query_time_limit
-from ._options import format_option, metrics_dir_option, out_argument, timeout_option
+from ._options import (
+    format_option,
+    metric_names_option,
+    metrics_dir_option,
+    out_argument,
+    timeout_option,
+)
 from ._output import emit_sections
 
 
@@ -15,7 +21,7 @@ def compare(
     out: str = out_argument(),
     run_a: str = typer.Argument(..., help="Baseline run id (A)."),
     run_b: str = typer.Argument(..., help="Compared run id (B); differences are B - A."),
-    metric_names: str = typer.Option(None, "--metrics", help="Metrics (default: all)."),
+    metric_names: str = metric_names_option("Metrics (default: all)."),
     seed: int = typer.Option(DEFAULT_SEED, "--seed", help="Bootstrap seed."),
     resamples: int = typer.Option(DEFAULT_RESAMPLES, "--resamples", help="Bootstrap resamples."),
     metrics_dir: str = metrics_dir_option(),

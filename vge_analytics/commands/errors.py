@@ -7,7 +7,7 @@ import typer
 
 from ..reports import ERROR_LABELS, check_format, error_distribution, groups_of, switch_classes
 from ..store import parse_by, query_time_limit
-from ._options import format_option, out_argument, timeout_option, where_option
+from ._options import by_option, format_option, out_argument, timeout_option, where_option
 from ._output import emit_sections
 from .metrics import parse_where
 
@@ -26,7 +26,7 @@ def _wide(df: pl.DataFrame, by: list[str], index: list[str], value: str) -> pl.D
 
 def errors(
     out: str = out_argument(),
-    by: str = typer.Option("run_id", "--by", help="Group by these columns (default: run_id)."),
+    by: str = by_option("run_id", "Group by these columns (default: run_id)."),
     where: list[str] = where_option(),
     fmt: str = format_option(),
     timeout: float = timeout_option(),

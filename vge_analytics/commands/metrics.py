@@ -12,7 +12,14 @@ from ..metrics import MAIN_TABLE, MetricSet, load_metrics, metric_table
 from ..metrics import metrics as compute_metrics
 from ..reports import check_format
 from ..store import DEFAULT_BY, parse_by, query_time_limit
-from ._options import format_option, metrics_dir_option, timeout_option, where_option
+from ._options import (
+    by_option,
+    format_option,
+    metric_names_option,
+    metrics_dir_option,
+    timeout_option,
+    where_option,
+)
 from ._output import emit
 
 LIST_COLUMNS: tuple[str, ...] = (
@@ -61,16 +68,13 @@ def metrics(
     out: str = typer.Argument(
         None, help="Replay output directory (vge replay --out); not needed with --list."
     ),
-    by: str = typer.Option(
+    by: str = by_option(
         ",".join(DEFAULT_BY),
-        "--by",
-        help="Group by these columns of runs/episodes (comma-separated), e.g. model,category "
+        "Group by these columns of runs/episodes (comma-separated), e.g. model,category "
         "or meta_history; step columns such as action_type work with step metrics only.",
     ),
-    metric_names: str = typer.Option(
-        None,
-        "--metrics",
-        help="Metrics to show, comma-separated (default: all twelve, in the paper's order, "
+    metric_names: str = metric_names_option(
+        "Metrics to show, comma-separated (default: all twelve, in the paper's order, "
         "then those --metrics-dir adds); "
         "'main' = the paper's Table 2 (SR SSR SPL State-F1 EIR TIR VSPS GVPE EER).",
     ),

@@ -7,7 +7,15 @@ import typer
 from ..reports import DEFAULT_RESCORE_BY, check_format
 from ..reports import rescore as compute_rescore
 from ..store import parse_by, query_time_limit
-from ._options import format_option, metrics_dir_option, out_argument, timeout_option, where_option
+from ._options import (
+    by_option,
+    format_option,
+    metric_names_option,
+    metrics_dir_option,
+    out_argument,
+    timeout_option,
+    where_option,
+)
 from ._output import emit, emit_sections
 from .metrics import parse_where
 
@@ -22,15 +30,12 @@ def rescore(
         "--against",
         help="Compare with the metrics of this folder instead of the built-in metrics.",
     ),
-    by: str = typer.Option(
+    by: str = by_option(
         ",".join(DEFAULT_RESCORE_BY),
-        "--by",
-        help="Rank these groups (comma-separated columns, as vge metrics --by); default: runs.",
+        "Rank these groups (comma-separated columns, as vge metrics --by); default: runs.",
     ),
-    metric_names: str = typer.Option(
-        None,
-        "--metrics",
-        help="Only these of the metrics the folder changes or adds (comma-separated).",
+    metric_names: str = metric_names_option(
+        "Only these of the metrics the folder changes or adds (comma-separated)."
     ),
     where: list[str] = where_option(),
     summary: bool = typer.Option(

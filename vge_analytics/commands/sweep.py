@@ -7,7 +7,7 @@ import typer
 from ..reports import DEFAULT_SWEEP_METRICS, check_format
 from ..reports import sweep as compute_sweep
 from ..store import query_time_limit
-from ._options import format_option, metrics_dir_option, timeout_option
+from ._options import format_option, metric_names_option, metrics_dir_option, timeout_option
 from ._output import emit
 
 
@@ -17,8 +17,8 @@ def sweep(
     ),
     lambdas: str = typer.Option("2,3,4,5", "--lambdas", help="Comma-separated lambdas."),
     runs: str = typer.Option(None, "--runs", help="Only these run ids (comma-separated)."),
-    metric_names: str = typer.Option(
-        ",".join(DEFAULT_SWEEP_METRICS), "--metrics", help="Episode metrics to compute."
+    metric_names: str = metric_names_option(
+        "Episode metrics to compute.", ",".join(DEFAULT_SWEEP_METRICS)
     ),
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
     ray: str | None = typer.Option(
