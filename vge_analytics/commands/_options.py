@@ -43,6 +43,11 @@ def metric_names_option(help: str, default: str | None = None) -> str | None:
     return typer.Option(default, "--metrics", help=help)
 
 
+def flag_option(name: str, help: str) -> bool:
+    """A `--name` switch, off unless given (a typer option default)."""
+    return typer.Option(False, name, help=help)
+
+
 def where_option() -> list[str]:
     """`--where COLUMN=VALUE[,VALUE...]`, repeatable (a typer option default)."""
     return typer.Option(None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable).")
@@ -103,6 +108,7 @@ __all__ = [
     "METRICS_DIR_HELP",
     "by_option",
     "episode_ids",
+    "flag_option",
     "format_option",
     "max_record_bytes_option",
     "ids_option",

@@ -26,6 +26,16 @@ def _console() -> Console:
     return Console(highlight=False, soft_wrap=False, width=width)
 
 
+def finish(console: Console, wrote: str, partly: str | None) -> None:
+    """The last lines of a command that writes a directory: what it wrote, then, when some of
+    the work could not be done (records quarantined, episodes failed), that in yellow and
+    exit code 2 (the rest is written and usable)."""
+    console.print(wrote, soft_wrap=True)
+    if partly is not None:
+        console.print(f"[yellow]{partly}", soft_wrap=True)
+        raise typer.Exit(2)
+
+
 def emit(
     df: pl.DataFrame,
     fmt: str,

@@ -14,6 +14,7 @@ from ..reports import check_format
 from ..store import DEFAULT_BY, parse_by, query_time_limit
 from ._options import (
     by_option,
+    flag_option,
     format_option,
     metric_names_option,
     metrics_dir_option,
@@ -80,10 +81,9 @@ def metrics(
     ),
     where: list[str] = where_option(),
     metrics_dir: str = metrics_dir_option(),
-    list_metrics: bool = typer.Option(
-        False,
+    list_metrics: bool = flag_option(
         "--list",
-        help="List the metrics instead: name, title, version, direction, unit, grain, source "
+        "List the metrics instead: name, title, version, direction, unit, grain, source "
         "(built-in, or the file that defines or overrides it) and definition.",
     ),
     fmt: str = format_option(),

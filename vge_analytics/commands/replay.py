@@ -16,6 +16,7 @@ from replay import Manifest, location, replay_runs
 
 from ..synth import image_source
 from ._options import episode_ids, max_record_bytes_option
+from ._output import finish
 
 
 def _summary(manifest: Manifest) -> Table:
@@ -100,14 +101,14 @@ def replay_command(
     console.print(_summary(manifest))
     for run_id in manifest.skipped:
         console.print(f"{escape(run_id)}: up to date, skipped (--force redoes it)", soft_wrap=True)
-    console.print(f"wrote {escape(str(out))} (manifest.json)", soft_wrap=True)
-    if manifest.quarantined:
-        console.print(
-            f"[yellow]{manifest.quarantined:,} record(s) quarantined[/]: "
-            f"see {escape(str(location(out) / 'quarantine.jsonl'))}",
-            soft_wrap=True,
-        )
-        raise typer.Exit(2)
+    finish(
+        console,
+        f"wrote {escape(str(out))} (manifest.json)",
+        f"{manifest.quarantined:,} record(s) quarantined[/]: "
+        f"see {escape(str(location(out) / 'quarantine.jsonl'))}"
+        if manifest.quarantined
+        else None,
+    )
 
 
 def register(app: typer.Typer) -> None:

@@ -9,6 +9,7 @@ from ..reports import rescore as compute_rescore
 from ..store import parse_by, query_time_limit
 from ._options import (
     by_option,
+    flag_option,
     format_option,
     metric_names_option,
     metrics_dir_option,
@@ -38,10 +39,9 @@ def rescore(
         "Only these of the metrics the folder changes or adds (comma-separated)."
     ),
     where: list[str] = where_option(),
-    summary: bool = typer.Option(
-        False,
+    summary: bool = flag_option(
         "--summary",
-        help="Print one row per metric instead (change, Kendall's tau-b between the rankings, "
+        "Print one row per metric instead (change, Kendall's tau-b between the rankings, "
         "the groups whose rank moved); in json a list of such objects.",
     ),
     fmt: str = format_option(),

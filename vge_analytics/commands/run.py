@@ -20,6 +20,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from ._options import episode_ids
+from ._output import finish
 
 if TYPE_CHECKING:
     from vge_analytics.live import Counters
@@ -205,18 +206,15 @@ def run_command(
     out_console.print(escape(line), soft_wrap=True)
     for reason in summary.skipped:
         out_console.print(f"[yellow]not playable[/]: {escape(reason)}", soft_wrap=True)
-    out_console.print(
+    finish(
+        out_console,
         f"wrote {escape(str(out))}; score it: vge replay {escape(str(out))} --bench "
         f"{escape(str(bench))} --out OUT",
-        soft_wrap=True,
+        f"{len(summary.failures)} episode(s) ended on an infrastructure failure[/] "
+        f"(see {escape(str(out / 'failures.jsonl'))}); --resume plays them again"
+        if summary.failures
+        else None,
     )
-    if summary.failures:
-        out_console.print(
-            f"[yellow]{len(summary.failures)} episode(s) ended on an infrastructure failure[/] "
-            f"(see {escape(str(out / 'failures.jsonl'))}); --resume plays them again",
-            soft_wrap=True,
-        )
-        raise typer.Exit(2)
 
 
 def register(app: typer.Typer) -> None:
