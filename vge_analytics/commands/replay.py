@@ -101,14 +101,10 @@ def replay_command(
     console.print(_summary(manifest))
     for run_id in manifest.skipped:
         console.print(f"{escape(run_id)}: up to date, skipped (--force redoes it)", soft_wrap=True)
-    finish(
-        console,
-        f"wrote {escape(str(out))} (manifest.json)",
-        f"{manifest.quarantined:,} record(s) quarantined[/]: "
-        f"see {escape(str(location(out) / 'quarantine.jsonl'))}"
-        if manifest.quarantined
-        else None,
-    )
+    listed = escape(str(location(out) / "quarantine.jsonl"))
+    n = manifest.quarantined
+    problem = f"{n:,} record(s) quarantined[/]: see {listed}" if n else None
+    finish(console, f"wrote {escape(str(out))} (manifest.json)", problem)
 
 
 def register(app: typer.Typer) -> None:

@@ -39,13 +39,13 @@ def rescore(
         "Only these of the metrics the folder changes or adds (comma-separated)."
     ),
     where: list[str] = where_option(),
+    fmt: str = format_option(),
+    timeout: float = timeout_option(),
     summary: bool = flag_option(
         "--summary",
         "Print one row per metric instead (change, Kendall's tau-b between the rankings, "
         "the groups whose rank moved); in json a list of such objects.",
     ),
-    fmt: str = format_option(),
-    timeout: float = timeout_option(),
 ) -> None:
     """What the metrics of a folder change: per run, each changed or added metric before and
     after, the difference, the rank before and after; per metric, Kendall's tau-b between the

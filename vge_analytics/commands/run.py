@@ -206,15 +206,11 @@ def run_command(
     out_console.print(escape(line), soft_wrap=True)
     for reason in summary.skipped:
         out_console.print(f"[yellow]not playable[/]: {escape(reason)}", soft_wrap=True)
-    finish(
-        out_console,
-        f"wrote {escape(str(out))}; score it: vge replay {escape(str(out))} --bench "
-        f"{escape(str(bench))} --out OUT",
-        f"{len(summary.failures)} episode(s) ended on an infrastructure failure[/] "
-        f"(see {escape(str(out / 'failures.jsonl'))}); --resume plays them again"
-        if summary.failures
-        else None,
-    )
+    wrote = f"wrote {escape(str(out))}; score it: vge replay {escape(str(out))} --bench {escape(str(bench))} --out OUT"
+    failed = len(summary.failures)
+    listed = escape(str(out / "failures.jsonl"))
+    problem = f"{failed} episode(s) ended on an infrastructure failure[/] (see {listed}); --resume plays them again"
+    finish(out_console, wrote, problem if failed else None)
 
 
 def register(app: typer.Typer) -> None:
