@@ -21,11 +21,14 @@ CLICK_ACTIONS = (*INTERACTIONS, SWITCH_VIEW)
 when the point is on its panel, PROTOCOL §3.2)."""
 
 PARAM_HINTS: dict[str, tuple[str, str]] = {
-    "Press": ("0", "0: a short press, 1: press and hold, 2: double press"),
-    "Rotate": ("0, 1", "direction (0: clockwise, 1: counter-clockwise), then steps; * for any"),
-    "Push": ("4", "direction: 0 up, 1 down, 2 left, 3 right, 4 in"),
-    "Pull": ("4", "direction: 0 up, 1 down, 2 left, 3 right, 4 out"),
-    "Grasp": ("0", "0: pick up, 1: let go"),
+    DISPLAY_NAMES[action]: hint
+    for action, hint in {
+        "press": ("0", "0: a short press, 1: press and hold, 2: double press"),
+        "rotate": ("0, 1", "direction (0: clockwise, 1: counter-clockwise), then steps; * for any"),
+        "push": ("4", "direction: 0 up, 1 down, 2 left, 3 right, 4 in"),
+        "pull": ("4", "direction: 0 up, 1 down, 2 left, 3 right, 4 out"),
+        "grasp": ("0", "0: pick up, 1: let go"),
+    }.items()
 }
 """Default parameters of each interaction as the page pre-fills them, with what they mean
 (the conventions of the paper's action space; the device decides what it accepts)."""

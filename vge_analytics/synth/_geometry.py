@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from replay import DASHBOARD
+from replay import AXONOMETRIC_VIEWS, DASHBOARD
 
 from ._catalog import ComponentSpec
 
@@ -176,12 +176,16 @@ def axo_axes(view: str) -> tuple[tuple[float, ...], tuple[float, ...], tuple[flo
     """(e_u, e_v, toward) of an axonometric view."""
     yaw = math.radians(32.0)
     pitch = math.radians(28.0)
-    if view == "front_top":
-        c = (math.sin(yaw) * math.cos(pitch), -math.cos(yaw) * math.cos(pitch), math.sin(pitch))
-    elif view == "back_bottom":
-        c = (-math.sin(yaw) * math.cos(pitch), math.cos(yaw) * math.cos(pitch), -math.sin(pitch))
-    else:
+    # The first axonometric view looks from the front-right and above, the second from
+    # exactly the opposite direction.
+    if view not in AXONOMETRIC_VIEWS:
         raise ValueError(f"not an axonometric view: {view}")
+    sign = 1.0 if view == AXONOMETRIC_VIEWS[0] else -1.0
+    c = (
+        sign * (math.sin(yaw) * math.cos(pitch)),
+        sign * -(math.cos(yaw) * math.cos(pitch)),
+        sign * math.sin(pitch),
+    )
     # Screen right = forward x up, forward = -c, up = +z.
     right = (-c[1], c[0], 0.0)
     norm = math.hypot(right[0], right[1])
