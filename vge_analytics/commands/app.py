@@ -23,13 +23,14 @@ from pathlib import Path
 import typer
 
 from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
-from vge_analytics.metrics._set import load_metrics
-from vge_analytics.store._isolated import SLOT_WAIT, default_max_queries
-from vge_analytics.store._limits import (
+from vge_analytics.metrics import load_metrics
+from vge_analytics.store import (
     APP_MAX_ROWS,
     APP_TIMEOUT,
     CLI_TIMEOUT,
+    SLOT_WAIT,
     SqlLimits,
+    default_max_queries,
     format_size,
 )
 
