@@ -1,7 +1,7 @@
 """`vge diff`: hand-worked pairs of trajectories, and the bundled sample against an
 independent query.
 
-Hand-worked runs A and B (`hand_pair`): copies of the kettle_c task (tests/data/hand_worked/
+Hand-worked runs A and B (`hand_pair`, built by `diff_pair.py`): copies of the kettle_c task (tests/data/hand_worked/
 kettle_c_parse_multigoal_chain.json, λ 2, budget 8 steps). Its full log (8 steps) leaves,
 step by step (state_after, view right throughout): 0 Standby (Click: action_error),
 1 LidOpen, 2 LidOpen (two actions: action_error), 3 LidOpen (no action: action_error),
@@ -42,14 +42,7 @@ import vge_analytics as va
 from vge_analytics.cli import main
 from vge_analytics.reports import NO_ERROR
 
-from .conftest import HAND, replay_to, write_bench, write_run
-
-LID_OPEN = "Action: Push(coord=[480, 90], params=[1])"
-LID_CLOSE = "Action: Push(coord=[480, 90], params=[0])"
-POWER_ON = "Action: Push(coord=[500, 850], params=[1])"
-WAIT = "Action: Timed_wait()"
-OUTSIDE = "Action: Push(coord=[1200, 90], params=[0])"
-TO_FRONT = "Action: Switch_view(params=[front])"
+from .diff_pair import build_hand_pair
 
 COLUMNS = [
     "episode_id",
@@ -67,46 +60,9 @@ EXPECTED = {
 }
 
 
-def _outputs(*actions: str) -> list[dict]:
-    return [{"output": f"Thinking: next.\n{a}"} for a in actions]
-
-
 @pytest.fixture(scope="module")
 def hand_pair(tmp_path_factory) -> Path:
-    doc = json.loads((HAND / "kettle_c_parse_multigoal_chain.json").read_text())
-    full = doc["episode"]["steps"]
-    optimal = _outputs(LID_OPEN, LID_CLOSE, POWER_ON, WAIT)
-    swapped = [*full[:2], full[4], full[3], full[2], *full[5:]]
-    a = {
-        "same": full,
-        "prefix": full,
-        "longer": full[:5],
-        "view": full,
-        "clean": full,
-        "swapped": full,
-        "late": optimal,
-    }
-    b = {
-        "same": full,
-        "prefix": full[:2],
-        "longer": full,
-        "view": [*full[:2], *_outputs(TO_FRONT)],
-        "clean": optimal,
-        "swapped": swapped,
-        "late": [*optimal[:1], *_outputs(OUTSIDE), *optimal[1:]],
-        "only-b": full,
-    }
-    ids = [*b, "only-c"]
-    tasks = [{**doc["task"], "episode_id": i} for i in ids]
-    root = tmp_path_factory.mktemp("diff")
-    bench = write_bench(root, [doc], tasks)
-
-    def run(run_id: str, logs: dict[str, list]) -> Path:
-        header = {"run_id": run_id, "model": f"model-{run_id}", "agent_kind": "vlm"}
-        return write_run(root, header, [{"episode_id": k, "steps": v} for k, v in logs.items()])
-
-    runs = [run("A", a), run("B", b), run("C", {"only-c": full})]
-    return replay_to(root / "out", runs, bench)
+    return build_hand_pair(tmp_path_factory.mktemp("diff"))
 
 
 def test_the_hand_worked_steps_are_what_the_docstring_says(hand_pair: Path) -> None:
