@@ -38,7 +38,7 @@ episode = c3.selectbox(
 row = rows.filter(rows["episode_id"] == episode).row(0, named=True)
 st.markdown(dash.pair_summary(row))
 
-both = {run_a: data.episode_steps(run_a, episode), run_b: data.episode_steps(run_b, episode)}
+both = {run_a: data.side_steps(run_a, episode), run_b: data.side_steps(run_b, episode)}
 step = ui.side_step_slider(max(s.height for s in both.values()), dash.step_marks(row))
 ui.set_side_query(run_a, run_b, episode, step)
 

@@ -86,6 +86,7 @@ from ._rescore_page import (
     rescore_rankings,
 )
 from ._side_by_side import (
+    SIDE_STEP_COLUMNS,
     OptimalStep,
     SidePicture,
     default_episode,
@@ -95,6 +96,7 @@ from ._side_by_side import (
     pair_summary,
     side_caption,
     side_picture,
+    side_steps,
     step_label,
     step_marks,
 )
@@ -160,6 +162,8 @@ __all__ = [
     "scatter_boxes",
     "side_caption",
     "side_picture",
+    "side_steps",
+    "SIDE_STEP_COLUMNS",
     "SidePicture",
     "sql_caption",
     "sql_limits_note",

@@ -12,18 +12,38 @@ import polars as pl
 import replay
 
 from .._errors import UnknownRunError
-from ..reports import diff
+from ..reports import DIFF_COLUMNS, diff
 from ..store import episodes, steps
 from ._pictures import Box, device_machine, draw_step, view_boxes, view_picture
 
 
 def pair_rows(out, run_a: str, run_b: str) -> pl.DataFrame:
     """`vge diff` of the two runs (one row per common episode) with each episode's device."""
-    rows = diff(out, run_a, run_b).episodes
-    devices = episodes(out, where={"run_id": run_a}, columns=["episode_id", "device_id"])
-    return rows.join(devices, on="episode_id", how="left").select(
-        "episode_id", "device_id", *rows.columns[1:]
-    )
+    return diff(out, run_a, run_b).rows.select("episode_id", "device_id", *DIFF_COLUMNS[1:])
+
+
+SIDE_STEP_COLUMNS: tuple[str, ...] = (
+    "device_id",
+    "step",
+    "goal_index",
+    "state_before",
+    "view_before",
+    "dashboard_unlocked",
+    "action_raw",
+    "x",
+    "y",
+    "hit_components",
+    "progress",
+    "error_type",
+)
+"""The step columns the page shows and plans from (not the model's text: a full run's
+outputs would be read for nothing)."""
+
+
+def side_steps(out, run_id: str, episode_id: str) -> pl.DataFrame:
+    """Every logged step of a run's episode (`SIDE_STEP_COLUMNS`), in log order."""
+    where = {"run_id": run_id, "episode_id": episode_id}
+    return steps(out, where=where, columns=list(SIDE_STEP_COLUMNS))
 
 
 def _solved(column: str) -> pl.Expr:
@@ -148,7 +168,7 @@ class SidePicture:
 def side_picture(out, run_id: str, episode_id: str, step: int) -> SidePicture:
     """The view a run saw before `step`, with the components (grey), those the click hit
     (orange), the click (red x) and the box of the planner's optimal next action (blue)."""
-    episode = steps(out, where={"run_id": run_id, "episode_id": episode_id})
+    episode = side_steps(out, run_id, episode_id)
     if not 0 <= step < episode.height or episode["view_before"][step] is None:
         raise UnknownRunError(f"no replayed step {step} in episode {episode_id!r} of {run_id!r}")
     row = episode.row(step, named=True)
@@ -185,6 +205,8 @@ __all__ = [
     "pair_summary",
     "side_caption",
     "side_picture",
+    "side_steps",
+    "SIDE_STEP_COLUMNS",
     "step_label",
     "step_marks",
 ]

@@ -47,7 +47,7 @@ class Diff:
     run_b: str
     rows: pl.DataFrame
     """`DIFF_COLUMNS`, then `first_error_type_a` and `first_error_type_b` (the error type
-    at that step), sorted by episode_id."""
+    at that step) and `device_id`, sorted by episode_id."""
 
     @property
     def episodes(self) -> pl.DataFrame:

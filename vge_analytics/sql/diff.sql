@@ -1,7 +1,7 @@
 -- query: diff
 -- version: 1
 -- definition: Two runs' trajectories compared episode by episode (`vge diff`), one row per
---   episode both runs replayed: their scored steps (`L_act`) and success; each run's first
+--   episode both runs replayed: its device, their scored steps (`L_act`) and success; each run's first
 --   step with an error type and that type (null: no error); the first step at which the two
 --   replays' `state_after` or `view_after` differ, where a step that only one run has
 --   counts as a difference (so when one run is a prefix of the other it is the shorter
@@ -14,11 +14,12 @@
 WITH pair AS (
     SELECT
         a.episode_id,
+        a.device_id,
         a."L_act" AS steps_a,
         b."L_act" AS steps_b,
         a.success AS success_a,
         b.success AS success_b
-    FROM (SELECT episode_id, "L_act", success FROM episodes WHERE run_id = $1) AS a
+    FROM (SELECT episode_id, device_id, "L_act", success FROM episodes WHERE run_id = $1) AS a
     JOIN (SELECT episode_id, "L_act", success FROM episodes WHERE run_id = $2) AS b
         ON a.episode_id = b.episode_id
     WHERE CAST($3 AS VARCHAR[]) IS NULL
@@ -69,7 +70,8 @@ SELECT
     errors_b.first_error AS first_error_b,
     difference.first_difference,
     errors_a.error_type AS first_error_type_a,
-    errors_b.error_type AS first_error_type_b
+    errors_b.error_type AS first_error_type_b,
+    pair.device_id
 FROM pair
 LEFT JOIN errors_a ON errors_a.episode_id = pair.episode_id
 LEFT JOIN errors_b ON errors_b.episode_id = pair.episode_id
