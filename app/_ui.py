@@ -11,8 +11,8 @@ fingerprint of its definitions in the key.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
-from typing import Any, NamedTuple
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple, TypeVar
 
 import pandas as pd
 import polars as pl
@@ -25,6 +25,8 @@ from vge_analytics import dashboard as dash
 from vge_analytics import play
 from vge_analytics.store import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits, default_max_queries
 
+R = TypeVar("R")
+
 PAGES: dict[str, str] = {
     "leaderboard": "views/leaderboard.py",
     "errors": "views/errors.py",
@@ -32,6 +34,7 @@ PAGES: dict[str, str] = {
     "grounding": "views/grounding.py",
     "budgets": "views/budgets.py",
     "human_vs_vlm": "views/human_vs_vlm.py",
+    "side_by_side": "views/side_by_side.py",
     "rescore": "views/rescore.py",
     "episode_viewer": "views/episode_viewer.py",
     "sql": "views/sql.py",
@@ -90,6 +93,17 @@ class PageStopped(Exception):  # noqa: N818 - a control-flow signal, like st.sto
 def stop() -> None:
     """End the page here (the entry file catches this and finishes the run)."""
     raise PageStopped
+
+
+def or_stop(fn: Callable[..., R], *args: Any, **kwargs: Any) -> R:
+    """`fn(*args, **kwargs)`; when it raises an analytics error (runs that cannot be
+    compared, a query past its limit), the error is shown and the page ends there."""
+    try:
+        return fn(*args, **kwargs)
+    except va.AnalyticsError as exc:
+        show_error(exc)
+        stop()
+        raise  # not reached: stop() raises
 
 
 def end_of_page() -> None:
@@ -388,23 +402,37 @@ _VIEWER_KEYS = {"run": "viewer_run", "episode": "viewer_episode", "step": "viewe
 def apply_viewer_query(runs: Sequence[str]) -> None:
     """Open the episode the URL names (`?run=...&episode=...&step=...`) when the URL changed
     (a drill-down link or a pasted address); the pickers keep the user's choice otherwise."""
-    query = {k: st.query_params.get(k) for k in _VIEWER_KEYS}
-    if query["run"] not in runs or query == st.session_state.get("viewer_applied"):
-        return
-    st.session_state["viewer_applied"] = query
-    st.session_state["viewer_run"] = query["run"]
-    if query["episode"]:
-        st.session_state["viewer_episode"] = query["episode"]
-    try:
-        st.session_state["viewer_step"] = int(query["step"] or 0)
-    except ValueError:
-        st.session_state["viewer_step"] = 0
+    _apply_query(_VIEWER_KEYS, "viewer_applied", runs)
 
 
 def set_viewer_query(run: str, episode: str, step: int) -> None:
     """Keep the URL in step with the pickers, so the address can be shared."""
-    query = viewer_query(run, episode, step)
-    st.session_state["viewer_applied"] = {k: query.get(k) for k in _VIEWER_KEYS}
+    _set_query(viewer_query(run, episode, step), _VIEWER_KEYS, "viewer_applied")
+
+
+def _apply_query(keys: dict[str, str], applied: str, runs: Sequence[str]) -> None:
+    """Put the URL's values (`keys`: query parameter -> widget key) into the pickers when
+    the URL changed since they were last applied (`applied`: where that is remembered) and
+    every run it names (parameters `run`, `a`, `b`) is one of `runs`. `step` is a number
+    (0 when it is not one); an absent value leaves its picker as it is."""
+    query = {k: st.query_params.get(k) for k in keys}
+    named = [query[k] for k in ("run", "a", "b") if k in keys]
+    if any(r not in runs for r in named) or query == st.session_state.get(applied):
+        return
+    st.session_state[applied] = query
+    for name, key in keys.items():
+        if name == "step":
+            try:
+                st.session_state[key] = int(query[name] or 0)
+            except ValueError:
+                st.session_state[key] = 0
+        elif query[name]:
+            st.session_state[key] = query[name]
+
+
+def _set_query(query: dict[str, str], keys: dict[str, str], applied: str) -> None:
+    """Show `query` in the URL, remembered as applied (so it is not applied back)."""
+    st.session_state[applied] = {k: query.get(k) for k in keys}
     if dict(st.query_params) != query:
         st.query_params.from_dict(query)
 
@@ -420,6 +448,77 @@ def step_slider(steps: pl.DataFrame) -> int:
         st.caption("One step.")
         return 0
     return int(st.slider("Step", 0, last, key="viewer_step"))
+
+
+# ------------------------------------------------------------------------ side by side
+
+_SIDE_KEYS = {"a": "sbs_a", "b": "sbs_b", "episode": "sbs_episode", "step": "sbs_step"}
+
+
+def side_query(run_a: str, run_b: str, episode_id: str, step: int | None = None) -> dict[str, str]:
+    """Query parameters that open the Side by side page on two runs' episode (and step)."""
+    query = {"a": str(run_a), "b": str(run_b), "episode": str(episode_id)}
+    if step is not None:
+        query["step"] = str(int(step))
+    return query
+
+
+def apply_side_query(runs: Sequence[str]) -> None:
+    """Open the runs and episode the URL names (`?a=...&b=...&episode=...&step=...`) when
+    the URL changed (a link from Human vs VLM, a pasted address)."""
+    _apply_query(_SIDE_KEYS, "sbs_applied", runs)
+
+
+def set_side_query(run_a: str, run_b: str, episode: str, step: int) -> None:
+    """Keep the URL in step with the Side by side pickers, so the address can be shared."""
+    _set_query(side_query(run_a, run_b, episode, step), _SIDE_KEYS, "sbs_applied")
+
+
+def open_side_by_side_link(df: pl.DataFrame, selection: Any, run_a: str, run_b: str) -> None:
+    """A link to the Side by side page for the selected row's episode in runs A and B."""
+    row = selected_row(df, selection)
+    if row is None:
+        return
+    st.page_link(
+        PAGES["side_by_side"],
+        label=f"Side by side: {row['episode_id']} in {run_a} and {run_b}",
+        icon=":material/splitscreen:",
+        query_params=side_query(run_a, run_b, row["episode_id"]),
+    )
+
+
+def _go_to_step(step: int) -> None:
+    st.session_state["sbs_step"] = step
+
+
+def side_step_slider(n_steps: int, marks: dict[int, list[str]]) -> int:
+    """The shared step picker of the Side by side page, over `n_steps` (the longer log),
+    each step named with its marks (first difference, first errors), and a button per
+    marked step that jumps there; returns the chosen step."""
+    current = st.session_state.get("sbs_step", 0)
+    if not isinstance(current, int) or not 0 <= current < n_steps:
+        st.session_state["sbs_step"] = 0
+    buttons = st.columns(max(len(marks), 1))
+    for column, (step, texts) in zip(buttons, sorted(marks.items()), strict=False):
+        column.button(
+            f"Step {step}: {', '.join(texts)}",
+            key=f"sbs_jump_{step}",
+            on_click=_go_to_step,
+            args=(step,),
+            disabled=step >= n_steps,
+        )
+    if n_steps <= 1:
+        st.session_state["sbs_step"] = 0
+        st.caption("One step.")
+        return 0
+    return int(
+        st.select_slider(
+            "Step (both runs)",
+            options=list(range(n_steps)),
+            format_func=lambda k: dash.step_label(k, marks),
+            key="sbs_step",
+        )
+    )
 
 
 # --------------------------------------------------------------------------------- SQL

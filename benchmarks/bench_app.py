@@ -16,9 +16,15 @@ loaded):
 
 Results go to stdout as a markdown table (docs/PERFORMANCE.md, section "Dashboard").
 
-`--screenshots DIR` also saves small screenshots of five pages there (`app-<page>.png`, the
+`--screenshots DIR` also saves small screenshots of six pages there (`app-<page>.png`, the
 ones docs/APP.md shows), the episode viewer opened at the first component-selection error of
-the most successful model run.
+the most successful model run, the Side by side page on the reference run and that model at
+the first difference of the first episode only one of them solved whose picture there shows
+the planner's optimal box.
+
+Besides the pages as they open, the Side by side page is timed on the heaviest pair it can
+be asked for: the two model runs with the most episodes (their diff over every common
+episode is computed on the first visit).
 
 `--sweep` also times the lambda sweep of every run (computed once and kept on disk; without
 it the Budgets page of a large OUT shows a button instead of computing it on a page load).
@@ -50,6 +56,7 @@ PAGES: tuple[tuple[str, str, str], ...] = (
     ("Grounding", "grounding", "Click points"),
     ("Budgets", "budgets", "Budgets"),
     ("Human vs VLM", "human_vs_vlm", "common episodes"),
+    ("Side by side", "side_by_side", "Run B"),
     ("Episode viewer", "episode_viewer", "Download episode as MCAP"),
     ("SQL", "sql", "rows"),
 )
@@ -78,6 +85,43 @@ def _trim(png: Path, width: int = 900) -> None:
     img.quantize(colors=256, dither=Image.Dither.NONE).save(png, optimize=True)
 
 
+def side_by_side_shot(out: Path) -> str:
+    """The Side by side address of the screenshot: the reference run and the best model at
+    the first difference of the first episode one of them solved (of the first 50) whose
+    reference picture there has the optimal action's box."""
+    import polars as pl
+
+    import vge_analytics as va
+    from vge_analytics import dashboard as dash
+
+    references, models = dash.run_choices(va.runs(out))
+    a, b = references[0], next(m for m in models if m != references[0])
+    rows = dash.pair_rows(out, a, b).filter(
+        pl.col("success_a") != pl.col("success_b"),
+        pl.col("first_difference") < pl.min_horizontal("steps_a", "steps_b"),
+    )
+    chosen = rows.row(0, named=True)
+    for row in rows.head(50).iter_rows(named=True):
+        optimal = dash.side_picture(out, a, row["episode_id"], row["first_difference"]).optimal
+        if optimal is not None and optimal.boxes:
+            chosen = row
+            break
+    return (
+        f"side_by_side?a={a}&b={b}&episode={chosen['episode_id']}&step={chosen['first_difference']}"
+    )
+
+
+def largest_model_pair(out: Path) -> tuple[str, str] | None:
+    """The two non-human runs with the most episodes, or None."""
+    import polars as pl
+
+    import vge_analytics as va
+
+    runs = va.runs(out).filter(pl.col("agent_kind") != "human")
+    ids = runs.sort(["n_episodes", "run_id"], descending=[True, False])["run_id"].to_list()
+    return (ids[0], ids[1]) if len(ids) >= 2 else None
+
+
 def save_screenshots(browser: AppPage, out: Path, folder: Path) -> None:
     import vge_analytics as va
     from vge_analytics import dashboard as dash
@@ -87,7 +131,11 @@ def save_screenshots(browser: AppPage, out: Path, folder: Path) -> None:
     steps, _ = dash.error_step_sample(out, "component_selection", {"run_id": models[:1]}, limit=1)
     row = steps.row(0, named=True)
     viewer = f"episode_viewer?run={row['run_id']}&episode={row['episode_id']}&step={row['step']}"
-    shots = [*SHOTS, ("episode-viewer", viewer, "Download episode as MCAP")]
+    shots = [
+        *SHOTS,
+        ("episode-viewer", viewer, "Download episode as MCAP"),
+        ("side-by-side", side_by_side_shot(out), "Run B"),
+    ]
     browser.set_height(2400)
     for name, path, expect in shots:
         browser.open(path, expect)
@@ -135,6 +183,12 @@ def main() -> None:
         for _ in range(args.repeat):
             for title, path, expect in PAGES:
                 switch[title].append(browser.navigate(f"/{path}", expect, settle=0.2))
+        pair = largest_model_pair(out)
+        if pair is not None:
+            path = f"side_by_side?a={pair[0]}&b={pair[1]}"
+            heavy = f"Side by side, {pair[0]} and {pair[1]}"
+            first[heavy] = browser.open(path, "Run B", settle=0.2)
+            reload[heavy] = [browser.open(path, "Run B", settle=0.2) for _ in range(args.repeat)]
         if args.screenshots is not None:
             save_screenshots(browser, out, args.screenshots)
         chromium.close()
@@ -151,6 +205,8 @@ def main() -> None:
             f"| {title} | {first[title]:.2f} | {statistics.median(reload[title]):.2f} "
             f"| {statistics.median(switch[title]):.2f} | {max(switch[title]):.2f} |"
         )
+    for title in first.keys() - {t for t, _, _ in PAGES}:
+        print(f"| {title} | {first[title]:.2f} | {statistics.median(reload[title]):.2f} | – | – |")
     if sweep_note:
         print(f"\n{sweep_note}")
 

@@ -27,6 +27,10 @@ Comparisons and budgets:
     compare(out, run_a, run_b, seed=0, resamples=2000) -> Comparison
     sweep(out, lambdas=(2, 3, 4, 5), runs=None, metrics=("SR", "SSR"))
 
+Trajectories side by side (`vge diff`):
+    diff(out, run_a, run_b, episodes=None) -> Diff   per common episode: steps, success,
+                                                     first error of each, first difference
+
 Rows for a dashboard:
     runs(out), facets(out), episodes(out, where), goals(out, where), steps(out, where),
     episode_steps(out, run_id, episode_id), steps_with_error(out, error_type, where)
@@ -69,9 +73,11 @@ from .reports import (
     FORMATS,
     SWITCH_CLASSES,
     Comparison,
+    Diff,
     Rescore,
     compare,
     competition_ranks,
+    diff,
     error_distribution,
     error_groups,
     kendall_tau_b,
@@ -119,6 +125,8 @@ __all__ = [
     "clear_cache",
     "compare",
     "competition_ranks",
+    "Diff",
+    "diff",
     "episode_steps",
     "episode_terms",
     "episodes",

@@ -44,6 +44,11 @@ class UnknownRunError(ConfigError, AnalyticsError):
     """A run id that is not in OUT."""
 
 
+class CommonEpisodesError(AnalyticsError):
+    """Two runs cannot be compared episode by episode (`vge diff`): they share no episode,
+    or an episode asked for is not replayed in both."""
+
+
 class QueryRefused(AnalyticsError):
     """`vge sql` refused a statement (writing, or reaching outside OUT)."""
 
@@ -122,6 +127,7 @@ class SweepInputError(AnalyticsError):
 __all__ = [
     "AgentError",
     "AnalyticsError",
+    "CommonEpisodesError",
     "ContextExceededError",
     "InfrastructureError",
     "MetricFileError",

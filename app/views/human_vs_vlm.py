@@ -51,9 +51,10 @@ st.subheader("Episodes that flip")
 flips = dash.flip_rows(cmp.flips, model, human)
 st.caption(
     f"{flips.height} episodes solved by one run only; select one to open it in the run that "
-    "failed it (`run_id`)."
+    "failed it (`run_id`), or both runs side by side."
 )
 picked = st.dataframe(
     flips, hide_index=True, on_select="rerun", selection_mode="single-row", key="hvv_flips"
 )
 ui.open_step_link(flips, picked)
+ui.open_side_by_side_link(flips, picked, human, model)

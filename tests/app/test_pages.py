@@ -250,6 +250,57 @@ def test_human_vs_vlm_page(app_env):
     assert len(charts(at)) == 2
 
 
+# --------------------------------------------------------------------- side by side
+
+
+def test_side_by_side_page(app_env):
+    at = open_page("side_by_side")
+    run_a, run_b = at.selectbox(key="sbs_a").value, at.selectbox(key="sbs_b").value
+    assert run_a == "sim-human" and run_b != run_a  # the reference first, as on Human vs VLM
+    rows = dash.pair_rows(app_env, run_a, run_b)
+    episode = at.selectbox(key="sbs_episode").value
+    assert episode == dash.default_episode(rows)
+    row = rows.filter(pl.col("episode_id") == episode).row(0, named=True)
+    assert at.main.markdown[0].value == dash.pair_summary(row)
+    assert at.select_slider(key="sbs_step").value == 0
+    assert len(at.get("image")) == 2  # one picture per run
+    assert dict(at.query_params) == {"a": run_a, "b": run_b, "episode": episode, "step": "0"}
+
+
+def test_side_by_side_from_a_link_with_marks(app_env):
+    rows = dash.pair_rows(app_env, "sim-vlm-a", "sim-vlm-f")
+    marked = rows.filter(
+        pl.col("first_difference") > 0,
+        pl.col("first_error_b").is_not_null(),
+        pl.col("steps_a") != pl.col("steps_b"),
+    )
+    row = marked.row(0, named=True)
+    query = {"a": "sim-vlm-a", "b": "sim-vlm-f", "episode": row["episode_id"], "step": "1"}
+    at = open_page("side_by_side", query=query)
+    assert at.selectbox(key="sbs_b").value == "sim-vlm-f"
+    assert at.selectbox(key="sbs_episode").value == row["episode_id"]
+    slider = at.select_slider(key="sbs_step")
+    assert slider.value == 1
+    marks = dash.step_marks(row)
+    logged = [
+        va.episode_steps(app_env, r, row["episode_id"]).height for r in ("sim-vlm-a", "sim-vlm-f")
+    ]
+    steps = max(logged)  # every logged step, truncated ones included, as in the viewer
+    assert slider.options == [dash.step_label(k, marks) for k in range(steps)]
+    jumps = {b.label: b for b in at.button}
+    first_difference = f"Step {row['first_difference']}: first difference"
+    assert any(label.startswith(first_difference) for label in jumps)
+    next(b for label, b in jumps.items() if label.startswith(first_difference)).click()
+    rerun(at)
+    assert at.select_slider(key="sbs_step").value == row["first_difference"]
+    assert at.query_params["step"] == str(row["first_difference"])
+    # Past the end of the shorter log, its side says so.
+    at.select_slider(key="sbs_step").set_value(steps - 1)
+    rerun(at)
+    assert any(f"ended after {min(logged)} steps" in i.value for i in at.info)
+    assert len(at.get("image")) == 1
+
+
 # ------------------------------------------------------------------- episode viewer
 
 

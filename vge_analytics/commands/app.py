@@ -182,7 +182,7 @@ def app(
     ),
 ) -> None:
     """Open the dashboard: leaderboard, errors, navigation, grounding, budgets, human vs VLM,
-    rescore, episode viewer and SQL over a replay output directory."""
+    side by side, rescore, episode viewer and SQL over a replay output directory."""
     resolved = check_out(out)
     folder = None
     if metrics_dir:

@@ -27,15 +27,18 @@ class Box:
     y1: float
     role: str
     """`target` (a target component of the current state for the current goal), `hit`
-    (hit by the click, not a target) or `component` (any other component of the view)."""
+    (hit by the click, not a target), `component` (any other component of the view) or
+    `optimal` (where the planner's optimal next action acts, PROTOCOL §4.5)."""
 
 
 ROLE_COLORS: dict[str, tuple[int, int, int]] = {
     "target": (38, 191, 77),
     "hit": (255, 153, 0),
     "component": (120, 120, 120),
+    "optimal": (30, 100, 235),
 }
-"""Box colours, as in the MCAP annotations: targets green, hits orange, others grey."""
+"""Box colours, as in the MCAP annotations: targets green, hits orange, others grey; the
+side-by-side view's optimal next action blue."""
 CLICK_COLOR = (230, 26, 26)
 
 
@@ -139,7 +142,7 @@ def draw_step(
     if not picture.rendered:
         draw.text((10, 10), "no image of this view in the benchmark", fill=(90, 90, 90))
     for box in boxes:
-        width = {"target": 3, "hit": 3, "component": 1}[box.role]
+        width = {"target": 3, "hit": 3, "component": 1, "optimal": 4}[box.role]
         color = ROLE_COLORS[box.role]
         xy = (box.x0 * sx, box.y0 * sy, box.x1 * sx, box.y1 * sy)
         draw.rectangle(xy, outline=color, width=width)

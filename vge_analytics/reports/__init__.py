@@ -1,4 +1,4 @@
-"""What is built on the metrics: paired comparisons, the error taxonomy and switch classes,
+"""What is built on the metrics: paired comparisons, trajectories side by side, the error taxonomy and switch classes,
 budget sweeps, rescoring and rankings, and tables rendered for people and for other tools."""
 
 from ._compare import (
@@ -7,6 +7,12 @@ from ._compare import (
     Comparison,
     compare,
     mcnemar_exact,
+)
+from ._diff import (
+    DIFF_COLUMNS,
+    NO_ERROR,
+    Diff,
+    diff,
 )
 from ._format import (
     FORMATS,
@@ -52,6 +58,9 @@ __all__ = [
     "DEFAULT_RESCORE_BY",
     "DEFAULT_SEED",
     "DEFAULT_SWEEP_METRICS",
+    "Diff",
+    "diff",
+    "DIFF_COLUMNS",
     "error_distribution",
     "ERROR_GROUPS",
     "error_groups",
@@ -62,6 +71,7 @@ __all__ = [
     "groups_of",
     "kendall_tau_b",
     "mcnemar_exact",
+    "NO_ERROR",
     "parse_lambdas",
     "render",
     "render_latex",

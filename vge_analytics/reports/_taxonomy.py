@@ -9,8 +9,6 @@ bound filters as the metrics.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from functools import cache
-from importlib import resources
 
 import polars as pl
 
@@ -27,6 +25,7 @@ from ..store import (
     quote_ident,
     run_query,
 )
+from ._queries import query_text
 
 ERROR_TYPES: tuple[str, ...] = tuple(replay.ERROR_TYPES)
 """The paper's seven error types, in the order of its tables."""
@@ -45,11 +44,6 @@ ERROR_LABELS: dict[str, str] = {
     "switch_view_pn": "Switch View PN",
 }
 """The paper's names of the error types (for tables meant for people)."""
-
-
-@cache
-def _query(name: str) -> str:
-    return (resources.files("vge_analytics") / "sql" / f"{name}.sql").read_text(encoding="utf-8")
 
 
 def _scoped(
@@ -78,7 +72,7 @@ def _run(
 ) -> pl.DataFrame:
     check_columns(store, [*by, *(where or {})], ["steps"], "grouping/filter")
     scoped, scope_params = _scoped(store, by, where, column, count)
-    sql = f"WITH scoped AS ({scoped}) SELECT * FROM ({_query(name)}) AS q"
+    sql = f"WITH scoped AS ({scoped}) SELECT * FROM ({query_text(name)}) AS q"
     df = run_query(store, sql, [*scope_params, *params])
     df = df.unnest("__g")
     if not by:

@@ -1,0 +1,50 @@
+"""`vge diff OUT RUN_A RUN_B`: two runs' trajectories episode by episode: where they part,
+where each first erred."""
+
+from __future__ import annotations
+
+import typer
+
+from .._errors import AnalyticsError
+from ..reports import diff as compute_diff
+from ..store import query_time_limit
+from ._options import episode_ids, ids_option, out_argument, timeout_option
+from ._output import emit, emit_sections
+
+DIFF_FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown")
+
+
+def diff(
+    out: str = out_argument(),
+    run_a: str = typer.Argument(..., help="Run A."),
+    run_b: str = typer.Argument(..., help="Run B."),
+    episodes: str = ids_option("--episodes", "Only these episodes (each must be in both runs)."),
+    fmt: str = typer.Option(
+        "table",
+        "--format",
+        "-f",
+        help="Output format: table (for people), json (the rows only), csv or markdown.",
+    ),
+    timeout: float = timeout_option(),
+) -> None:
+    """Two runs' trajectories side by side, one row per common episode.
+
+    Scored steps and success of each run, each run's first step with an error type, and the
+    first step at which the replays' state or view differ (the shorter length when one run
+    is a prefix of the other; empty when identical). A summary follows: episodes by
+    (success_a, success_b), the median first difference, the error types at the first
+    errors.
+    """
+    with query_time_limit(timeout):
+        if fmt not in DIFF_FORMATS:
+            # Not latex: a row per episode is no table for a paper.
+            raise AnalyticsError(f"unknown format {fmt!r}; choose one of {', '.join(DIFF_FORMATS)}")
+        result = compute_diff(out, run_a, run_b, episodes=episode_ids(episodes, "--episodes"))
+        if fmt == "json":  # the rows alone: what another tool reads
+            emit(result.episodes, fmt)
+        else:
+            emit_sections(result.sections(), fmt)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("diff")(diff)
