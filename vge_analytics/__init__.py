@@ -27,6 +27,9 @@ Comparisons and budgets:
     compare(out, run_a, run_b, seed=0, resamples=2000) -> Comparison
     sweep(out, lambdas=(2, 3, 4, 5), runs=None, metrics=("SR", "SSR"))
 
+Completeness (run.json's `complete`, PROTOCOL §7.5):
+    completeness(out, run_ids=None), incomplete_runs(out, run_ids=None) -> [RunCompleteness]
+
 Rows for a dashboard:
     runs(out), facets(out), episodes(out, where), goals(out, where), steps(out, where),
     episode_steps(out, run_id, episode_id), steps_with_error(out, error_type, where)
@@ -88,10 +91,13 @@ from .reports import (
     SWITCH_CLASSES,
     Comparison,
     Rescore,
+    RunCompleteness,
     compare,
     competition_ranks,
+    completeness,
     error_distribution,
     error_groups,
+    incomplete_runs,
     kendall_tau_b,
     mcnemar_exact,
     parse_lambdas,
@@ -145,6 +151,7 @@ __all__ = [
     "RunDirError",
     "RunStoppedError",
     "Rescore",
+    "RunCompleteness",
     "ServerUnreachableError",
     "SweepInputError",
     "SweepRefused",
@@ -154,6 +161,7 @@ __all__ = [
     "clear_cache",
     "compare",
     "competition_ranks",
+    "completeness",
     "episode_steps",
     "episode_terms",
     "episodes",
@@ -163,6 +171,7 @@ __all__ = [
     "get_metric",
     "goals",
     "groupable_columns",
+    "incomplete_runs",
     "kendall_tau_b",
     "load_metrics",
     "mcnemar_exact",

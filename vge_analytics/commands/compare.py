@@ -7,6 +7,7 @@ import typer
 from ..reports import DEFAULT_RESAMPLES, DEFAULT_SEED, check_format
 from ..reports import compare as compute_compare
 from ..store import query_time_limit
+from ._complete import warn_incomplete
 from ._options import format_option, metrics_dir_option, out_argument, timeout_option
 from ._output import emit_sections
 
@@ -38,6 +39,7 @@ def compare(
             resamples=resamples,
             metrics_dir=metrics_dir,
         )
+        warn_incomplete(out, [run_a, run_b])
         emit_sections(result.sections(), fmt)
 
 

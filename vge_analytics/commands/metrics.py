@@ -12,6 +12,7 @@ from ..metrics import MAIN_TABLE, MetricSet, load_metrics, metric_table
 from ..metrics import metrics as compute_metrics
 from ..reports import check_format
 from ..store import DEFAULT_BY, parse_by, query_time_limit
+from ._complete import PEOPLE_FORMATS, marked, marked_rows, warn_incomplete
 from ._options import format_option, metrics_dir_option, timeout_option, where_option
 from ._output import emit
 
@@ -102,11 +103,17 @@ def metrics(
             raise click.UsageError("Missing argument 'OUT' (or --list to list the metrics).")
         by_cols = parse_by(by)
         chosen = list(MAIN_TABLE) if metric_names == "main" else metric_names
-        df = compute_metrics(
-            out, by=by_cols, metrics=chosen, where=parse_where(where), metrics_dir=available
-        )
-        if fmt in ("table", "markdown", "latex"):
+        filters = parse_where(where)
+        df = compute_metrics(out, by=by_cols, metrics=chosen, where=filters, metrics_dir=available)
+        runs = warn_incomplete(out, filters.get("run_id"))
+        if fmt in PEOPLE_FORMATS:
+            incomplete = [r.run_id for r in runs if r.incomplete]
+            flags = df["run_id"].is_in(incomplete) if "run_id" in df.columns else None
             df = for_people(df, by_cols)
+            if flags is not None:  # the run's label: its id, or its model when that was dropped
+                df = marked_rows(df, "run_id" if "run_id" in df.columns else "model", flags)
+        else:
+            df = marked(df, runs, fmt, by_cols)
         emit(
             df,
             fmt,

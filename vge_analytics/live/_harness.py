@@ -135,7 +135,8 @@ def run_live(
     bench = replay.Benchmark.open(options.bench)
     selection = select_episodes(bench, options.episodes, options.limit)
     counters = Counters(
-        selected=len(selection), prices=(options.prompt_price, options.completion_price)
+        selected=len(selection),
+        prices=replay.Prices(options.prompt_price, options.completion_price),
     )
     rundir = RunDir(options.out)
     header = run_header(agent, options, counters)

@@ -75,17 +75,14 @@ class Counters:
     completion_tokens: int = 0
     latency_seconds: float = 0.0
     has_usage: bool = False
-    prices: tuple[float | None, float | None] = (None, None)
+    prices: replay.Prices = replay.Prices()
 
     @property
     def cost_usd(self) -> float | None:
-        prompt_price, completion_price = self.prices
-        if not self.has_usage or (prompt_price is None and completion_price is None):
+        """The run's tokens at its prices, by the rule the replay prices each step with."""
+        if not self.has_usage:
             return None
-        return (
-            self.prompt_tokens * (prompt_price or 0.0)
-            + self.completion_tokens * (completion_price or 0.0)
-        ) / 1e6
+        return replay.usage_cost(self.prompt_tokens, self.completion_tokens, self.prices)
 
     def add(self, log: replay.EpisodeLog, success: bool) -> None:
         self.finished += 1
@@ -107,10 +104,11 @@ def run_header(agent: LiveAgent, options: RunOptions, counters: Counters) -> rep
     selected = counters.selected
     meta: dict[str, Any] = dict(agent.settings())
     meta["episodes_selected"] = selected
+    # The prices stay in run.json: the replay prices every step with them (PROTOCOL §1.4).
     if options.prompt_price is not None:
-        meta["prompt_price_per_mtok"] = options.prompt_price
+        meta[replay.PROMPT_PRICE_KEY] = options.prompt_price
     if options.completion_price is not None:
-        meta["completion_price_per_mtok"] = options.completion_price
+        meta[replay.COMPLETION_PRICE_KEY] = options.completion_price
     meta |= {
         "episodes": counters.finished,
         "infrastructure_failures": counters.failures,

@@ -8,6 +8,15 @@ from ._compare import (
     compare,
     mcnemar_exact,
 )
+from ._completeness import (
+    INCOMPLETE_MARK,
+    RunCompleteness,
+    completeness,
+    incomplete_runs,
+    mark_incomplete,
+    mark_rows,
+    with_complete_column,
+)
 from ._format import (
     FORMATS,
     check_format,
@@ -48,6 +57,7 @@ __all__ = [
     "compare",
     "Comparison",
     "competition_ranks",
+    "completeness",
     "DEFAULT_RESAMPLES",
     "DEFAULT_RESCORE_BY",
     "DEFAULT_SEED",
@@ -60,7 +70,11 @@ __all__ = [
     "FORMATS",
     "group_label",
     "groups_of",
+    "INCOMPLETE_MARK",
+    "incomplete_runs",
     "kendall_tau_b",
+    "mark_incomplete",
+    "mark_rows",
     "mcnemar_exact",
     "parse_lambdas",
     "render",
@@ -69,8 +83,10 @@ __all__ = [
     "render_sections",
     "Rescore",
     "rescore",
+    "RunCompleteness",
     "stream_chunks",
     "sweep",
     "SWITCH_CLASSES",
     "switch_classes",
+    "with_complete_column",
 ]
