@@ -13,6 +13,7 @@ Metrics (PROTOCOL §6, one registry, SQL in `vge_analytics/sql/`):
     episode_terms(out, metrics=None, where=None)   per-episode numerators/denominators
     polars_metrics(out, by=..., metrics=...)       the same numbers computed with polars
     metric_table(), registry(), get_metric(name), METRIC_NAMES, MAIN_TABLE
+    CONTINUATION_METRICS (RecoveryRate, StepsToRecover: computed when named)
 
 Metrics that users define (a folder of `.sql` files in the format of the built-ins):
     load_metrics(folder=None) -> MetricSet          default $VGE_METRICS_DIR, else built-ins
@@ -70,6 +71,7 @@ from ._errors import (
     UnknownRunError,
 )
 from .metrics import (
+    CONTINUATION_METRICS,
     MAIN_TABLE,
     METRIC_NAMES,
     METRICS_DIR_ENV,
@@ -126,6 +128,7 @@ from .store import (
 )
 
 __all__ = [
+    "CONTINUATION_METRICS",
     "DEFAULT_BY",
     "ERROR_GROUPS",
     "ERROR_LABELS",

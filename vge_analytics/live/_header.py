@@ -14,6 +14,7 @@ import replay
 
 from .._errors import RunDirError
 from ._agents import AGENT_KINDS, LiveAgent
+from ._continue import ContinueFrom
 
 TOTAL_KEYS = (
     "episodes_selected",
@@ -57,6 +58,8 @@ class RunOptions(msgspec.Struct, frozen=True):
     """USD per million completion tokens."""
     max_consecutive_failures: int = 10
     """Infrastructure failures in a row (across episodes) that stop the run; 0: never."""
+    continuation: ContinueFrom | None = None
+    """A continuation run (`--from`, `--at`, `--fix`; PROTOCOL §10.4)."""
 
 
 @dataclass(slots=True)
@@ -103,6 +106,8 @@ def run_header(agent: LiveAgent, options: RunOptions, counters: Counters) -> rep
         raise RunDirError(f"--agent-kind must be one of {', '.join(AGENT_KINDS)}")
     selected = counters.selected
     meta: dict[str, Any] = dict(agent.settings())
+    if options.continuation is not None:  # a setting: --resume must keep it
+        meta["counterfactual"] = options.continuation.meta()
     meta["episodes_selected"] = selected
     # The prices stay in run.json: the replay prices every step with them (PROTOCOL §1.4).
     if options.prompt_price is not None:
