@@ -106,3 +106,24 @@ def test_a_price_that_is_not_one_stops_the_replay(
     assert code == 1 and "\n" not in err
     assert str(run / "run.json") in err
     assert f"meta.prompt_price_per_mtok must be a non-negative number of USD, not {price!r}" in err
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("prompt_tokens", -1), ("completion_tokens", 2**40 + 1), ("latency_seconds", -0.5)],
+)
+def test_a_count_out_of_bounds_is_an_invalid_record(
+    tmp_path: Path, field: str, value: float
+) -> None:
+    """PROTOCOL §1.4: token counts from 0 to 2^40, latencies of at least 0 seconds."""
+    bench = _bench(tmp_path)
+    run = _run(tmp_path, "odd", {}, usage=True)
+    line = json.loads((run / "episodes.jsonl").read_text())
+    line["steps"][2][field] = value
+    (run / "episodes.jsonl").write_text(json.dumps(line) + "\n")
+    manifest = replay.replay_runs([run], bench, tmp_path / "out", progress=False)
+    assert manifest.run("odd").quarantine == {"invalid_record": 1}
+    (record,) = [
+        json.loads(x) for x in (tmp_path / "out" / "quarantine.jsonl").read_text().splitlines()
+    ]
+    assert f"$.steps[2].{field}" in record["reason"]

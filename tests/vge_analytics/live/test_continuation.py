@@ -211,3 +211,17 @@ def test_an_openai_agent_hears_the_steps_before_the_cut_as_its_own(
     assert "(part 2 of 3 of the task)" in last
     steps = _lines(cont)["three"]["steps"]
     assert [s.get("prompt_tokens") for s in steps] == [None, None, 1000, 1000]  # the agent's only
+
+
+def test_both_engines_replay_a_continuation_to_the_same_files(
+    kettle_bench: Path, source: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    cont = tmp_path / "fixed"
+    assert _continue(kettle_bench, source, cont, "after_fix", "--at", "first-error", "--fix") == 0
+    files = {}
+    for engine in ("reference", "kernel"):
+        monkeypatch.setattr("replay.io._worker.KERNEL", engine == "kernel")
+        out = tmp_path / engine
+        replay.replay_runs([cont], kettle_bench, out, progress=False)
+        files[engine] = {str(p.relative_to(out)): p.read_bytes() for p in out.rglob("*.parquet")}
+    assert files["reference"] == files["kernel"] and len(files["kernel"]) == 4
