@@ -383,3 +383,37 @@ def click_scatter(
         )
     )
     return alt.layer(image, rects, dots).properties(width=width, height=height)
+
+
+def cost_frontier(plane: pl.DataFrame):
+    """SR against the cost per episode, one point per run (`dashboard.cost_frontier`): the
+    runs on the frontier in green, joined by the staircase no other run gets above-left of."""
+    df = plane.to_pandas()
+    x = alt.X("cost_per_episode:Q", title="USD per episode", scale=alt.Scale(zero=False))
+    y = alt.Y("SR:Q", title="SR (%)", scale=alt.Scale(domain=[0, 100]))
+    points = (
+        alt.Chart(df)
+        .mark_circle(size=90)
+        .encode(
+            x=x,
+            y=y,
+            color=alt.Color(
+                "frontier:N",
+                title="on the frontier",
+                scale=alt.Scale(domain=[True, False], range=["#2ca02c", "#9e9e9e"]),
+            ),
+            tooltip=[
+                "run_id",
+                alt.Tooltip("SR:Q", format=".1f"),
+                alt.Tooltip("cost_per_episode:Q", format="$.4f", title="USD per episode"),
+                "frontier",
+            ],
+        )
+    )
+    labels = points.mark_text(align="left", dx=8, dy=-6).encode(text="run_id:N")
+    line = (
+        alt.Chart(df[df["frontier"]])
+        .mark_line(interpolate="step-after", color="#2ca02c", opacity=0.6)
+        .encode(x=x, y=y)
+    )
+    return (line + points + labels).properties(height=320)

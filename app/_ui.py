@@ -273,6 +273,14 @@ def metric_column_config(names: Sequence[str]) -> dict[str, Any]:
     }
 
 
+def cost_column_config() -> dict[str, Any]:
+    """Column formats for the leaderboard's cost columns: dollars, 4 decimals."""
+    return {
+        name: st.column_config.NumberColumn(header, format="$%.4f")
+        for name, header in dash.COST_COLUMNS.items()
+    }
+
+
 def best_styler(df: pl.DataFrame, metric_names: Sequence[str]) -> Any:
     """A pandas Styler of `df` with each metric's best value(s) in bold on green."""
     best = dash.best_rows(df, metric_names, metric_set())

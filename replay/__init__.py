@@ -104,6 +104,7 @@ from .semantics._records import (
     SCHEMA_VERSION,
     ActionRecord,
     BBox,
+    Continuation,
     Dashboard,
     DashboardRegion,
     EpisodeLog,
@@ -117,6 +118,15 @@ from .semantics._records import (
 from .semantics._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
 from .semantics._step import Outcome, SimState, reset, step
 from .semantics._tables import TABLE_ROWS, arrow_schema, rows_to_table
+from .semantics._usage import (
+    COMPLETION_PRICE_KEY,
+    ORIGINS,
+    PROMPT_PRICE_KEY,
+    Prices,
+    origin_of,
+    run_prices,
+    usage_cost,
+)
 from .semantics._vocab import (
     ACTION_NAMES,
     AXONOMETRIC_VIEWS,
@@ -143,6 +153,7 @@ from .semantics._vocab import (
 __all__ = [
     "ACTION_NAMES",
     "AXONOMETRIC_VIEWS",
+    "COMPLETION_PRICE_KEY",
     "DASHBOARD",
     "DEFAULT_LAMBDA",
     "DISPLAY_NAMES",
@@ -155,9 +166,11 @@ __all__ = [
     "MAX_IMAGE_BYTES",
     "MAX_RECORD_BYTES",
     "MCAP_LIBRARY",
+    "ORIGINS",
     "ORTHOGRAPHIC_VIEWS",
     "OUTPUT_RECORDS",
     "PARSE_DETAILS",
+    "PROMPT_PRICE_KEY",
     "QUARANTINE_KINDS",
     "SCALE",
     "SCHEMA_VERSION",
@@ -186,6 +199,7 @@ __all__ = [
     "compile_machine",
     "CompiledTransition",
     "ConfigError",
+    "Continuation",
     "Dashboard",
     "DashboardRegion",
     "decode_state_machine",
@@ -222,6 +236,7 @@ __all__ = [
     "next_optimal_step",
     "normalize_param",
     "normalize_params",
+    "origin_of",
     "Outcome",
     "parse_action",
     "parse_log_step",
@@ -229,6 +244,7 @@ __all__ = [
     "Plan",
     "plan_goals",
     "PlannedStep",
+    "Prices",
     "Problem",
     "progressing",
     "QuarantineRecord",
@@ -245,6 +261,7 @@ __all__ = [
     "rows_to_table",
     "run_header_bytes",
     "run_lambda",
+    "run_prices",
     "RunEntry",
     "RunHeader",
     "safe_file_name",
@@ -263,6 +280,7 @@ __all__ = [
     "termination_after",
     "timestamp_seconds",
     "Transition",
+    "usage_cost",
     "validate_benchmark",
     "validate_machine",
     "validate_run",

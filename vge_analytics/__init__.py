@@ -13,6 +13,7 @@ Metrics (PROTOCOL §6, one registry, SQL in `vge_analytics/sql/`):
     episode_terms(out, metrics=None, where=None)   per-episode numerators/denominators
     polars_metrics(out, by=..., metrics=...)       the same numbers computed with polars
     metric_table(), registry(), get_metric(name), METRIC_NAMES, MAIN_TABLE
+    CONTINUATION_METRICS (RecoveryRate, StepsToRecover: computed when named)
 
 Metrics that users define (a folder of `.sql` files in the format of the built-ins):
     load_metrics(folder=None) -> MetricSet          default $VGE_METRICS_DIR, else built-ins
@@ -30,6 +31,9 @@ Comparisons and budgets:
 Trajectories side by side (`vge diff`):
     diff(out, run_a, run_b, episodes=None) -> Diff   per common episode: steps, success,
                                                      first error of each, first difference
+
+Completeness (run.json's `complete`, PROTOCOL §7.5):
+    completeness(out, run_ids=None), incomplete_runs(out, run_ids=None) -> [RunCompleteness]
 
 Rows for a dashboard:
     runs(out), facets(out), episodes(out, where), goals(out, where), steps(out, where),
@@ -53,6 +57,7 @@ Errors are `replay.VGEError` subclasses with one-line messages.
 from . import _errors
 from ._errors import *  # noqa: F403 - every error class is public (_errors.__all__)
 from .metrics import (
+    CONTINUATION_METRICS,
     MAIN_TABLE,
     METRIC_NAMES,
     METRICS_DIR_ENV,
@@ -75,11 +80,14 @@ from .reports import (
     Comparison,
     Diff,
     Rescore,
+    RunCompleteness,
     compare,
     competition_ranks,
+    completeness,
     diff,
     error_distribution,
     error_groups,
+    incomplete_runs,
     kendall_tau_b,
     mcnemar_exact,
     parse_lambdas,
@@ -109,6 +117,7 @@ from .store import (
 
 __all__ = [
     *_errors.__all__,
+    "CONTINUATION_METRICS",
     "DEFAULT_BY",
     "ERROR_GROUPS",
     "ERROR_LABELS",
@@ -122,9 +131,11 @@ __all__ = [
     "Metric",
     "MetricSet",
     "Rescore",
+    "RunCompleteness",
     "clear_cache",
     "compare",
     "competition_ranks",
+    "completeness",
     "Diff",
     "diff",
     "episode_steps",
@@ -136,6 +147,7 @@ __all__ = [
     "get_metric",
     "goals",
     "groupable_columns",
+    "incomplete_runs",
     "kendall_tau_b",
     "load_metrics",
     "mcnemar_exact",

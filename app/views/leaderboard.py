@@ -10,7 +10,8 @@ from vge_analytics import dashboard as dash
 st.title("Leaderboard")
 st.caption(
     "The paper's twelve metrics per group, computed from the replayed steps. Best value per column "
-    "in bold green (↑ higher is better, ↓ lower). Click a header to sort."
+    "in bold green (↑ higher is better, ↓ lower). Click a header to sort. Runs that recorded "
+    "their cost also get the cost per episode and per success."
 )
 note = dash.metrics_note(data.metric_set())
 if note:
@@ -30,11 +31,18 @@ with c4:
 
 where = ui.where(run_id=chosen_runs, category=categories, n_goals=goal_counts)
 names = ui.all_metrics()
-table = ui.labelled(data.metrics(by=list(by), where=where), by)
+incomplete = dash.incomplete_note(data.completeness())
+if incomplete:  # never shown as finished runs (PROTOCOL §10.3)
+    st.warning(incomplete, icon=":material/warning:")
+metrics = data.metrics(by=list(by), where=where)
+metrics = dash.with_costs(metrics, data.cost_table(list(by), where), by)
+table = dash.incomplete_groups(
+    ui.labelled(metrics, by), by, [r.run_id for r in data.completeness() if r.incomplete]
+)
 st.dataframe(
     ui.best_styler(table, names),
     hide_index=True,
-    column_config=ui.metric_column_config(names),
+    column_config={**ui.metric_column_config(names), **ui.cost_column_config()},
     key="leaderboard_table",
 )
 st.download_button("Download CSV", table.write_csv(), file_name="leaderboard.csv", mime="text/csv")
@@ -42,3 +50,18 @@ st.download_button("Download CSV", table.write_csv(), file_name="leaderboard.csv
 st.subheader("Per metric")
 long = dash.metrics_long(table, names, data.metric_set())
 st.altair_chart(charts.metric_bars(long, names, table["group"].to_list()))
+
+st.subheader("Cost and success")
+plane = dash.cost_frontier(data.cost_table(["run_id", "model"], where))
+if plane.height:
+    st.caption(
+        "One point per run that recorded its tokens with prices: SR against the cost per "
+        "episode. The line joins the runs no other run beats on both (cheaper and at least as "
+        "successful): the cost–success frontier."
+    )
+    st.altair_chart(charts.cost_frontier(plane))
+else:
+    st.caption(
+        "No run here recorded tokens with prices (`vge run --prompt-price ... "
+        "--completion-price ...`; simulated and human runs have none): no cost to plot."
+    )

@@ -25,7 +25,7 @@ from ..io._load import Benchmark
 from ..semantics._budget import episode_lambda
 from ..semantics._episode import EpisodeSession
 from ..semantics._machine import Machine
-from ..semantics._records import ActionRecord, LogStep
+from ..semantics._records import ActionRecord, Continuation, LogStep
 from ..semantics._rows import StepRow
 from ..semantics._vocab import DASHBOARD
 from ._bounds import BenchBounds, bench_bounds
@@ -38,7 +38,7 @@ STEP_FIELDS: tuple[str, ...] = tuple(StepRow.__struct_fields__)
 TERMINATED = "success"
 TRUNCATED = ("budget_global", "budget_local")
 
-_RESET_OPTIONS = ("episode_id",)
+_RESET_OPTIONS = ("episode_id", "continuation")
 
 
 def step_info(row: Sequence[Any]) -> dict[str, Any]:
@@ -48,9 +48,12 @@ def step_info(row: Sequence[Any]) -> dict[str, Any]:
     return {key: value for key, value in zip(STEP_FIELDS, row, strict=True) if value is not None}
 
 
-def log_step_of(action: str | Mapping[str, Any]) -> LogStep:
+def log_step_of(action: str | Mapping[str, Any] | LogStep) -> LogStep:
     """An action as the log carries it (PROTOCOL §1.4): text is the model's `output`; a
-    mapping is a structured `action` `{"type", "coord", "params"}`."""
+    mapping is a structured `action` `{"type", "coord", "params"}`; a log step is taken as
+    it is (a step of another run's log, replayed by a continuation)."""
+    if isinstance(action, LogStep):
+        return action
     if isinstance(action, str):
         return LogStep(output=action)
     if isinstance(action, Mapping):
@@ -138,7 +141,9 @@ class DeviceEnv(gymnasium.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, Any], dict[str, Any]]:
         """Start an episode: `options={"episode_id": ...}`, else a seeded choice among the
-        playable episodes of the pool."""
+        playable episodes of the pool. `options["continuation"]` (a `replay.Continuation`,
+        with an episode id) makes it an episode of a continuation run: its steps get their
+        origin from it (PROTOCOL §7.2, §10.4)."""
         super().reset(seed=seed)
         options = dict(options or {})
         unknown = sorted(set(options) - set(_RESET_OPTIONS))
@@ -147,17 +152,23 @@ class DeviceEnv(gymnasium.Env):
                 f"unknown reset option(s) {', '.join(unknown)}; known: {', '.join(_RESET_OPTIONS)}"
             )
         episode_id = options.get("episode_id")
+        continuation = options.get("continuation")
+        if continuation is not None and not isinstance(continuation, Continuation):
+            raise ConfigError("reset option continuation must be a replay.Continuation")
+        if continuation is not None and episode_id is None:
+            raise ConfigError("reset option continuation needs the episode_id it continues")
         if episode_id is not None:
-            self._start(str(episode_id))
+            self._start(str(episode_id), continuation)
         else:
             self._start_any()
         self._feedback = ("", "")
         return self._observation(), self._reset_info()
 
     def step(
-        self, action: str | Mapping[str, Any]
+        self, action: str | Mapping[str, Any] | LogStep
     ) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
-        """One agent response: the model's text, or a structured action."""
+        """One agent response: the model's text, or a structured action (or a `LogStep`
+        holding either)."""
         session = self.session
         if session is None:
             raise ResetNeeded("call reset() before step()")
@@ -183,7 +194,7 @@ class DeviceEnv(gymnasium.Env):
 
     # ------------------------------------------------------------------ internals
 
-    def _start(self, episode_id: str) -> None:
+    def _start(self, episode_id: str, continuation: Continuation | None = None) -> None:
         entry = self.bench.tasks.get(episode_id)
         if entry is None:
             raise ConfigError(f"episode {episode_id!r} is not in {self.bench.tasks_path}")
@@ -196,6 +207,7 @@ class DeviceEnv(gymnasium.Env):
             run_id=self._head[0],
             model=self._head[1],
             agent_kind=self._head[2],
+            continuation=continuation,
         )
         self.machine = machine
 

@@ -248,6 +248,8 @@ _RUN_COLUMNS = pa.schema(
         pa.field("quarantined", pa.int64(), nullable=False),
         pa.field("steps", pa.int64(), nullable=False),
         pa.field("diverged_steps", pa.int64(), nullable=False),
+        pa.field("complete", pa.bool_()),
+        pa.field("infrastructure_failures", pa.int64()),
         pa.field("engine_version", pa.string(), nullable=False),
         pa.field("meta", pa.string(), nullable=False),
     ]
@@ -276,6 +278,20 @@ def _meta_column(values: list[Any]) -> pa.Array:
     )
 
 
+def run_completeness(meta: dict[str, Any]) -> tuple[bool | None, int | None]:
+    """(complete, infrastructure_failures) as run.json's meta says them (`vge run` writes
+    both, PROTOCOL §10.2); None for a run that does not say (another harness, a synthetic
+    run) or says it in another type."""
+    complete = meta.get("complete")
+    failures = meta.get("infrastructure_failures")
+    return (
+        complete if isinstance(complete, bool) else None,
+        failures
+        if isinstance(failures, int) and not isinstance(failures, bool) and 0 <= failures < 1 << 63
+        else None,
+    )
+
+
 def runs_table(runs: list[RunEntry]) -> pa.Table:
     """One row per run: header, lambda, counts, meta as JSON and its scalars as columns."""
     fixed: dict[str, list[Any]] = {f.name: [] for f in _RUN_COLUMNS}
@@ -290,6 +306,9 @@ def runs_table(runs: list[RunEntry]) -> pa.Table:
         fixed["quarantined"].append(r.counts.quarantined)
         fixed["steps"].append(r.counts.steps)
         fixed["diverged_steps"].append(r.counts.diverged_steps)
+        complete, failures = run_completeness(r.run.meta)
+        fixed["complete"].append(complete)
+        fixed["infrastructure_failures"].append(failures)
         fixed["engine_version"].append(r.engine_version)
         fixed["meta"].append(_encoder.encode(r.run.meta).decode())
     arrays = [pa.array(fixed[f.name], f.type) for f in _RUN_COLUMNS]

@@ -10,6 +10,7 @@ from queue import Full, Queue
 
 from .._errors import ConfigError, InputError
 from ..semantics._records import RunHeader
+from ..semantics._usage import Prices, run_prices
 from ._fs import Location, location
 from ._lines import iter_lines
 from ._load import episodes_file, read_run_header
@@ -23,6 +24,7 @@ class RunInput:
     run_dir: str  # as given
     header: RunHeader
     episodes: Location
+    prices: Prices  # from the header's meta (PROTOCOL §1.4)
 
 
 def check_run_id(run_id: str, path: Location) -> None:
@@ -56,13 +58,17 @@ def read_runs(run_dirs: Sequence[str | os.PathLike[str]]) -> list[RunInput]:
             raise InputError(run_dir, "run directory not found")
         header = read_run_header(run_dir)
         check_run_id(header.run_id, location(run_dir) / "run.json")
+        try:
+            prices = run_prices(header.meta)
+        except ValueError as exc:
+            raise InputError(str(location(run_dir) / "run.json"), str(exc)) from None
         other = runs.get(header.run_id)
         if other is not None:
             raise ConfigError(
                 f"run_id {header.run_id!r} appears in two run directories: "
                 f"{other.run_dir} and {run_dir}"
             )
-        runs[header.run_id] = RunInput(run_dir, header, episodes_file(run_dir))
+        runs[header.run_id] = RunInput(run_dir, header, episodes_file(run_dir), prices)
     return [runs[k] for k in sorted(runs)]
 
 

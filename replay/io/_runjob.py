@@ -83,6 +83,7 @@ class RunJob:
                 None if options.mcap_episodes is None else frozenset(options.mcap_episodes)
             ),
             image_source=image_source,
+            prices=run.prices,
         )
         self.parts: dict[str, list[str]] = {name: [] for name in TABLE_ROWS}
         self.seen: dict[str, int] = {}
@@ -251,4 +252,3 @@ class RunJob:
                 mcap=f"mcap/{run_id}" if self.options.mcap else None,
             ),
         )
-

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, NamedTuple
 from urllib.parse import quote
 
+from ..semantics._usage import NO_PRICES, Prices
+
 if TYPE_CHECKING:
     from ._images import ImageSource
 
@@ -69,6 +71,7 @@ class RunContext:
     mcap: bool = False
     mcap_episodes: frozenset[str] | None = None
     image_source: ImageSource | None = None
+    prices: Prices = NO_PRICES  # the run's, for the cost columns (PROTOCOL §1.4)
 
     def wants_mcap(self, episode_id: str) -> bool:
         return self.mcap and (self.mcap_episodes is None or episode_id in self.mcap_episodes)

@@ -155,7 +155,11 @@ def _replay(state: WorkerState, task: BatchTask) -> BatchReport:
         if KERNEL:
             try:
                 tables = replay_kernel(
-                    episodes, run_id=ctx.run_id, model=ctx.model, agent_kind=ctx.agent_kind
+                    episodes,
+                    run_id=ctx.run_id,
+                    model=ctx.model,
+                    agent_kind=ctx.agent_kind,
+                    prices=ctx.prices,
                 )
             except Exception as exc:
                 for _, number, e in todo:  # an episode at fault raises, naming its line
@@ -237,6 +241,7 @@ def _replay_reference(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeR
             model=ctx.model,
             agent_kind=ctx.agent_kind,
             setup=e.setup,
+            prices=ctx.prices,
         )
     except Exception as exc:
         exc.vge_line = number  # type: ignore[attr-defined]

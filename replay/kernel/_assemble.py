@@ -9,6 +9,7 @@ import pyarrow as pa
 from ..semantics._plan import INF
 from ..semantics._rows import EpisodeRow, GoalRow, StepRow
 from ..semantics._tables import arrow_schema
+from ..semantics._usage import ORIGINS, Prices
 from ..semantics._vocab import (
     ACTION_NAMES,
     ERROR_DETAILS,
@@ -31,6 +32,8 @@ _ERROR_GROUPS = Words([ERROR_GROUPS[t] for t in ERROR_TYPES])
 _SWITCH_CLASSES = Words(SWITCH_CLASSES)
 _TERMINATIONS = Words(TERMINATIONS)
 _DIVERGENCE_FIELDS = Words(("feedback", "state", "view"))
+_ORIGINS = Words(ORIGINS)
+_PREFIX, _FIX, _AGENT = (ORIGINS.index(o) for o in ("prefix", "fix", "agent"))
 
 
 def _bitmap(valid: np.ndarray) -> tuple[pa.Buffer | None, int]:
@@ -74,7 +77,37 @@ def listed(offsets: np.ndarray, values: pa.Array) -> pa.Array:
     return pa.ListArray.from_arrays(pa.array(offsets, pa.int32()), values)
 
 
-def tables(out, vocab, episodes: list, head: tuple[str, str, str]) -> tuple:
+def cost_column(
+    prompt: np.ndarray, completion: np.ndarray, valid: np.ndarray, prices: Prices
+) -> pa.Array:
+    """`usage_cost` per row, as numpy computes it: the same IEEE operations in the same order
+    as the reference's Python floats (each ufunc rounds once; no fused multiply-add), so the
+    same bits. Null where no count was recorded, everywhere without a price."""
+    if not prices.known:
+        return pa.nulls(len(valid), pa.float64())
+    # A count not recorded is 0 in its buffer, as `usage_cost` counts it.
+    cost = (
+        prompt.astype(np.float64) * (prices.prompt or 0.0)
+        + completion.astype(np.float64) * (prices.completion or 0.0)
+    ) / 1e6
+    return numbers(cost, pa.float64(), valid)
+
+
+def origin_codes(step_k: np.ndarray, step_ep: np.ndarray, continuations: list) -> np.ndarray:
+    """The origin of each step (`usage.origin_of`, column by column): `prefix` before the
+    episode's prefix length, `fix` at it when fixed, `agent` after (and in ordinary runs)."""
+    prefix = np.array([c.prefix_steps if c is not None else 0 for c in continuations], np.int64)
+    fixed = np.array([c is not None and c.fixed for c in continuations], np.bool_)
+    if not len(step_k):
+        return np.zeros(0, np.int32)
+    p = prefix[step_ep]
+    codes = np.full(len(step_k), _AGENT, np.int32)
+    codes[(step_k == p) & fixed[step_ep]] = _FIX
+    codes[step_k < p] = _PREFIX
+    return codes
+
+
+def tables(out, vocab, episodes: list, head: tuple[str, str, str], prices: Prices) -> tuple:
     """(steps, episodes, goals) tables of a replayed batch, and rows per episode."""
     s, e, g = out.steps, out.episodes, out.goals
     n_eps = len(episodes)
@@ -152,6 +185,16 @@ def tables(out, vocab, episodes: list, head: tuple[str, str, str]) -> tuple:
         "diverged": numbers(sv["diverged"], pa.bool_(), sv["diverged_valid"]),
         "diverged_fields": listed(out.div_off.array(), coded(_DIVERGENCE_FIELDS, out.div.array())),
         "timestamp": numbers(sv["timestamp"], pa.float64(), sv["timestamp_valid"]),
+        "prompt_tokens": numbers(sv["prompt"], pa.int64(), sv["prompt_valid"]),
+        "completion_tokens": numbers(sv["completion"], pa.int64(), sv["completion_valid"]),
+        "latency_s": numbers(sv["latency"], pa.float64(), sv["latency_valid"]),
+        "cost_usd": cost_column(
+            sv["prompt"], sv["completion"], sv["prompt_valid"] | sv["completion_valid"], prices
+        ),
+        "origin": coded(
+            _ORIGINS,
+            origin_codes(sv["step_k"], sv["step_ep"], [ep.log.continuation for ep in episodes]),
+        ),
     }
 
     ev = {k: v[:n_eps] for k, v in e.items()}
@@ -185,6 +228,13 @@ def tables(out, vocab, episodes: list, head: tuple[str, str, str]) -> tuple:
         ),
         "visited_states": listed(out.e_visited_off.array(), coded(states, out.e_visited.array())),
         "optimal_states": listed(out.e_optimal_off.array(), coded(states, out.e_optimal.array())),
+        "prompt_tokens": numbers(ev["prompt"], pa.int64(), ev["prompt_valid"]),
+        "completion_tokens": numbers(ev["completion"], pa.int64(), ev["completion_valid"]),
+        "latency_s": numbers(ev["latency"], pa.float64(), ev["latency_valid"]),
+        "cost_usd": cost_column(
+            ev["prompt"], ev["completion"], ev["prompt_valid"] | ev["completion_valid"], prices
+        ),
+        **continuation_columns([ep.log.continuation for ep in episodes]),
     }
 
     gv = {k: v[:n_goals] for k, v in g.items()}
@@ -216,6 +266,20 @@ def tables(out, vocab, episodes: list, head: tuple[str, str, str]) -> tuple:
         step_counts,
         goal_counts,
     )
+
+
+def continuation_columns(continuations: list) -> dict[str, pa.Array]:
+    """The episodes' continuation columns (null in ordinary runs), from their log lines."""
+    fields = (
+        ("prefix_steps", pa.int64()),
+        ("fixed", pa.bool_()),
+        ("continued", pa.bool_()),
+        ("source_success", pa.bool_()),
+    )
+    return {
+        name: pa.array([None if c is None else getattr(c, name) for c in continuations], type_)
+        for name, type_ in fields
+    }
 
 
 def _table(row_type: type, columns: dict[str, pa.Array]) -> pa.Table:

@@ -10,6 +10,7 @@ import pyarrow as pa
 from ..semantics._episode import EpisodeSetup
 from ..semantics._machine import Machine
 from ..semantics._records import EpisodeLog, Task
+from ..semantics._usage import NO_PRICES, Prices
 from ._assemble import tables
 from ._engine import Vocab, replay_batch
 
@@ -39,12 +40,17 @@ class BatchTables(NamedTuple):
 
 
 def replay_kernel(
-    episodes: list[EpisodeInput], *, run_id: str, model: str, agent_kind: str
+    episodes: list[EpisodeInput],
+    *,
+    run_id: str,
+    model: str,
+    agent_kind: str,
+    prices: Prices = NO_PRICES,
 ) -> BatchTables:
     """Replay a batch with the compiled kernel: the same tables as `replay_episode` of each
-    episode followed by `rows_to_table`, built column by column."""
+    episode followed by `rows_to_table`, built column by column (`prices`: the run's)."""
     if len(_PARAM_CACHE) > _PARAM_CACHE_SIZE:
         _PARAM_CACHE.clear()
     vocab = Vocab()
     out = replay_batch(episodes, vocab, _PARAM_CACHE)
-    return BatchTables(*tables(out, vocab, episodes, (run_id, model, agent_kind)))
+    return BatchTables(*tables(out, vocab, episodes, (run_id, model, agent_kind), prices))

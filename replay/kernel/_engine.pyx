@@ -561,6 +561,8 @@ _STEP_COLUMNS = (
     ("eer_valid_valid", "u1"), ("distance", "f8"), ("distance_valid", "u1"), ("weight", "i8"),
     ("budget_global_left", "f8"), ("budget_local_left", "f8"), ("diverged", "u1"),
     ("diverged_valid", "u1"), ("timestamp", "f8"), ("timestamp_valid", "u1"),
+    ("prompt", "i8"), ("prompt_valid", "u1"), ("completion", "i8"), ("completion_valid", "u1"),
+    ("latency", "f8"), ("latency_valid", "u1"),
 )
 _EPISODE_COLUMNS = (
     ("n_goals", "i8"), ("goals_completed", "i8"), ("success", "u1"), ("termination", "i4"),
@@ -568,6 +570,8 @@ _EPISODE_COLUMNS = (
     ("vsps_switches", "i8"), ("vsps", "f8"), ("vsps_valid", "u1"), ("n_steps", "i8"),
     ("truncated", "i8"), ("diverged", "i8"), ("lam", "f8"), ("budget_global", "f8"),
     ("initial_state", "i4"), ("initial_view", "i4"),
+    ("prompt", "i8"), ("prompt_valid", "u1"), ("completion", "i8"), ("completion_valid", "u1"),
+    ("latency", "f8"), ("latency_valid", "u1"),
 )
 _GOAL_COLUMNS = (
     ("episode", "i4"), ("index", "i8"), ("state", "i4"), ("c_opt", "i8"), ("dyn", "i8"),
@@ -589,16 +593,18 @@ cdef class Out:
     cdef u8p scored, unlocked, unlocked_valid, has_coord, parse_ok, dangerous
     cdef u8p is_switch, is_interaction, hit_component, hit_target, progress
     cdef u8p repetitive, eer_valid, eer_valid_valid, distance_valid, diverged
-    cdef u8p diverged_valid, timestamp_valid
-    cdef f64p x, y, distance, budget_global_left, budget_local_left, timestamp
+    cdef u8p diverged_valid, timestamp_valid, prompt_valid, completion_valid, latency_valid
+    cdef f64p x, y, distance, budget_global_left, budget_local_left, timestamp, latency
+    cdef i64p prompt, completion
     cdef readonly IntVec entered_off, entered, hits_off, hits, div_off, div, params_off
     cdef readonly TextVec output, thinking, action_raw, params, rec_feedback, rec_state, rec_view
     # episodes
     cdef i64p e_n_goals, e_goals_completed, e_l_opt, e_l_act, e_n_switches
     cdef i64p e_vsps_switches, e_n_steps, e_truncated, e_diverged
-    cdef u8p e_success, e_vsps_valid
+    cdef u8p e_success, e_vsps_valid, e_prompt_valid, e_completion_valid, e_latency_valid
     cdef i32p e_termination, e_initial_state, e_initial_view
-    cdef f64p e_spl, e_state_f1, e_vsps, e_lam, e_budget_global
+    cdef f64p e_spl, e_state_f1, e_vsps, e_lam, e_budget_global, e_latency
+    cdef i64p e_prompt, e_completion
     cdef readonly IntVec e_goals_off, e_goals, e_c_opt, e_visited_off, e_visited
     cdef readonly IntVec e_optimal_off, e_optimal
     # goals
@@ -636,6 +642,9 @@ cdef class Out:
         self.x = _pf(s["x"]); self.y = _pf(s["y"]); self.distance = _pf(s["distance"])
         self.budget_global_left = _pf(s["budget_global_left"])
         self.budget_local_left = _pf(s["budget_local_left"]); self.timestamp = _pf(s["timestamp"])
+        self.prompt = _p64(s["prompt"]); self.prompt_valid = _p8(s["prompt_valid"])
+        self.completion = _p64(s["completion"]); self.completion_valid = _p8(s["completion_valid"])
+        self.latency = _pf(s["latency"]); self.latency_valid = _p8(s["latency_valid"])
         self.entered_off = IntVec(n + 1); self.entered = IntVec(n + 1)
         self.hits_off = IntVec(n + 1); self.hits = IntVec(n + 1)
         self.div_off = IntVec(n + 1); self.div = IntVec(16)
@@ -656,6 +665,10 @@ cdef class Out:
         self.e_initial_view = _p32(e["initial_view"]); self.e_spl = _pf(e["spl"])
         self.e_state_f1 = _pf(e["state_f1"]); self.e_vsps = _pf(e["vsps"]); self.e_lam = _pf(e["lam"])
         self.e_budget_global = _pf(e["budget_global"])
+        self.e_prompt = _p64(e["prompt"]); self.e_prompt_valid = _p8(e["prompt_valid"])
+        self.e_completion = _p64(e["completion"])
+        self.e_completion_valid = _p8(e["completion_valid"])
+        self.e_latency = _pf(e["latency"]); self.e_latency_valid = _p8(e["latency_valid"])
         self.e_goals_off = IntVec(n_eps + 1); self.e_goals = IntVec(n_goals + 1)
         self.e_c_opt = IntVec(n_goals + 1)
         self.e_visited_off = IntVec(n_eps + 1); self.e_visited = IntVec(n_eps * 8 + 1)
@@ -891,8 +904,9 @@ cdef class Episode:
     cdef Py_ssize_t e
     cdef int sb, cb, tb, n_goals, current, state, view, termination
     cdef bint unlocked
-    cdef double lam, budget_global, budget_local
-    cdef long long l_opt, taken, n_switches, diverged_steps, truncated_steps
+    cdef double lam, budget_global, budget_local, latency
+    cdef long long l_opt, taken, n_switches, diverged_steps, truncated_steps, prompt, completion
+    cdef bint has_prompt, has_completion, has_latency
     cdef IntVec goal_ids, started, completed_at, steps_used, switches, failures, visited
     cdef IntVec c_opt, seen_state, hit_buf
     cdef list dyn
@@ -931,6 +945,9 @@ cdef class Episode:
         self.current = 0
         self.termination = -1
         self.taken = self.n_switches = self.diverged_steps = self.truncated_steps = 0
+        self.prompt = self.completion = 0
+        self.latency = 0.0
+        self.has_prompt = self.has_completion = self.has_latency = False
         self.started = _filled(self.n_goals, -1)
         self.completed_at = _filled(self.n_goals, -1)
         self.steps_used = _filled(self.n_goals, 0)
@@ -1032,6 +1049,24 @@ cdef class Episode:
         out.params_off.push(<int>out.params.valid.size)
         return 0
 
+    cdef int _usage(self, object log_step, Py_ssize_t row) except -1:
+        """The step's recorded tokens and latency, added to the episode's sums as
+        `EpisodeSession._usage` adds them (the first value recorded starts a sum)."""
+        cdef Out out = self.out
+        cdef double seconds
+        _count(log_step.prompt_tokens, out.prompt, out.prompt_valid, row, &self.prompt,
+               &self.has_prompt)
+        _count(log_step.completion_tokens, out.completion, out.completion_valid, row,
+               &self.completion, &self.has_completion)
+        value = log_step.latency_seconds
+        if value is not None:
+            seconds = value
+            out.latency[row] = seconds
+            out.latency_valid[row] = 1
+            self.latency = seconds if not self.has_latency else self.latency + seconds
+            self.has_latency = True
+        return 0
+
     cdef Py_ssize_t steps(self, Py_ssize_t row) except -1:
         cdef Out out = self.out
         cdef KMachine km = self.km
@@ -1069,6 +1104,7 @@ cdef class Episode:
                 if ts is not None:
                     out.timestamp[row] = ts
                     out.timestamp_valid[row] = 1
+            self._usage(log_step, row)
             if self.termination >= 0:  # after termination: truncated, nothing scored
                 self.truncated_steps += 1
                 out.entered_off.push(<int>out.entered.size)
@@ -1348,6 +1384,12 @@ cdef class Episode:
         out.e_budget_global[e] = self.budget_global
         out.e_initial_state[e] = sb + <int>self.setup.initial_state
         out.e_initial_view[e] = VIEW_CODE[self.setup.initial_view]
+        out.e_prompt[e] = self.prompt
+        out.e_prompt_valid[e] = self.has_prompt
+        out.e_completion[e] = self.completion
+        out.e_completion_valid[e] = self.has_completion
+        out.e_latency[e] = self.latency
+        out.e_latency_valid[e] = self.has_latency
         for g in range(n_goals):
             r = goal_row + g
             dyn = self.dyn[g]
@@ -1369,6 +1411,20 @@ cdef class Episode:
                 and self.steps_used.data[g] <= dyn
             )
         return 0
+
+
+cdef inline int _count(object value, i64p column, u8p valid, Py_ssize_t row, long long* total,
+                       bint* has) except -1:
+    """A recorded token count (or None) into its column and the episode's sum."""
+    cdef long long n
+    if value is None:
+        return 0
+    n = value
+    column[row] = n
+    valid[row] = 1
+    total[0] = n if not has[0] else total[0] + n
+    has[0] = True
+    return 0
 
 
 cdef IntVec _filled(Py_ssize_t n, int value):

@@ -17,9 +17,10 @@ from ._classify import Classifier
 from ._machine import Machine
 from ._parse import ParsedAction, action_from_record, parse_action
 from ._plan import Plan, c_opt_dynamic, plan_goals
-from ._records import EpisodeLog, LogStep, Task
+from ._records import Continuation, EpisodeLog, LogStep, Task
 from ._rows import CLASSIFICATION_FIELDS, EpisodeRow, GoalRow, StepRow
 from ._step import reset, step
+from ._usage import NO_PRICES, Prices, origin_of, usage_cost
 from ._vocab import DASHBOARD, FEEDBACK_KINDS
 
 _NO_ACTION = ParsedAction(False, None, "no_action", "", "")
@@ -149,13 +150,17 @@ class EpisodeSession:
     current goal's index; `n_goals` once all are completed), `goals` (state indices),
     `taken` (scored steps), `budget_local`, `budget_global_left`, `termination` (None while
     the episode runs), `rows` (the step rows so far), `instruction`, `done`.
+
+    `prices` turn the tokens a step recorded into its cost; `continuation` (an episode of a
+    continuation run, PROTOCOL §10.4) gives its steps their origin (PROTOCOL §7.2).
     """
 
     __slots__ = (
         "machine", "task", "setup", "budget", "c_opt", "goals", "n_goals", "sim", "visited",
         "current", "termination", "n_switches", "diverged_steps", "truncated_steps", "rows",
         "_head", "_classify", "_has_dashboard", "_started", "_completed_at", "_steps_used",
-        "_switches", "_dyn",
+        "_switches", "_dyn", "prices", "continuation", "_prefix", "_fixed", "_prompt",
+        "_completion", "_latency",
     )  # fmt: skip
 
     def __init__(
@@ -168,9 +173,19 @@ class EpisodeSession:
         model: str,
         agent_kind: str,
         setup: EpisodeSetup | None = None,
+        prices: Prices = NO_PRICES,
+        continuation: Continuation | None = None,
     ) -> None:
         if setup is None:
             setup = setup_episode(machine, task)
+        self.prices = prices
+        self.continuation = continuation
+        self._prefix = continuation.prefix_steps if continuation is not None else 0
+        self._fixed = continuation is not None and continuation.fixed
+        # Sums over the steps that recorded them; None while none has (PROTOCOL §7.3).
+        self._prompt: int | None = None
+        self._completion: int | None = None
+        self._latency: float | None = None
         self.machine = machine
         self.task = task
         self.setup = setup
@@ -260,6 +275,7 @@ class EpisodeSession:
         ts = log_step.timestamp
         if ts is not None:
             ts = timestamp_seconds(ts)
+        usage = self._usage(log_step, k)
         if self.termination is not None:
             self.truncated_steps += 1
             # Field order: StepRow (see _rows.py); nothing after termination is scored.
@@ -269,6 +285,7 @@ class EpisodeSession:
                 parsed.detail, None, None, None, None, [], None, None, None, None,
                 *_UNCLASSIFIED_HEAD, [], *_UNCLASSIFIED_TAIL,
                 None, None, True, log_step.feedback, log_step.state, log_step.view, None, [], ts,
+                *usage,
             )  # fmt: skip
             self.rows.append(row)
             return row
@@ -333,9 +350,32 @@ class EpisodeSession:
             *cls,
             budget.global_left, budget.local, False,
             recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts,
+            *usage,
         )  # fmt: skip
         self.rows.append(row)
         return row
+
+    def _usage(self, log_step: LogStep, k: int) -> tuple:
+        """The last columns of step k's row (tokens, latency, cost, origin), added to the
+        episode's sums. Truncated steps count: their tokens were paid for."""
+        prompt = log_step.prompt_tokens
+        completion = log_step.completion_tokens
+        latency = log_step.latency_seconds
+        if prompt is not None:
+            self._prompt = prompt if self._prompt is None else self._prompt + prompt
+        if completion is not None:
+            self._completion = (
+                completion if self._completion is None else self._completion + completion
+            )
+        if latency is not None:
+            self._latency = latency if self._latency is None else self._latency + latency
+        return (
+            prompt,
+            completion,
+            latency,
+            usage_cost(prompt, completion, self.prices),
+            origin_of(k, self._prefix, self._fixed),
+        )
 
     # ------------------------------------------------------------------ the end
 
@@ -400,6 +440,11 @@ class EpisodeSession:
             c_opt_stated=list(task.c_opt) if task.c_opt is not None else None,
             visited_states=[names[s] for s in _first_visit_order(self.visited)],
             optimal_states=[names[s] for s in _first_visit_order(optimal_list)],
+            prompt_tokens=self._prompt,
+            completion_tokens=self._completion,
+            latency_s=self._latency,
+            cost_usd=usage_cost(self._prompt, self._completion, self.prices),
+            **_continuation_columns(self.continuation),
         )
         instructions = task.instructions
         goal_rows = [
@@ -426,6 +471,17 @@ class EpisodeSession:
         return EpisodeResult(self.rows, episode, goal_rows)
 
 
+def _continuation_columns(c: Continuation | None) -> dict:
+    if c is None:
+        return {"prefix_steps": None, "fixed": None, "continued": None, "source_success": None}
+    return {
+        "prefix_steps": c.prefix_steps,
+        "fixed": c.fixed,
+        "continued": c.continued,
+        "source_success": c.source_success,
+    }
+
+
 def replay_episode(
     machine: Machine,
     task: Task,
@@ -436,10 +492,20 @@ def replay_episode(
     model: str,
     agent_kind: str,
     setup: EpisodeSetup | None = None,
+    prices: Prices = NO_PRICES,
 ) -> EpisodeResult:
-    """Re-execute a logged episode (PROTOCOL §3-5) and return its step, episode and goal rows."""
+    """Re-execute a logged episode (PROTOCOL §3-5) and return its step, episode and goal rows;
+    `prices` (the run's, PROTOCOL §1.4) give the cost columns."""
     session = EpisodeSession(
-        machine, task, lam=lam, run_id=run_id, model=model, agent_kind=agent_kind, setup=setup
+        machine,
+        task,
+        lam=lam,
+        run_id=run_id,
+        model=model,
+        agent_kind=agent_kind,
+        setup=setup,
+        prices=prices,
+        continuation=log.continuation,
     )
     advance = session.advance
     for log_step in log.steps:

@@ -139,6 +139,13 @@ class RunHeader(msgspec.Struct):
     schema_version: Annotated[int, _doc("Record format version")] = SCHEMA_VERSION
 
 
+MAX_TOKENS = 1 << 40
+"""The most tokens a step may record (PROTOCOL §1.4): sums over the steps of a record of at most
+64 MiB stay far within the 64-bit integers of the tables."""
+Tokens = Annotated[int, Meta(ge=0, le=MAX_TOKENS)]
+Seconds = Annotated[float, Meta(ge=0)]
+
+
 class ActionRecord(msgspec.Struct):
     """An already-structured action, as human logs have."""
 
@@ -163,12 +170,32 @@ class LogStep(msgspec.Struct):
         float | str | None, _doc("Seconds since the epoch or ISO 8601 time of the step")
     ] = None
     prompt_tokens: Annotated[
-        int | None, _doc("Tokens of the request the model answered (as its API counted them)")
+        Tokens | None, _doc("Tokens of the request the model answered (as its API counted them)")
     ] = None
-    completion_tokens: Annotated[int | None, _doc("Tokens of the model's answer")] = None
+    completion_tokens: Annotated[Tokens | None, _doc("Tokens of the model's answer")] = None
     latency_seconds: Annotated[
-        float | None, _doc("Seconds the model took to answer (the request that succeeded)")
+        Seconds | None, _doc("Seconds the model took to answer (the request that succeeded)")
     ] = None
+
+
+class Continuation(msgspec.Struct):
+    """How an episode of a continuation run (`vge run --from`, PROTOCOL §10.4) was made from
+    the same episode of another run."""
+
+    prefix_steps: Annotated[
+        int, Meta(ge=0), _doc("The first N steps repeat the source run's episode (origin prefix)")
+    ]
+    fixed: Annotated[
+        bool, _doc("Step N is the planner's optimal step from there (origin fix, PROTOCOL §4.5)")
+    ]
+    continued: Annotated[
+        bool,
+        _doc(
+            "The agent was handed the episode after them; false: the source's episode copied as "
+            "it was (no error to cut at, or it ended within the first K steps)"
+        ),
+    ]
+    source_success: Annotated[bool, _doc("The source run's episode succeeded (its replay)")]
 
 
 class EpisodeLog(msgspec.Struct):
@@ -183,6 +210,25 @@ class EpisodeLog(msgspec.Struct):
             "(the model refused the next request as longer than its context window)"
         ),
     ] = None
+    continuation: Annotated[
+        Continuation | None,
+        _doc("Set in a continuation run only: how the episode continues another run's"),
+    ] = None
+
+    def __post_init__(self) -> None:
+        # Checked when the line is decoded: a bad one is an invalid_record (PROTOCOL §7.6).
+        c = self.continuation
+        if c is None:
+            return
+        n = len(self.steps)
+        if c.prefix_steps + c.fixed > n:
+            raise ValueError(
+                f"continuation: {c.prefix_steps} prefix step(s)"
+                + (" and a fix" if c.fixed else "")
+                + f" in a log of {n} step(s)"
+            )
+        if not c.continued and (c.fixed or c.prefix_steps != n):
+            raise ValueError("continuation: a copied episode (continued false) is its prefix alone")
 
 
 INPUT_RECORDS: dict[str, type] = {

@@ -95,6 +95,13 @@ class StepRow(msgspec.Struct):
     ]
     diverged_fields: Annotated[list[str], _d("Which of feedback, state, view differ")]
     timestamp: Annotated[OptFloat, _d("Recorded time of the step, seconds since the epoch")]
+    prompt_tokens: Annotated[OptInt, _d("Prompt tokens the log recorded for the step")]
+    completion_tokens: Annotated[OptInt, _d("Completion tokens the log recorded")]
+    latency_s: Annotated[OptFloat, _d("Seconds the model took to answer (the log's latency)")]
+    cost_usd: Annotated[OptFloat, _d("USD from the tokens and the run's prices; null without both")]
+    origin: Annotated[
+        str, _d("prefix (repeated from the source run), fix (the planner's) or agent")
+    ]
 
 
 class EpisodeRow(msgspec.Struct, kw_only=True):
@@ -133,6 +140,16 @@ class EpisodeRow(msgspec.Struct, kw_only=True):
         list[str], _d("States visited (reset and entered), first-visit order")
     ]
     optimal_states: Annotated[list[str], _d("States of the optimal path, first-visit order")]
+    prompt_tokens: Annotated[OptInt, _d("Sum over the steps that recorded prompt tokens")]
+    completion_tokens: Annotated[OptInt, _d("Sum over the steps that recorded completion tokens")]
+    latency_s: Annotated[OptFloat, _d("Sum of the steps' latencies (those recorded)")]
+    cost_usd: Annotated[OptFloat, _d("USD of the episode's tokens at the run's prices")]
+    prefix_steps: Annotated[OptInt, _d("Continuation runs: steps repeated from the source run")]
+    fixed: Annotated[OptBool, _d("Continuation runs: the planner's fix followed the prefix")]
+    continued: Annotated[
+        OptBool, _d("Continuation runs: the agent played on after the cut (false: a copy)")
+    ]
+    source_success: Annotated[OptBool, _d("Continuation runs: the source episode succeeded")]
 
 
 class GoalRow(msgspec.Struct, kw_only=True):

@@ -90,7 +90,9 @@ def test_the_documented_examples(hand_out: Path, sample_out: Path) -> None:
     # reached. Every goal of the hand runs became current (an episode stops at the goal it
     # fails, its last), so there the corrected PSR equals the built-in one: 5/13 and 3/8.
     examples = va.load_metrics(EXAMPLES)
-    assert examples.names == (*va.METRIC_NAMES, "SR-multi", "TIR-dashboard")
+    assert examples.names == (
+        *va.METRIC_NAMES, *va.CONTINUATION_METRICS, "SR-multi", "TIR-dashboard",
+    )  # fmt: skip
     changed = {
         m.name: examples.origin(m.name) for m in examples if examples.origin(m.name) != "built-in"
     }

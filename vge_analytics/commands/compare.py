@@ -7,6 +7,7 @@ import typer
 from ..reports import DEFAULT_RESAMPLES, DEFAULT_SEED, check_format
 from ..reports import compare as compute_compare
 from ..store import query_time_limit
+from ._complete import warn_incomplete
 from ._options import (
     format_option,
     metric_names_option,
@@ -44,6 +45,7 @@ def compare(
             resamples=resamples,
             metrics_dir=metrics_dir,
         )
+        warn_incomplete(out, [run_a, run_b])
         emit_sections(result.sections(), fmt)
 
 

@@ -8,10 +8,11 @@ import polars as pl
 import typer
 
 from .._errors import UnknownColumnError
-from ..metrics import MAIN_TABLE, MetricSet, load_metrics, metric_table
+from ..metrics import MetricSet, load_metrics, metric_table
 from ..metrics import metrics as compute_metrics
 from ..reports import check_format
 from ..store import DEFAULT_BY, parse_by, query_time_limit
+from ._complete import PEOPLE_FORMATS, marked, marked_rows, warn_incomplete
 from ._options import (
     by_option,
     flag_option,
@@ -77,7 +78,8 @@ def metrics(
     metric_names: str = metric_names_option(
         "Metrics to show, comma-separated (default: all twelve, in the paper's order, "
         "then those --metrics-dir adds); "
-        "'main' = the paper's Table 2 (SR SSR SPL State-F1 EIR TIR VSPS GVPE EER).",
+        "'main' = the paper's Table 2 (SR SSR SPL State-F1 EIR TIR VSPS GVPE EER); "
+        "'continuation' = RecoveryRate and StepsToRecover (continuation runs).",
     ),
     where: list[str] = where_option(),
     metrics_dir: str = metrics_dir_option(),
@@ -105,12 +107,18 @@ def metrics(
         if out is None:
             raise click.UsageError("Missing argument 'OUT' (or --list to list the metrics).")
         by_cols = parse_by(by)
-        chosen = list(MAIN_TABLE) if metric_names == "main" else metric_names
-        df = compute_metrics(
-            out, by=by_cols, metrics=chosen, where=parse_where(where), metrics_dir=available
-        )
-        if fmt in ("table", "markdown", "latex"):
+        chosen = metric_names  # `main` and `continuation` stand for their metrics
+        filters = parse_where(where)
+        df = compute_metrics(out, by=by_cols, metrics=chosen, where=filters, metrics_dir=available)
+        runs = warn_incomplete(out, filters.get("run_id"))
+        if fmt in PEOPLE_FORMATS:
+            incomplete = [r.run_id for r in runs if r.incomplete]
+            flags = df["run_id"].is_in(incomplete) if "run_id" in df.columns else None
             df = for_people(df, by_cols)
+            if flags is not None:  # the run's label: its id, or its model when that was dropped
+                df = marked_rows(df, "run_id" if "run_id" in df.columns else "model", flags)
+        else:
+            df = marked(df, runs, fmt, by_cols)
         emit(
             df,
             fmt,

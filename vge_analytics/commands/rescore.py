@@ -7,6 +7,7 @@ import typer
 from ..reports import DEFAULT_RESCORE_BY, check_format
 from ..reports import rescore as compute_rescore
 from ..store import parse_by, query_time_limit
+from ._complete import marked, warn_incomplete
 from ._options import (
     by_option,
     flag_option,
@@ -68,11 +69,13 @@ def rescore(
         )
         if not result.changes:
             typer.echo("The metrics folder changes no metric: nothing to report.", err=True)
+        runs = warn_incomplete(out, parse_where(where).get("run_id"))
         if fmt in ("json", "csv"):
-            table = result.summary if summary else result.rows
+            table = result.summary if summary else marked(result.rows, runs, fmt, result.by)
             emit(table, fmt, marks=False)
             return
         sections = result.tables()
+        sections["changes"] = marked(sections["changes"], runs, fmt, result.by)
         if summary:
             sections = {"rankings": sections["rankings"]}
         emit_sections(sections, fmt, fixed=True)

@@ -1,5 +1,7 @@
 """`vge run BENCH --agent AGENT --out RUN_DIR`: an agent plays the benchmark; the run directory
-is what `vge replay` reads (docs/LIVE.md).
+is what `vge replay` reads (docs/LIVE.md). With `--from RUN_DIR0 --at K|first-error [--fix]`,
+a continuation run: each episode of RUN_DIR0 replayed up to the cut, then the agent's
+(PROTOCOL §10.4).
 
 Exit codes: 0 every selected episode was played; 2 some ended on an infrastructure failure
 (see RUN_DIR/failures.jsonl; `--resume` plays them again), or the run stopped after
@@ -109,6 +111,22 @@ def run_command(
         "row; 0: never.",
     ),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
+    source: Path | None = typer.Option(
+        None,
+        "--from",
+        help="A continuation run: continue the episodes of this run directory (with --at).",
+    ),
+    at: str | None = typer.Option(
+        None,
+        "--at",
+        help="With --from: replay the first K steps of each episode, or every step before its "
+        "first error (first-error), then hand it to the agent.",
+    ),
+    fix: bool = typer.Option(
+        False,
+        "--fix",
+        help="With --from: play the planner's optimal step at the cut before the agent.",
+    ),
 ) -> None:
     """Play the benchmark with an agent and write a run directory that `vge replay` reads."""
     from vge_analytics._errors import RunStoppedError
@@ -116,9 +134,12 @@ def run_command(
         AgentOptions,
         ClientSettings,
         RunOptions,
+        continuation_of,
         load_agent,
         run_live,
     )
+
+    continuation = continuation_of(source, at, fix)
 
     live_agent = load_agent(
         agent,
@@ -150,6 +171,7 @@ def run_command(
         prompt_price=prompt_price,
         completion_price=completion_price,
         max_consecutive_failures=max_consecutive_failures,
+        continuation=continuation,
     )
     console = Console(stderr=True, highlight=False)
     bar = Progress(

@@ -47,13 +47,19 @@ from ._human_vs_vlm import (
     run_choices,
 )
 from ._leaderboard import (
+    COST_COLUMNS,
     ORIGIN_MARKS,
     best_rows,
+    cost_frontier,
+    cost_table,
     group_labels,
+    incomplete_groups,
+    incomplete_note,
     metric_headers,
     metric_help,
     metrics_long,
     metrics_note,
+    with_costs,
 )
 from ._navigation import (
     switch_summary,
@@ -124,6 +130,9 @@ __all__ = [
     "column_values",
     "comparison_rows",
     "computed_sweep",
+    "cost_frontier",
+    "COST_COLUMNS",
+    "cost_table",
     "csv_bytes",
     "default_episode",
     "DEFAULT_OUT",
@@ -138,6 +147,8 @@ __all__ = [
     "EXAMPLE_QUERIES",
     "flip_rows",
     "group_labels",
+    "incomplete_groups",
+    "incomplete_note",
     "interaction_views",
     "metric_headers",
     "metric_help",
@@ -186,4 +197,5 @@ __all__ = [
     "view_boxes",
     "view_picture",
     "ViewPicture",
+    "with_costs",
 ]

@@ -45,6 +45,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
         run_id=header.run_id,
         model=header.model,
         agent_kind=header.agent_kind,
+        prices=replay.run_prices(header.meta),  # replayed already: the prices are valid
     )
     source = image_source(bench_root)
     buf = io.BytesIO()

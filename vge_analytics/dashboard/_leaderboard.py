@@ -1,6 +1,5 @@
 """The Leaderboard page: metric tables, their headers, notes and best values."""
 
-
 from __future__ import annotations
 
 import math
@@ -9,6 +8,8 @@ from collections.abc import Sequence
 import polars as pl
 
 from ..metrics import Metric, MetricSet
+from ..reports import RunCompleteness, mark_rows
+from ..store import Filters, check_columns, grouped_aggregate, open_store, quote_ident, run_query
 
 
 def group_labels(df: pl.DataFrame, by: Sequence[str]) -> pl.Series:
@@ -102,4 +103,103 @@ def metrics_long(
     directions = {m: _metric(m, metrics).direction for m in present}
     return long.drop_nulls("value").with_columns(
         direction=pl.col("metric").replace_strict(directions, return_dtype=pl.String)
+    )
+
+
+# ------------------------------------------------------------------ cost and completeness
+
+COST_COLUMNS: dict[str, str] = {
+    "cost_per_episode": "$ / episode",
+    "cost_per_success": "$ / success",
+}
+"""The leaderboard's cost columns and their headers (USD; PROTOCOL §7.3 `cost_usd`)."""
+
+_COST_TERMS = (
+    ("count(*)", "episodes"),
+    ("count(*) FILTER (WHERE success)", "successes"),
+    ("count(cost_usd)", "costed"),
+    ("fsum(cost_usd)", "cost_usd"),  # compensated: the same total whatever the row order
+)
+
+
+def cost_table(out, by: Sequence[str], where: Filters = None) -> pl.DataFrame:
+    """Per group of `by` (columns of runs or episodes, as the metrics): `episodes`,
+    `successes`, `SR` (percent), `cost_usd` (the episodes' costs summed; null when none was
+    recorded), `cost_per_episode` (over the episodes with a cost) and `cost_per_success`
+    (all of it over the successes: what each success cost; null without one)."""
+    store = open_store(out)
+    by = list(by)
+    check_columns(store, [*by, *(where or {})], ["episodes"], "grouping/filter")
+    sql, params = grouped_aggregate(store, "episodes", by, where, _COST_TERMS)
+    keys = ", ".join(quote_ident(c) for c in by)
+    if by:  # the additive terms of a two-level aggregation, added up per group
+        sums = ", ".join(f"sum({quote_ident(n)}) AS {quote_ident(n)}" for _, n in _COST_TERMS)
+        sql = f"SELECT {keys}, {sums} FROM ({sql}) GROUP BY {keys} ORDER BY {keys} NULLS LAST"
+    df = run_query(store, sql, params)
+    return df.with_columns(
+        pl.col("episodes", "successes", "costed").cast(pl.Int64),
+        SR=100.0 * pl.col("successes") / pl.col("episodes"),
+        cost_per_episode=pl.col("cost_usd") / pl.when(pl.col("costed") > 0).then("costed"),
+        cost_per_success=pl.col("cost_usd") / pl.when(pl.col("successes") > 0).then("successes"),
+    ).drop("costed")
+
+
+def with_costs(table: pl.DataFrame, costs: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:
+    """The metrics table with the cost columns of its groups after the metrics; unchanged
+    when no group has a recorded cost (simulated and human runs)."""
+    if costs["cost_usd"].null_count() == costs.height:
+        return table
+    keys = [c for c in by if c in table.columns and c in costs.columns]
+    return table.join(costs.select(*keys, *COST_COLUMNS), on=keys, how="left", nulls_equal=True)
+
+
+def cost_frontier(runs: pl.DataFrame) -> pl.DataFrame:
+    """The cost–success plane of the runs with a cost (a `cost_table` by run): `run_id`,
+    `SR`, `cost_per_episode` and `frontier`, sorted by cost then SR. A run is on the frontier
+    (HAL's Pareto frontier) when no other run costs at most as much per episode and succeeds
+    at least as often, one of the two strictly."""
+    costed = runs.filter(pl.col("cost_per_episode").is_not_null()).sort(
+        "cost_per_episode", pl.col("SR"), descending=[False, True]
+    )
+    points = list(zip(costed["cost_per_episode"], costed["SR"], strict=True))
+    frontier = [
+        not any((c2 <= c and s2 >= s) and (c2 < c or s2 > s) for c2, s2 in points)
+        for c, s in points
+    ]
+    return costed.select("run_id", "SR", "cost_per_episode").with_columns(
+        frontier=pl.Series(frontier, dtype=pl.Boolean)
+    )
+
+
+def incomplete_groups(table: pl.DataFrame, by: Sequence[str], runs: Sequence[str]) -> pl.DataFrame:
+    """A labelled table (`group` first) with `INCOMPLETE_MARK` after the label of each run of
+    `runs` (the incomplete ones), when the table is grouped by run."""
+    if "run_id" not in by or not runs:
+        return table
+    flags = (
+        pl.Series([r in runs for r in table["run_id"]])
+        if "run_id" in table.columns
+        else (table["group"].is_in(list(runs)))
+    )
+    return mark_rows(table, "group", flags)
+
+
+def incomplete_note(runs: Sequence[RunCompleteness]) -> str | None:
+    """What the leaderboard says above the table of incomplete runs (None: every run is
+    complete, or says nothing)."""
+    shown = [r for r in runs if r.incomplete]
+    if not shown:
+        return None
+    named = "; ".join(
+        f"**{r.run_id}**"
+        + (
+            f" ({r.infrastructure_failures} infrastructure failure(s))"
+            if r.infrastructure_failures
+            else ""
+        )
+        for r in shown
+    )
+    return (
+        f"Incomplete: {named}. Their run.json says `complete: false`: the metrics cover the "
+        f"episodes written so far, not the run's selection; `vge run --resume` completes it."
     )

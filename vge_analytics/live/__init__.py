@@ -1,6 +1,7 @@
 """Live runs: `vge run` plays agents (module callables, simulated profiles, VLMs) through `vge/Device-v0`."""
 
 from ._agents import AgentOptions, EpisodeStart, LiveAgent, Player, Reply
+from ._continue import FIRST_ERROR, ContinueFrom, continuation_of
 from ._harness import RunSummary, run_live, select_episodes
 from ._header import Counters, RunOptions
 from ._load import load_agent
@@ -10,11 +11,14 @@ from ._rundir import FAILURES, FailureRecord
 
 __all__ = [
     "FAILURES",
+    "FIRST_ERROR",
     "SYSTEM_PROMPT",
     "AgentOptions",
     "ChatClient",
     "ClientSettings",
     "Completion",
+    "ContinueFrom",
+    "continuation_of",
     "Counters",
     "EpisodeStart",
     "FailureRecord",

@@ -50,6 +50,10 @@ class EpisodeStart:
 
 
 class Player(Protocol):
+    """One episode of an agent. A player may also have `recall(obs, step, after, info)`:
+    in a continuation run (PROTOCOL §10.4), each step before the cut (a `replay.LogStep`)
+    with the observations before and after it, for an agent that keeps a history."""
+
     def act(self, obs: dict[str, Any]) -> Reply: ...
 
     def observe(self, obs: dict[str, Any], info: dict[str, Any]) -> None: ...

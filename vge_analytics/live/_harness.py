@@ -20,7 +20,7 @@ and timestamps of `openai:` agents).
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +31,7 @@ import replay
 
 from .._errors import RequestRefusedError, RunDirError, RunStoppedError
 from ._agents import LiveAgent
+from ._continue import Source, SourceRun
 from ._header import Counters, RunOptions, check_resume, run_header
 from ._rundir import FailureRecord, RunDir
 from ._worker import Failed, Finished, Outcome, Worker, replayed_success
@@ -57,14 +58,22 @@ def select_episodes(
 ) -> list[str]:
     """The episodes to play, in order: those named (in the order given) or every task of
     `tasks.jsonl` (in file order), then the first `limit`."""
+    return _chosen(bench.tasks, str(bench.tasks_path), episodes, limit)
+
+
+def _chosen(
+    available: Mapping[str, object], where: str, episodes: Sequence[str] | None, limit: int | None
+) -> list[str]:
+    """`available`'s ids in order, or those `episodes` names (each must be one of them),
+    then the first `limit`."""
     if episodes is None:
-        chosen = list(bench.tasks)
+        chosen = list(available)
     else:
         chosen = list(dict.fromkeys(episodes))
-        unknown = [e for e in chosen if e not in bench.tasks]
+        unknown = [e for e in chosen if e not in available]
         if unknown:
             raise RunDirError(
-                f"--episodes: not in {bench.tasks_path}: {', '.join(map(repr, unknown[:5]))}"
+                f"--episodes: not in {where}: {', '.join(map(repr, unknown[:5]))}"
                 + (f" and {len(unknown) - 5} more" if len(unknown) > 5 else "")
             )
     if limit is not None:
@@ -133,9 +142,15 @@ def run_live(
         raise RunDirError("--max-consecutive-failures must be 0 (never stop) or more")
     options = msgspec.structs.replace(options, bench=Path(options.bench), out=Path(options.out))
     bench = replay.Benchmark.open(options.bench)
-    selection = select_episodes(bench, options.episodes, options.limit)
+    source: Source | None = None
+    if options.continuation is None:
+        selection = select_episodes(bench, options.episodes, options.limit)
+    else:
+        options, source = _continuing(options)
+        selection = _chosen(source.run.lines, str(source.run.root), options.episodes, options.limit)
     counters = Counters(
-        selected=len(selection), prices=(options.prompt_price, options.completion_price)
+        selected=len(selection),
+        prices=replay.Prices(options.prompt_price, options.completion_price),
     )
     rundir = RunDir(options.out)
     header = run_header(agent, options, counters)
@@ -174,6 +189,7 @@ def run_live(
         options,
         run,
         progress,
+        source,
     )
 
     rundir.rewrite_in_order(selection, run.finished, run.failures)
@@ -183,6 +199,27 @@ def run_live(
     return RunSummary(
         options.out, final, counters, kept, run.skipped, extended_from=_extended(before, counters)
     )
+
+
+def _continuing(options: RunOptions) -> tuple[RunOptions, Source]:
+    """A continuation run's source, and its options completed: the source's run id, and the
+    source's λ (the cut and `source_success` are the source's replay under it; a run under
+    another λ would not continue the same episodes)."""
+    asked = options.continuation
+    assert asked is not None
+    where = Path(asked.source)
+    if where.resolve() == options.out.resolve():
+        raise RunDirError(f"--from {where}: a run cannot continue itself; choose another --out")
+    run = SourceRun.open(where)
+    lam = replay.run_lambda(run.header.lam)
+    if options.lam is not None and options.lam != lam:
+        raise RunDirError(
+            f"--lambda {options.lam:g}: a continuation plays under its source's lambda "
+            f"({lam:g}, {where / 'run.json'})"
+        )
+    asked = msgspec.structs.replace(asked, source=where, from_run=run.header.run_id)
+    options = msgspec.structs.replace(options, lam=lam, continuation=asked)
+    return options, Source(run, asked)
 
 
 def _extended(before: replay.RunHeader | None, counters: Counters) -> int | None:
@@ -198,6 +235,7 @@ def _play(
     options: RunOptions,
     run: _Run,
     progress: Callable[[Counters], None] | None,
+    source: Source | None,
 ) -> None:
     """Play `todo` on `options.concurrency` threads, one episode each: the next one starts
     once the main thread has taken the last result, so a run that stops starts nothing more.
@@ -208,7 +246,7 @@ def _play(
     def play(episode_id: str) -> Outcome:
         worker = getattr(local, "worker", None)
         if worker is None:
-            worker = local.worker = Worker(agent, bench, header, stop)
+            worker = local.worker = Worker(agent, bench, header, stop, source)
         return worker.play(episode_id)
 
     pool = ThreadPoolExecutor(max_workers=options.concurrency, thread_name_prefix="vge-run")

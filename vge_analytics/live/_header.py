@@ -14,6 +14,7 @@ import replay
 
 from .._errors import RunDirError
 from ._agents import AGENT_KINDS, LiveAgent
+from ._continue import ContinueFrom
 
 TOTAL_KEYS = (
     "episodes_selected",
@@ -57,6 +58,8 @@ class RunOptions(msgspec.Struct, frozen=True):
     """USD per million completion tokens."""
     max_consecutive_failures: int = 10
     """Infrastructure failures in a row (across episodes) that stop the run; 0: never."""
+    continuation: ContinueFrom | None = None
+    """A continuation run (`--from`, `--at`, `--fix`; PROTOCOL §10.4)."""
 
 
 @dataclass(slots=True)
@@ -75,17 +78,14 @@ class Counters:
     completion_tokens: int = 0
     latency_seconds: float = 0.0
     has_usage: bool = False
-    prices: tuple[float | None, float | None] = (None, None)
+    prices: replay.Prices = replay.Prices()
 
     @property
     def cost_usd(self) -> float | None:
-        prompt_price, completion_price = self.prices
-        if not self.has_usage or (prompt_price is None and completion_price is None):
+        """The run's tokens at its prices, by the rule the replay prices each step with."""
+        if not self.has_usage:
             return None
-        return (
-            self.prompt_tokens * (prompt_price or 0.0)
-            + self.completion_tokens * (completion_price or 0.0)
-        ) / 1e6
+        return replay.usage_cost(self.prompt_tokens, self.completion_tokens, self.prices)
 
     def add(self, log: replay.EpisodeLog, success: bool) -> None:
         self.finished += 1
@@ -106,11 +106,14 @@ def run_header(agent: LiveAgent, options: RunOptions, counters: Counters) -> rep
         raise RunDirError(f"--agent-kind must be one of {', '.join(AGENT_KINDS)}")
     selected = counters.selected
     meta: dict[str, Any] = dict(agent.settings())
+    if options.continuation is not None:  # a setting: --resume must keep it
+        meta["counterfactual"] = options.continuation.meta()
     meta["episodes_selected"] = selected
+    # The prices stay in run.json: the replay prices every step with them (PROTOCOL §1.4).
     if options.prompt_price is not None:
-        meta["prompt_price_per_mtok"] = options.prompt_price
+        meta[replay.PROMPT_PRICE_KEY] = options.prompt_price
     if options.completion_price is not None:
-        meta["completion_price_per_mtok"] = options.completion_price
+        meta[replay.COMPLETION_PRICE_KEY] = options.completion_price
     meta |= {
         "episodes": counters.finished,
         "infrastructure_failures": counters.failures,

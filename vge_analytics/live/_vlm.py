@@ -86,6 +86,23 @@ class _VLMPlayer:
             timestamp=round(answer.timestamp, 3),
         )
 
+    def recall(
+        self,
+        obs: dict[str, Any],
+        step: replay.LogStep,
+        after: dict[str, Any],
+        info: dict[str, Any],
+    ) -> None:
+        """A step before the cut of a continuation run (the source's, or the fix), told as
+        the model's own answer: the turn `act` and `observe` would have made of it, so the
+        conversation at the cut is the one the model would have had."""
+        said = observation_text(obs, self.last_action)
+        answered = step.output
+        if answered is None:  # a structured action (a human's, or the fix) as a call
+            answered = f"Action: {replay.parse_log_step(step).action_text}"
+        self._pending = Turn(said, png_data_url(obs["image"]), answered)
+        self.observe(after, info)
+
     def observe(self, obs: dict[str, Any], info: dict[str, Any]) -> None:
         assert self._pending is not None
         self.turns.append(self._pending)

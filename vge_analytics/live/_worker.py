@@ -7,12 +7,18 @@ The log of a step holds the agent's response and what the environment recorded f
 A model that refuses a request as longer than its context window ends the episode there: it
 is finished, its line says `"ended": "context_exceeded"` (PROTOCOL §1.4) and the replay
 scores it as a failure (§3.5).
+
+In a continuation run (PROTOCOL §10.4) an episode first replays the source's steps before
+the cut and the fix, through the same environment and recorded the same way (an agent that
+keeps a history hears them through its player's `recall`), or copies the source's episode
+when there is nothing to cut at.
 """
 
 from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
+from typing import Any
 
 import msgspec
 
@@ -21,7 +27,8 @@ from replay.env import DeviceEnv, log_step_of, no_images
 
 from .._errors import AgentError, ContextExceededError, InfrastructureError
 from ..synth import image_source
-from ._agents import EpisodeStart, LiveAgent
+from ._agents import EpisodeStart, LiveAgent, Player
+from ._continue import Cut, Source
 from ._rundir import FailureRecord
 
 
@@ -64,10 +71,13 @@ class Worker:
         bench: replay.Benchmark,
         header: replay.RunHeader,
         stop: threading.Event,
+        source: Source | None = None,
     ) -> None:
         self.agent = agent
         self.header = header
         self.stop = stop
+        self.source = source
+        """A continuation run's source and cut (None: an ordinary run)."""
         self.env = DeviceEnv(
             bench,
             lam=header.lam,
@@ -78,15 +88,29 @@ class Worker:
         )
 
     def play(self, episode_id: str) -> Outcome:
+        cut = None
         try:
-            obs, _ = self.env.reset(options={"episode_id": episode_id})
+            if self.source is not None:
+                cut = self.source.cut(self.env.bench, episode_id)
+            obs, _ = self.env.reset(
+                options={
+                    "episode_id": episode_id,
+                    "continuation": None if cut is None else cut.continuation,
+                }
+            )
         except replay.VGEError as exc:
             return Skipped(episode_id, str(exc))
-        player = self.agent.start(EpisodeStart(obs, self.env, self.header.run_id, self.stop))
         steps: list[replay.LogStep] = []
+        if cut is not None and not cut.continuation.continued:
+            self._copy(cut, steps)
+            return self._finished(episode_id, steps, cut.ended, cut.continuation)
+        player = self.agent.start(EpisodeStart(obs, self.env, self.header.run_id, self.stop))
         ended: str | None = None
-        terminated = False
-        while True:
+        session = self.env.session
+        assert session is not None
+        if cut is not None:
+            obs = self._prefix(cut, player, obs, steps)
+        while not session.done:
             if self.stop.is_set():
                 raise Stopped
             try:
@@ -106,17 +130,14 @@ class Worker:
                     f"{' '.join(str(exc).split())} (episode {episode_id!r}, step {len(steps)})"
                 ) from exc
             try:
-                obs, _, terminated, truncated, info = self.env.step(reply.action)
+                obs, _, _, _, info = self.env.step(reply.action)
             except replay.ActionError as exc:
                 raise AgentError(
                     f"agent {self.agent.spec}: {exc} (episode {episode_id!r}, step {len(steps)})"
                 ) from None
             steps.append(
                 msgspec.structs.replace(
-                    log_step_of(reply.action),
-                    view=info["view_after"],
-                    feedback=info["feedback_kind"],
-                    state=info["state_after"],
+                    recorded(log_step_of(reply.action), info),
                     timestamp=reply.timestamp,
                     prompt_tokens=reply.prompt_tokens,
                     completion_tokens=reply.completion_tokens,
@@ -124,10 +145,60 @@ class Worker:
                 )
             )
             player.observe(obs, info)
-            if terminated or truncated:
-                break
-        log = replay.EpisodeLog(episode_id=episode_id, steps=steps, ended=ended)  # type: ignore[arg-type]
-        return Finished(episode_id, episode_line(log), log, terminated)
+        return self._finished(episode_id, steps, ended, None if cut is None else cut.continuation)
+
+    def _finished(
+        self,
+        episode_id: str,
+        steps: list[replay.LogStep],
+        ended: str | None,
+        continuation: replay.Continuation | None,
+    ) -> Finished:
+        log = replay.EpisodeLog(
+            episode_id=episode_id,
+            steps=steps,
+            ended=ended,  # type: ignore[arg-type]
+            continuation=continuation,
+        )
+        session = self.env.session
+        assert session is not None
+        return Finished(episode_id, episode_line(log), log, session.termination == "success")
+
+    def _copy(self, cut: Cut, steps: list[replay.LogStep]) -> None:
+        """The source's episode as it was, replayed for what this run records: steps after
+        its termination are truncated, with nothing recorded (PROTOCOL §3.5)."""
+        session = self.env.session
+        assert session is not None
+        for step in cut.steps:
+            if session.done:
+                session.advance(step)
+                steps.append(step)
+            else:
+                steps.append(recorded(step, self.env.step(step)[4]))
+
+    def _prefix(
+        self, cut: Cut, player: Player, obs: dict[str, Any], steps: list[replay.LogStep]
+    ) -> dict[str, Any]:
+        """The source's steps before the cut, then the fix: played and recorded like the
+        agent's own, told to an agent that keeps a history (`recall`); the observation at
+        the cut."""
+        recall = getattr(player, "recall", None)
+        planned = [] if cut.fix is None else [log_step_of(cut.fix)]
+        for step in (*cut.steps, *planned):
+            before = obs
+            obs, _, _, _, info = self.env.step(step)
+            steps.append(recorded(step, info))
+            if recall is not None:
+                recall(before, step, obs, info)
+        return obs
+
+
+def recorded(step: replay.LogStep, info: dict[str, Any]) -> replay.LogStep:
+    """A step as the log carries it: the response and what the environment recorded for it
+    (view, feedback kind and state after the step), so the replay has no divergent step."""
+    return msgspec.structs.replace(
+        step, view=info["view_after"], feedback=info["feedback_kind"], state=info["state_after"]
+    )
 
 
 def episode_line(log: replay.EpisodeLog) -> bytes:
@@ -135,9 +206,11 @@ def episode_line(log: replay.EpisodeLog) -> bytes:
     steps = [
         {k: v for k, v in msgspec.structs.asdict(s).items() if v is not None} for s in log.steps
     ]
-    record: dict = {"episode_id": log.episode_id, "steps": steps}
+    record: dict[str, Any] = {"episode_id": log.episode_id, "steps": steps}
     if log.ended is not None:
         record["ended"] = log.ended
+    if log.continuation is not None:
+        record["continuation"] = log.continuation
     return _encoder.encode(record) + b"\n"
 
 

@@ -11,6 +11,8 @@ from ._polars import (
     polars_metrics,
 )
 from ._registry import (
+    BUILTIN_NAMES,
+    CONTINUATION_METRICS,
     MAIN_TABLE,
     METRIC_NAMES,
     Metric,
@@ -18,6 +20,7 @@ from ._registry import (
     registry,
 )
 from ._set import (
+    METRIC_GROUPS,
     METRICS_DIR_ENV,
     MetricSet,
     MetricsSource,
@@ -29,7 +32,9 @@ from ._set import (
 )
 
 __all__ = [
+    "BUILTIN_NAMES",
     "compose",
+    "CONTINUATION_METRICS",
     "default_folder",
     "episode_terms",
     "fingerprint",
@@ -37,6 +42,7 @@ __all__ = [
     "load_metrics",
     "MAIN_TABLE",
     "Metric",
+    "METRIC_GROUPS",
     "METRIC_NAMES",
     "metric_set",
     "metric_table",

@@ -42,10 +42,19 @@ METRIC_NAMES: tuple[str, ...] = (
     "AvgDist",
     "AvgWDist",
 )
-"""Every metric, in PROTOCOL §6 order (the order of the paper's tables)."""
+"""The paper's metrics, in PROTOCOL §6 order (the order of the paper's tables): what a
+computation gives when it is not told which metrics."""
 
 MAIN_TABLE: tuple[str, ...] = METRIC_NAMES[:9]
 """The paper's Table 2 (main results): SR SSR SPL State-F1 EIR TIR VSPS GVPE EER."""
+
+CONTINUATION_METRICS: tuple[str, ...] = ("RecoveryRate", "StepsToRecover")
+"""Built-in metrics of continuation runs (PROTOCOL §6, §10.4), computed when named (`--metrics
+continuation`, or by name): every other run gives them no value, so they stay out of the
+default tables."""
+
+BUILTIN_NAMES: tuple[str, ...] = METRIC_NAMES + CONTINUATION_METRICS
+"""Every built-in metric, in registry order."""
 
 _FILES = {
     "SR": "sr.sql",
@@ -60,6 +69,8 @@ _FILES = {
     "PSR": "psr.sql",
     "AvgDist": "avg_dist.sql",
     "AvgWDist": "avg_wdist.sql",
+    "RecoveryRate": "recovery_rate.sql",
+    "StepsToRecover": "steps_to_recover.sql",
 }
 
 
@@ -75,10 +86,11 @@ def _parse(name: str, filename: str, text: str) -> Metric:
 
 @cache
 def registry() -> dict[str, Metric]:
-    """All metrics by name, in PROTOCOL §6 order (files are read once, on first use)."""
+    """All built-in metrics by name, in PROTOCOL §6 order, then the continuation metrics
+    (files are read once, on first use)."""
     out: dict[str, Metric] = {}
     base = resources.files("vge_analytics") / "sql"
-    for name in METRIC_NAMES:
+    for name in BUILTIN_NAMES:
         filename = _FILES[name]
         out[name] = _parse(name, filename, (base / filename).read_text(encoding="utf-8"))
     return out
@@ -93,18 +105,19 @@ def get_metric(name: str) -> Metric:
     hint = folded.get(name.casefold())
     extra = f" (did you mean {hint}?)" if hint else ""
     raise UnknownMetricError(
-        f"unknown metric {name!r}{extra}; known metrics: {', '.join(METRIC_NAMES)}"
+        f"unknown metric {name!r}{extra}; known metrics: {', '.join(BUILTIN_NAMES)}"
     )
 
 
 def resolve_metrics(names: str | list[str] | tuple[str, ...] | None) -> list[Metric]:
-    """Metric objects for a list of names (or a comma-separated string); None means all."""
+    """Metric objects for a list of names (or a comma-separated string); None means the
+    paper's (`METRIC_NAMES`)."""
     if names is None:
-        return list(registry().values())
+        return [registry()[n] for n in METRIC_NAMES]
     if isinstance(names, str):
         names = [n.strip() for n in names.split(",") if n.strip()]
     if not names:
-        raise UnknownMetricError("no metric named; known metrics: " + ", ".join(METRIC_NAMES))
+        raise UnknownMetricError("no metric named; known metrics: " + ", ".join(BUILTIN_NAMES))
     seen: dict[str, Metric] = {}
     for n in names:
         m = get_metric(n)
@@ -113,6 +126,8 @@ def resolve_metrics(names: str | list[str] | tuple[str, ...] | None) -> list[Met
 
 
 __all__ = [
+    "BUILTIN_NAMES",
+    "CONTINUATION_METRICS",
     "MAIN_TABLE",
     "METRIC_NAMES",
     "Direction",

@@ -33,12 +33,19 @@ from .._errors import MetricFileError, UnknownMetricError
 from ..store import MAX_METRIC_FILE, text_too_large
 from ._check import check_metric
 from ._file import Metric, Problem, parse_metric_file
-from ._registry import registry
+from ._registry import CONTINUATION_METRICS, MAIN_TABLE, registry
 
 METRICS_DIR_ENV = "VGE_METRICS_DIR"
 """Environment variable naming the default metrics folder."""
 
 Origin = Literal["built-in", "override", "added"]
+
+METRIC_GROUPS: dict[str, tuple[str, ...]] = {
+    "main": MAIN_TABLE,
+    "continuation": CONTINUATION_METRICS,
+}
+"""Names that stand for several metrics where metrics are named (`--metrics main`): the
+paper's Table 2, and the metrics of continuation runs."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +76,12 @@ class MetricSet:
     def names(self) -> tuple[str, ...]:
         return tuple(self.metrics)
 
+    @property
+    def defaults(self) -> tuple[str, ...]:
+        """The metrics computed when none are named: every metric but the continuation
+        metrics, which only continuation runs give values to (named on request)."""
+        return tuple(n for n in self.metrics if n not in CONTINUATION_METRICS)
+
     def get(self, name: str) -> Metric:
         """The metric called `name`; an unknown name is an error (with a hint)."""
         if name in self.metrics:
@@ -81,17 +94,21 @@ class MetricSet:
         )
 
     def resolve(self, names: str | Sequence[str] | None) -> list[Metric]:
-        """Metrics for a list of names (or a comma-separated string); None means all."""
+        """Metrics for a list of names (or a comma-separated string); a group's name
+        (`METRIC_GROUPS`) stands for its metrics unless a metric has that name; None means
+        the defaults."""
         if names is None:
-            return list(self.metrics.values())
+            return [self.metrics[n] for n in self.defaults]
         if isinstance(names, str):
             names = [n.strip() for n in names.split(",") if n.strip()]
         if not names:
             raise UnknownMetricError("no metric named; known metrics: " + ", ".join(self.metrics))
         chosen: dict[str, Metric] = {}
         for n in names:
-            m = self.get(n)
-            chosen.setdefault(m.name, m)
+            group = METRIC_GROUPS.get(n, ()) if n not in self.metrics else ()
+            for name in group or (n,):
+                m = self.get(name)
+                chosen.setdefault(m.name, m)
         return list(chosen.values())
 
     def origin(self, name: str) -> Origin:
@@ -280,6 +297,7 @@ def metric_set(source: MetricsSource) -> MetricSet:
 
 
 __all__ = [
+    "METRIC_GROUPS",
     "METRICS_DIR_ENV",
     "MetricSet",
     "MetricsSource",

@@ -8,6 +8,15 @@ from ._compare import (
     compare,
     mcnemar_exact,
 )
+from ._completeness import (
+    INCOMPLETE_MARK,
+    RunCompleteness,
+    completeness,
+    incomplete_runs,
+    mark_incomplete,
+    mark_rows,
+    with_complete_column,
+)
 from ._diff import (
     DIFF_COLUMNS,
     NO_ERROR,
@@ -54,6 +63,7 @@ __all__ = [
     "compare",
     "Comparison",
     "competition_ranks",
+    "completeness",
     "DEFAULT_RESAMPLES",
     "DEFAULT_RESCORE_BY",
     "DEFAULT_SEED",
@@ -69,7 +79,11 @@ __all__ = [
     "FORMATS",
     "group_label",
     "groups_of",
+    "INCOMPLETE_MARK",
+    "incomplete_runs",
     "kendall_tau_b",
+    "mark_incomplete",
+    "mark_rows",
     "mcnemar_exact",
     "NO_ERROR",
     "parse_lambdas",
@@ -79,8 +93,10 @@ __all__ = [
     "render_sections",
     "Rescore",
     "rescore",
+    "RunCompleteness",
     "stream_chunks",
     "sweep",
     "SWITCH_CLASSES",
     "switch_classes",
+    "with_complete_column",
 ]

@@ -12,6 +12,8 @@
 - The error-type distribution of each run on the common episodes and the difference B - A
   in percentage points (the paper's human vs Gemini table).
 - The episodes that flip: solved by A only, solved by B only.
+- Whether each run is complete (run.json's word, PROTOCOL §7.5): a run cut short is compared
+  on the episodes it has, and the summary says so.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import polars as pl
 from .._errors import AnalyticsError, UnknownRunError
 from ..metrics import MetricsSource, episode_terms, metric_set
 from ..store import open_store, run_query
+from ._completeness import completeness
 from ._taxonomy import ERROR_LABELS, error_distribution
 
 DEFAULT_RESAMPLES = 2000
@@ -64,8 +67,12 @@ class Comparison:
     """error_group, error_type, label, count_a, count_b, share_a, share_b, diff_pp (B - A)."""
     flips: pl.DataFrame
     """episode_id, device_id, category, direction ('A_only' or 'B_only')."""
+    complete_a: bool | None = None
+    complete_b: bool | None = None
+    """run.json's `complete` of each run (None: it does not say)."""
     summary: pl.DataFrame = field(init=False)
-    """One row describing the pairing (runs, models, episode counts, seed, resamples)."""
+    """One row describing the pairing (runs, models, whether each is complete, episode
+    counts, seed, resamples)."""
 
     def __post_init__(self) -> None:
         self.summary = pl.DataFrame(
@@ -75,13 +82,16 @@ class Comparison:
                     "model_a": self.model_a,
                     "run_b": self.run_b,
                     "model_b": self.model_b,
+                    "complete_a": self.complete_a,
+                    "complete_b": self.complete_b,
                     "n_common": self.n_common,
                     "n_only_a": self.n_only_a,
                     "n_only_b": self.n_only_b,
                     "seed": self.seed,
                     "resamples": self.resamples,
                 }
-            ]
+            ],
+            schema_overrides={"complete_a": pl.Boolean, "complete_b": pl.Boolean},
         )
 
     def sections(self) -> dict[str, pl.DataFrame]:
@@ -274,6 +284,7 @@ def compare(
         )
     )
 
+    said = {r.run_id: r.complete for r in completeness(store, [run_a, run_b])}
     return Comparison(
         run_a=run_a,
         run_b=run_b,
@@ -288,6 +299,8 @@ def compare(
         mcnemar=mcnemar,
         errors=errors,
         flips=flips,
+        complete_a=said.get(run_a),
+        complete_b=said.get(run_b),
     )
 
 

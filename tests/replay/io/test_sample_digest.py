@@ -1,8 +1,12 @@
-"""The bundled sample replays to the same bytes it did before the platform was reshaped into
-rooms (issue 18: rules stated once, vge_analytics in subpackages): the digests below were
-recorded from the replay output of commit a5da6f8, tables, manifest, quarantine and the MCAP
-files of three episodes of every run. A change of the output bytes must be deliberate: the
-digests are then recorded again, with the reason in the commit."""
+"""The bundled sample replays to the bytes recorded here: tables, manifest, quarantine and the
+MCAP files of three episodes of every run. A change of the output bytes must be deliberate:
+the digests are then recorded again, with the reason in the commit.
+
+First recorded from commit a5da6f8, before the platform was reshaped into rooms (issue 18).
+Recorded again when the steps, episodes and runs tables got their usage, origin,
+continuation and completeness columns (issue 19: PROTOCOL §7.2, §7.3, §7.5); every column
+that existed before kept its bytes, the goals table, the manifest and the quarantine all of
+theirs (checked against the reference engine of the commit before)."""
 
 from __future__ import annotations
 
@@ -16,13 +20,13 @@ LOGS = Path(__file__).resolve().parents[3] / "logs"
 MCAP_EPISODES = ["AirFryer_000-00", "ElectricKettle_000-01", "Microwave_001-02"]
 
 RECORDED = {
-    "episodes": "38f1e369fbaf3ffee344dd39b45480a814741e7e8df3fc8699bc06b42839874d",
+    "episodes": "143d89135330b8d3d0cfc57c97e2e081c5ff0f26575108603ce830a89ce3924c",
     "goals": "d5e8445b1e2dbf8b1e8dbbeb8277f8461afae49bb05db6a43cffd8993585548a",
     "manifest.json": "775df39b9bcafbf2b6ef0b33f46b6698cfe90927697a06e0ea80971004d12d5d",
-    "mcap": "c6e0917a81f3727995a15727da16d3dba7fbf7550b904463db36a7851e28eb6e",
+    "mcap": "ea707c6a6915782621a57844d526c55153deb6bfec2f6b8af216afbb866c93c6",
     "quarantine.jsonl": "66abf8d167891f079f7f8413dc3c07078017b68fe92ff4b330a233a860775f9a",
-    "runs": "a75dda8cf5441482cd7b7059115f12cc83b0f8a505f1f48914bf82305a366a52",
-    "steps": "878626c20dc2cb55c644d43f622952e0fad4dcf6cef84fb05d8f6f5176162447",
+    "runs": "3b5451bb04cea05da930f1e8da87716b0feb5bd21433cdd7e1ff2fb9b83c3f07",
+    "steps": "536380957de5d6a95ec19abc8c7099154f49a58c9a1004d741ed945277a1ac39",
 }
 """sha256 over each top-level entry of OUT: its files' relative paths and contents, in order."""
 

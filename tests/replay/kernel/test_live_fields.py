@@ -1,5 +1,6 @@
 """Log steps written live carry token counts and latency (PROTOCOL §1.4, §10.2): the kernel
-decodes such logs and gives the reference engine's tables, unchanged by the extra fields."""
+decodes such logs and gives the reference engine's tables; the fields fill the usage columns
+(PROTOCOL §7.2) and change nothing else."""
 
 from __future__ import annotations
 
@@ -11,6 +12,9 @@ import replay
 from replay.semantics._episode import setup_episode
 
 from .test_kernel import CASES, check_batch, episode, machine_of
+
+USAGE = slice(replay.StepRow.__struct_fields__.index("prompt_tokens"), -1)
+"""prompt_tokens, completion_tokens, latency_s, cost_usd: the columns the fields fill."""
 
 
 def test_token_and_latency_fields_change_nothing() -> None:
@@ -32,4 +36,9 @@ def test_token_and_latency_fields_change_nothing() -> None:
         ).step_tuples
         for e in (with_fields, episode(machine, task, plain, 2.0))
     ]
-    assert rows[0] == rows[1]
+    assert [r[: USAGE.start] + r[USAGE.stop :] for r in rows[0]] == [
+        r[: USAGE.start] + r[USAGE.stop :] for r in rows[1]
+    ]
+    # No prices in this run: the cost stays null.
+    assert [r[USAGE] for r in rows[0][:2]] == [(1000, 40, 0.0, None), (1001, 40, 0.25, None)]
+    assert all(r[USAGE] == (None,) * 4 for r in rows[1])

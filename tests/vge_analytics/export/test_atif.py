@@ -129,9 +129,9 @@ USAGE = {"prompt_tokens": 1000, "completion_tokens": 50, "latency_s": 1.25, "cos
 
 @pytest.fixture(scope="module")
 def out_with_usage(hand_out, tmp_path_factory) -> Path:
-    """hand_out with the steps table's usage columns, as a harness that records them writes
-    them: a value on the kettle run's scored steps, null on its truncated ones and on the oven
-    run (a human run has no model call)."""
+    """hand_out with the steps table's usage columns filled, as the replay of a harness that
+    records them fills them: a value on the kettle run's scored steps, null on its truncated
+    ones and on the oven run (a human run has no model call)."""
     out = tmp_path_factory.mktemp("usage") / "out"
     shutil.copytree(hand_out, out)
     for part in (out / "steps").rglob("*.parquet"):
@@ -143,7 +143,8 @@ def out_with_usage(hand_out, tmp_path_factory) -> Path:
             values = [
                 value if k and not t else None for k, t in zip(kettle, truncated, strict=True)
             ]
-            table = table.append_column(name, pa.array(values, kind))
+            at = table.schema.get_field_index(name)
+            table = table.set_column(at, name, pa.array(values, kind))
         pq.write_table(table, part)
     va.clear_cache()
     return out
