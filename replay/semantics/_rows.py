@@ -22,13 +22,9 @@ def _d(text: str) -> Meta:
     return Meta(description=text)
 
 
-class StepRow(msgspec.Struct):
-    """One logged step (truncated steps included, flagged).
-
-    Positional construction follows the field order below; the replay loop builds rows as
-    tuples in this order (see `_episode.py`), and `CLASSIFICATION_FIELDS` is the contiguous
-    block the classifier fills.
-    """
+class EpisodeKey(msgspec.Struct):
+    """The columns that open every row: which run, and which episode of which device. Each
+    row class below inherits them, so they come first, in this order, in every table."""
 
     run_id: Annotated[str, _d("Run identifier")]
     model: Annotated[str, _d("Model name from run.json")]
@@ -36,6 +32,19 @@ class StepRow(msgspec.Struct):
     episode_id: Annotated[str, _d("Episode identifier")]
     device_id: Annotated[str, _d("Device identifier")]
     category: Annotated[str, _d("Device category")]
+
+
+class StepRow(EpisodeKey):
+    """One logged step (truncated steps included, flagged).
+
+    Positional construction follows the field order below; the replay loop builds rows as
+    tuples in this order (see `_episode.py`), and `CLASSIFICATION_FIELDS` is the contiguous
+    block the classifier fills.
+    """
+
+    # The order starts with EpisodeKey's six fields. (The docstring above is part of the JSON
+    # schema each MCAP file carries: editing it changes the MCAP bytes.)
+
     step: Annotated[int, _d("Step number, from 0 in log order")]
     goal_index: Annotated[
         OptInt, _d("Goal current at the start of the step (0-based); null if truncated")
@@ -104,15 +113,9 @@ class StepRow(msgspec.Struct):
     ]
 
 
-class EpisodeRow(msgspec.Struct, kw_only=True):
+class EpisodeRow(EpisodeKey, kw_only=True):
     """One replayed episode."""
 
-    run_id: Annotated[str, _d("Run identifier")]
-    model: Annotated[str, _d("Model name")]
-    agent_kind: Annotated[str, _d("vlm, human or scripted")]
-    episode_id: Annotated[str, _d("Episode identifier")]
-    device_id: Annotated[str, _d("Device identifier")]
-    category: Annotated[str, _d("Device category")]
     n_goals: Annotated[int, _d("Number of goals")]
     goals_completed: Annotated[int, _d("Goals completed")]
     success: Annotated[bool, _d("All goals completed")]
@@ -152,15 +155,9 @@ class EpisodeRow(msgspec.Struct, kw_only=True):
     source_success: Annotated[OptBool, _d("Continuation runs: the source episode succeeded")]
 
 
-class GoalRow(msgspec.Struct, kw_only=True):
+class GoalRow(EpisodeKey, kw_only=True):
     """One goal of one replayed episode."""
 
-    run_id: Annotated[str, _d("Run identifier")]
-    model: Annotated[str, _d("Model name")]
-    agent_kind: Annotated[str, _d("vlm, human or scripted")]
-    episode_id: Annotated[str, _d("Episode identifier")]
-    device_id: Annotated[str, _d("Device identifier")]
-    category: Annotated[str, _d("Device category")]
     n_goals: Annotated[int, _d("Goals in the episode")]
     goal_index: Annotated[int, _d("0-based goal position")]
     goal_state: Annotated[str, _d("Goal state")]
