@@ -30,7 +30,7 @@ import vge_analytics as va
 from vge_analytics.commands.replay import image_source
 from vge_analytics.synth import generate
 
-from ..vge_analytics.metric_files import SR_AS_SSR, SR_MULTI, write_folder
+from ..vge_analytics.metrics.metric_files import SR_AS_SSR, SR_MULTI, write_folder
 from .streamlit_browser import CHROMIUM, LAUNCH_ARGS, AppPage, AppServer
 
 APP = Path(__file__).resolve().parents[2] / "app" / "streamlit_app.py"

@@ -11,7 +11,7 @@ from vge_analytics.commands.app import is_loopback, streamlit_command
 from vge_analytics.commands.play import play_command
 from vge_analytics.store._limits import SqlLimits
 
-from ..vge_analytics.metric_files import SR_MULTI
+from ..vge_analytics.metrics.metric_files import SR_MULTI
 
 
 def test_default_out_missing_says_run_vge_demo(tmp_path, monkeypatch, capsys):

@@ -21,7 +21,7 @@ from vge_analytics.play._page import RESULT_HEADLINES
 from vge_analytics.store import resolve_input
 from vge_analytics.store._limits import SqlLimits
 
-from ..vge_analytics.metric_files import SR_MULTI, write_folder
+from ..vge_analytics.metrics.metric_files import SR_MULTI, write_folder
 
 # ------------------------------------------------------------------------------ OUT
 

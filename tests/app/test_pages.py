@@ -14,7 +14,7 @@ import vge_analytics as va
 from vge_analytics import ERROR_LABELS, compare, error_distribution, play, sweep, switch_classes
 from vge_analytics import dashboard as dash
 
-from ..vge_analytics.metric_files import RUNAWAY, write_folder
+from ..vge_analytics.metrics.metric_files import RUNAWAY, write_folder
 from .conftest import APP
 
 

@@ -1,5 +1,5 @@
 """The Side by side page's functions (`vge_analytics.dashboard`) on the hand-worked pair of
-`vge diff` (tests/vge_analytics/diff_pair.py: the kettle_c task).
+`vge diff` (tests/vge_analytics/reports/diff_pair.py: the kettle_c task).
 
 The optimal next steps, worked out by hand from the kettle's notes (tests/data/hand_worked/
 kettle_c_parse_multigoal_chain.json; goals LidOpen, BoilingComplete, Standby; PROTOCOL §4.3
@@ -31,7 +31,7 @@ from PIL import Image
 import vge_analytics as va
 from vge_analytics import dashboard as dash
 
-from ..vge_analytics.diff_pair import build_hand_pair
+from ..vge_analytics.reports.diff_pair import build_hand_pair
 
 LID_RIGHT = (427.480916, 73.047859, 534.351145, 109.991604)
 POWER_RIGHT = (412.213740, 821.158690, 583.969466, 876.574307)

@@ -38,7 +38,7 @@ from vge_analytics.store._limits import (
     memory_headroom,
 )
 
-from ..vge_analytics.metric_files import metric_text
+from ..vge_analytics.metrics.metric_files import metric_text
 
 LOGS = Path(__file__).resolve().parents[2] / "logs"
 RUNS = ("sim-human", "sim-vlm-a")

@@ -18,7 +18,7 @@ import pytest
 import replay
 import vge_analytics as va
 
-from .conftest import _case, replay_to, write_bench, write_run
+from ..conftest import _case, replay_to, write_bench, write_run
 
 
 def test_sweep_is_monotone_and_gains(hand_out: Path) -> None:
@@ -114,7 +114,7 @@ def test_sweep_finds_inputs_next_to_out_from_another_directory(tmp_path, monkeyp
     from replay import replay_runs
     from vge_analytics import sweep
 
-    logs = Path(__file__).resolve().parents[2] / "logs"
+    logs = Path(__file__).resolve().parents[3] / "logs"
     work = tmp_path / "work"
     shutil.copytree(logs / "bench", work / "bench")
     shutil.copytree(logs / "runs" / "sim-human", work / "runs" / "sim-human")

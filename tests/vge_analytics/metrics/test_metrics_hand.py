@@ -76,7 +76,7 @@ import pytest
 
 import vge_analytics as va
 
-from .conftest import HAND, KETTLE_CASES, OVEN_CASES
+from ..conftest import HAND, KETTLE_CASES, OVEN_CASES
 
 KETTLE_DISTANCES = (627.589481, 665.648855, 340.066042, 448.509452, 444.571279)
 KETTLE_WEIGHTS = (3, 1, 2, 2, 3)

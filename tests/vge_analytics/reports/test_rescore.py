@@ -37,7 +37,7 @@ import vge_analytics as va
 from vge_analytics.cli import main
 from vge_analytics.reports._ranking import kendall_tau_b_pairs
 
-from .metric_files import GOALS_DONE, SR_AS_SSR, SR_MULTI, metric_text, write_folder
+from ..metrics.metric_files import GOALS_DONE, SR_AS_SSR, SR_MULTI, metric_text, write_folder
 
 TAU_BY_GOALS = 6 / math.sqrt(42)
 
@@ -260,7 +260,7 @@ def test_bad_folder_stops_rescore(capsys, hand_out: Path, tmp_path: Path) -> Non
 
 
 def test_some_metrics_and_step_groups(hand_out: Path, capsys) -> None:
-    from .metric_files import EXAMPLES
+    from ..metrics.metric_files import EXAMPLES
 
     # A steps-only column groups a steps metric: pick it with --metrics.
     result = va.rescore(hand_out, EXAMPLES, by="run_id,action_type", metrics="TIR-dashboard")

@@ -36,7 +36,7 @@ def metric_text(
     )
 
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples" / "metrics"
+EXAMPLES = Path(__file__).resolve().parents[3] / "docs" / "examples" / "metrics"
 """The metrics folder docs/METRICS.md works through (SR-multi, TIR-dashboard, PSR)."""
 
 SR_MULTI = (EXAMPLES / "sr_multi.sql").read_text(encoding="utf-8")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 DATA = ROOT / "vge_analytics" / "synth" / "data"
 UCSM_DIR = DATA / "ucsm"
 CATALOG_DIR = DATA / "catalog"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from vge_analytics.cli import main
 
-LOGS = Path(__file__).resolve().parents[2] / "logs"
+LOGS = Path(__file__).resolve().parents[3] / "logs"
 
 
 def test_demo_replays_the_sample_and_prints_the_table(tmp_path: Path, capsys, monkeypatch) -> None:

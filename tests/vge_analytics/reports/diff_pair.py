@@ -1,5 +1,5 @@
 """The hand-worked pair of runs of `vge diff` and the Side by side page (the table of
-tests/vge_analytics/test_diff.py says what each episode is): runs A and B on copies of the
+tests/vge_analytics/reports/test_diff.py says what each episode is): runs A and B on copies of the
 kettle_c task, B also on `only-b`, run C only on `only-c`."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .conftest import HAND, replay_to, write_bench, write_run
+from ..conftest import HAND, replay_to, write_bench, write_run
 
 LID_OPEN = "Action: Push(coord=[480, 90], params=[1])"
 LID_CLOSE = "Action: Push(coord=[480, 90], params=[0])"

@@ -8,8 +8,8 @@ from pathlib import Path
 
 from vge_analytics.cli import main
 
-DATA = Path(__file__).resolve().parents[1] / "data"
-LOGS = Path(__file__).resolve().parents[2] / "logs"
+DATA = Path(__file__).resolve().parents[2] / "data"
+LOGS = Path(__file__).resolve().parents[3] / "logs"
 
 
 def _kettle_bench(root: Path, tasks: list[dict]) -> Path:
