@@ -133,7 +133,7 @@ def test_every_reader_of_lambda_takes_the_tasks_own_first(tmp_path, pictured) ->
     assert va.runs(out)["lambda"].to_list() == [3.0]
     env = DeviceEnv(pictured["bench"], lam=3, image_source=replay.env.no_images)
     env.reset(options={"episode_id": "e1"})
-    assert env.session.lam == 2.0
+    assert env.session.budget.lam == 2.0
     written = replay.episode_mcap_path(out, "r", "e1").local.read_bytes()
     replay.episode_mcap_path(out, "r", "e1").local.unlink()
     assert dash.episode_mcap(out, "r", "e1") == written  # made again, under the same λ

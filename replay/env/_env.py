@@ -248,8 +248,8 @@ class DeviceEnv(gymnasium.Env):
             "n_goals": session.n_goals,
             "feedback": text,
             "feedback_kind": kind,
-            "budget_global_left": np.array(session.budget_global_left, dtype=np.float64),
-            "budget_local_left": np.array(session.budget_local, dtype=np.float64),
+            "budget_global_left": np.array(session.budget.global_left, dtype=np.float64),
+            "budget_local_left": np.array(session.budget.local, dtype=np.float64),
         }
 
     def _reset_info(self) -> dict[str, Any]:
@@ -259,8 +259,8 @@ class DeviceEnv(gymnasium.Env):
         return {
             "device_id": self.machine.device_id,
             "category": self.machine.category,
-            "lambda": session.lam,
-            "budget_global": session.budget_global,
+            "lambda": session.budget.lam,
+            "budget_global": session.budget.budget_global,
             "goals": [names[g] for g in session.goals],
             "c_opt": list(session.c_opt),
             "initial_state": names[session.setup.initial_state],

@@ -92,7 +92,7 @@ class DeviceRLEnv(DeviceEnv):
         goal[session.current] = 1.0
         return {
             "budgets": np.array(
-                [session.budget_global_left, session.budget_local], dtype=np.float32
+                [session.budget.global_left, session.budget.local], dtype=np.float32
             ),
             "dashboard_unlocked": np.array([self._dashboard_unlocked()], dtype=np.float32),
             "goal": goal,

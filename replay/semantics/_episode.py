@@ -18,7 +18,7 @@ from ._machine import Machine
 from ._parse import ParsedAction, action_from_record, parse_action
 from ._plan import Plan, c_opt_dynamic, plan_goals
 from ._records import Continuation, EpisodeLog, LogStep, Task
-from ._rows import CLASSIFICATION_FIELDS, EpisodeRow, GoalRow, StepRow
+from ._rows import CLASSIFICATION_FIELDS, EpisodeKey, EpisodeRow, GoalRow, StepRow
 from ._step import reset, step
 from ._usage import NO_PRICES, Prices, origin_of, usage_cost
 from ._vocab import DASHBOARD, FEEDBACK_KINDS
@@ -228,28 +228,6 @@ class EpisodeSession:
         return self.termination is not None
 
     @property
-    def lam(self) -> float:
-        return self.budget.lam
-
-    @property
-    def budget_global(self) -> float:
-        return self.budget.budget_global
-
-    @property
-    def budget_local(self) -> float:
-        return self.budget.local
-
-    @property
-    def taken(self) -> int:
-        """Scored steps so far."""
-        return self.budget.taken
-
-    @property
-    def budget_global_left(self) -> float:
-        """`B_global` minus the steps taken."""
-        return self.budget.global_left
-
-    @property
     def instruction(self) -> str:
         """The instruction of the current goal ("" once every goal is completed)."""
         instructions = self.task.instructions
@@ -351,7 +329,7 @@ class EpisodeSession:
             budget.global_left, budget.local, False,
             recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts,
             *usage,
-        )  # fmt: skip
+        )
         self.rows.append(row)
         return row
 
@@ -384,22 +362,18 @@ class EpisodeSession:
         `ended` says (the log's `ended`, PROTOCOL §1.4), else as `log_ended`."""
         if self.termination is None:
             self.termination = ended or "log_ended"
-        machine = self.machine
-        names = machine.states
-        setup = self.setup
-        task = self.task
-        goals = self.goals
-        n_goals = self.n_goals
-        c_opt = self.c_opt
-        started = self._started
-        completed_at = self._completed_at
-        dyn = self._dyn
-        steps_used = self._steps_used
-        switches = self._switches
+        names = self.machine.states
+        setup, task, goals, n_goals, c_opt = (
+            self.setup, self.task, self.goals, self.n_goals, self.c_opt
+        )
+        # The per-goal tallies, indexed by goal.
+        started, completed_at, dyn, steps_used, switches = (
+            self._started, self._completed_at, self._dyn, self._steps_used, self._switches
+        )
         goals_completed = self.current
         success = goals_completed == n_goals
         l_opt = sum(c_opt)
-        l_act = self.taken
+        l_act = self.budget.taken
         spl = (l_opt / max(l_act, l_opt) if l_opt else 1.0) if success else 0.0
         visited_set = set(self.visited)
         optimal_list = list(setup.reset_states) + list(setup.plan.states)
@@ -408,13 +382,7 @@ class EpisodeSession:
         vsps_switches = sum(switches[g] for g in range(n_goals) if completed_at[g] is not None)
         vsps = vsps_switches / goals_completed if goals_completed else None
 
-        common = dict(
-            zip(
-                ("run_id", "model", "agent_kind", "episode_id", "device_id", "category"),
-                self._head,
-                strict=True,
-            )
-        )
+        common = dict(zip(EpisodeKey.__struct_fields__, self._head, strict=True))
         episode = EpisodeRow(
             **common,
             n_goals=n_goals,
@@ -431,8 +399,8 @@ class EpisodeSession:
             n_steps=len(self.rows),
             truncated_steps=self.truncated_steps,
             diverged_steps=self.diverged_steps,
-            lam=self.lam,
-            budget_global=self.budget_global,
+            lam=self.budget.lam,
+            budget_global=self.budget.budget_global,
             initial_state=names[setup.initial_state],
             initial_view=setup.initial_view,
             goals=[names[g] for g in goals],

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any, TypeVar
+
 import typer
 
 from replay import MAX_RECORD_BYTES, ConfigError
@@ -9,6 +12,8 @@ from replay import MAX_RECORD_BYTES, ConfigError
 from ..metrics import METRICS_DIR_ENV
 from ..store import CLI_TIMEOUT
 from ._output import FORMAT_HELP
+
+R = TypeVar("R")
 
 METRICS_DIR_HELP = (
     "A folder of metric files (.sql, in the format of the built-in metrics; see "
@@ -104,6 +109,18 @@ def episode_ids(text: str | None, option: str) -> tuple[str, ...] | None:
     return ids
 
 
+def record_of(record: type[R], params: Mapping[str, Any], **given: Any) -> R:
+    """A record of options (a msgspec struct) whose every field is the command's parameter of
+    the same name, or in `given` (those the command parses or builds): the option names are
+    then written once, in the command's signature, not again as `name=name` arguments. A field
+    that is neither is an error of the code, not of the user."""
+    fields = record.__struct_fields__
+    missing = [f for f in fields if f not in given and f not in params]
+    if missing:
+        raise TypeError(f"{record.__name__}: no parameter for {', '.join(missing)}")
+    return record(**{f: given[f] if f in given else params[f] for f in fields})
+
+
 __all__ = [
     "METRICS_DIR_HELP",
     "by_option",
@@ -113,6 +130,7 @@ __all__ = [
     "max_record_bytes_option",
     "ids_option",
     "memory_limit_option",
+    "record_of",
     "metric_names_option",
     "metrics_dir_option",
     "out_argument",

@@ -21,7 +21,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from ._options import episode_ids
+from ._options import episode_ids, record_of
 from ._output import finish
 
 if TYPE_CHECKING:
@@ -129,6 +129,7 @@ def run_command(
     ),
 ) -> None:
     """Play the benchmark with an agent and write a run directory that `vge replay` reads."""
+    params = dict(locals())  # the options, by name: they fill the records below
     from vge_analytics._errors import RunStoppedError
     from vge_analytics.live import (
         AgentOptions,
@@ -140,39 +141,10 @@ def run_command(
     )
 
     continuation = continuation_of(source, at, fix)
-
-    live_agent = load_agent(
-        agent,
-        AgentOptions(
-            history=history,
-            history_images=history_images,
-            seed=seed,
-            client=ClientSettings(
-                base_url=base_url,
-                temperature=temperature,
-                max_tokens=max_tokens,
-                timeout=timeout,
-                retries=retries,
-                retry_wait=retry_wait,
-            ),
-        ),
-    )
-    options = RunOptions(
-        bench=bench,
-        out=out,
-        run_id=run_id,
-        model=model,
-        agent_kind=agent_kind,
-        lam=lam,
-        episodes=episode_ids(episodes, "--episodes"),
-        limit=limit,
-        concurrency=concurrency,
-        resume=resume,
-        prompt_price=prompt_price,
-        completion_price=completion_price,
-        max_consecutive_failures=max_consecutive_failures,
-        continuation=continuation,
-    )
+    client = record_of(ClientSettings, params)
+    live_agent = load_agent(agent, record_of(AgentOptions, params, client=client))
+    episode_list = episode_ids(episodes, "--episodes")
+    options = record_of(RunOptions, params, episodes=episode_list, continuation=continuation)
     console = Console(stderr=True, highlight=False)
     bar = Progress(
         TextColumn("[bold]run[/] {task.description}"),

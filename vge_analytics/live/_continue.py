@@ -151,7 +151,7 @@ def cut_episode(
         prefix = first_error
     else:
         assert isinstance(at, int)
-        prefix = None if terminated and whole.taken <= at else min(at, n)
+        prefix = None if terminated and whole.budget.taken <= at else min(at, n)
     bare = tuple(replay.LogStep(output=s.output, action=s.action) for s in log.steps)
     if prefix is None:  # nothing to cut at: the source's episode as it was
         return Cut(bare, None, replay.Continuation(n, False, False, success), log.ended)

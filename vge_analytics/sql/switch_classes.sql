@@ -16,7 +16,7 @@ WITH counts AS (
     GROUP BY ALL
 ),
 grid AS (
-    SELECT __g, sum(n) AS switches
+    SELECT __g, sum(n) AS switches, sum(n) FILTER (WHERE switch_class IS NOT NULL) AS classified
     FROM scoped
     GROUP BY ALL
 ),
@@ -30,8 +30,7 @@ SELECT
     classes.class_order,
     classes.switch_class,
     coalesce(counts.n, 0) AS "count",
-    100.0 * coalesce(counts.n, 0)
-        / nullif(sum(coalesce(counts.n, 0)) OVER (PARTITION BY grid.__g), 0) AS share,
+    100.0 * coalesce(counts.n, 0) / nullif(grid.classified, 0) AS share,
     grid.switches
 FROM grid
 CROSS JOIN classes

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import replay
 from replay import AXONOMETRIC_VIEWS, DASHBOARD, INTERACTIONS, SCALE
 
-from ._catalog import Catalog
+from ._catalog import Catalog, ComponentSpec
 from ._profiles import Profile
 from ._tasks import TaskRecord
 from ._thinking import (
@@ -205,6 +205,22 @@ class Agent:
         x = cx + rng.gauss(0.0, sigma)
         y = cy + rng.gauss(0.0, sigma)
         return float(min(SCALE, max(0, round(x)))), float(min(SCALE, max(0, round(y))))
+
+    def _aimed(
+        self,
+        operation: replay.Action,
+        spec: ComponentSpec | None,
+        rect: tuple,
+        view: str,
+        recent: list[_Event],
+        comp: str,
+        remember: bool,
+    ) -> tuple[replay.Action, str, int]:
+        """`operation` aimed at `rect` (an agent that remembers its misses on `comp` aims
+        with their spread), how the agent names that place, and the misses counted."""
+        misses = self._misses(recent, comp) if remember else 0
+        action = replay.Action(operation.type, self._aim(rect, misses), operation.params)
+        return action, describe(spec, rect, view), misses
 
     def _params_for(self, action_type: str, rng: random.Random) -> tuple[str, ...]:
         if action_type == "press":
@@ -513,12 +529,9 @@ class Agent:
                     )
                 )
             self.operations[key] = chosen
-        rects = tr.rects[sim.view]
-        rect = rects[0]
-        misses = self._misses(recent, comp) if remember else 0
-        point = self._aim(rect, misses)
-        action = replay.Action(chosen.type, point, chosen.params)
-        where = describe(spec, rect, sim.view)
+        action, where, misses = self._aimed(
+            chosen, spec, tr.rects[sim.view][0], sim.view, recent, comp, remember
+        )
         if refine:
             text = (
                 f"{intent} The last attempt on {where} showed it can be operated, but not in "
@@ -557,11 +570,7 @@ class Agent:
         rects = self._rects_in(sim.state, sim.view, comp)
         if not rects:
             return self._interact_empty(sim, intent)
-        rect = rects[0]
-        misses = self._misses(recent, comp) if remember else 0
-        point = self._aim(rect, misses)
-        action = replay.Action(cand.type, point, cand.params)
-        where = describe(spec, rect, sim.view)
+        action, where, _ = self._aimed(cand, spec, rects[0], sim.view, recent, comp, remember)
         if refine:
             text = (
                 f"{intent} {where[0].upper() + where[1:]} reacted but not in that way. "

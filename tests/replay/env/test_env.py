@@ -159,7 +159,7 @@ def test_a_live_episode_and_the_replay_of_its_log_give_the_same_rows(sample: Sam
     session = env.session
     log = replay.EpisodeLog(episode_id=obs["episode_id"], steps=steps)
     replayed = replay.replay_episode(
-        session.machine, session.task, log, lam=session.lam, run_id="live", model="live",
+        session.machine, session.task, log, lam=session.budget.lam, run_id="live", model="live",
         agent_kind="vlm",
     )  # fmt: skip
     # `info` is the row without its null columns.
