@@ -3,8 +3,8 @@
 (numbers in and out, for reinforcement learning).
 
 Importing the package registers both ids with the benchmark's own pictures as their image
-source, unless they are registered already: `vge_analytics.envs` registers them with the
-analytics' pictures (the rendered synthetic views too) and replaces these registrations.
+source, unless they are registered already: a package built on this one may register them
+with an image source of its own (rendered views too), replacing these registrations.
 """
 
 import gymnasium

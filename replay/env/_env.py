@@ -72,8 +72,8 @@ class DeviceEnv(gymnasium.Env):
     `bench` is a benchmark directory (PROTOCOL §1.1) or an open `Benchmark`. `lam` is the
     run's λ (a task's own λ wins, PROTOCOL §3.5). `episodes` limits the episodes `reset` picks
     from when it is not given one. `image_source(machine, view)` supplies view images (default:
-    the benchmark's own, `replay.BenchImages`; `vge_analytics.image_source(bench)` also
-    renders the views of the synthetic categories); every view is shown at
+    the benchmark's own, `replay.BenchImages`; a caller may pass a source that also renders
+    views the benchmark has no picture of); every view is shown at
     `image_width` x `image_height`. `run_id`, `model` and `agent_kind` fill the matching
     fields of `info`. docs/LIVE.md describes the observation.
 

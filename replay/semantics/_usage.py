@@ -3,7 +3,7 @@ dollars from the run's prices, and the origin of a step of a continuation run.
 
 One statement of each rule for every reader: the replay's session (step and episode rows),
 the kernel (which computes the same numbers column by column, `replay.kernel._assemble`)
-and `vge run`'s totals in run.json (`vge_analytics.live`).
+and the live harness's totals in run.json (`vge run`).
 """
 
 from __future__ import annotations
