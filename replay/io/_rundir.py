@@ -24,16 +24,14 @@ from typing import Any, BinaryIO
 import msgspec
 
 from .._errors import InputError
-from ..semantics._records import EpisodeLog, RunHeader
+from ..semantics._records import RunHeader
 from ._decode import decode
 from ._durable import append_record, truncate, write_atomic
-from ._load import read_run_header, run_header_bytes
+from ._load import episode_decoder, read_run_header, run_header_bytes
 
 EPISODES = "episodes.jsonl"
 """The episodes file a writer appends to (`vge synth` streams `episodes.jsonl.gz`)."""
 RUN_JSON = "run.json"
-
-_episode_decoder = msgspec.json.Decoder(EpisodeLog)
 
 
 class RunDirectory:
@@ -68,7 +66,7 @@ class RunDirectory:
             return None
         start = data.rfind(b"\n") + 1
         try:
-            decode(_episode_decoder, data[start:])
+            decode(episode_decoder, data[start:])
         except msgspec.DecodeError:
             kept = None if self.aside is None else keep_aside(self.aside, "episodes-tail", data[start:])
             truncate(path, start)
@@ -90,7 +88,7 @@ class RunDirectory:
             if not line.strip():
                 continue
             try:
-                log = decode(_episode_decoder, line)
+                log = decode(episode_decoder, line)
             except msgspec.DecodeError as exc:
                 raise InputError(
                     str(self.episodes_path),

@@ -7,6 +7,7 @@ import numpy as np
 import pyarrow as pa
 
 from ..semantics._plan import INF
+from ..semantics._records import Continuation
 from ..semantics._rows import EpisodeRow, GoalRow, StepRow
 from ..semantics._tables import arrow_schema
 from ..semantics._usage import ORIGINS, Prices
@@ -111,6 +112,7 @@ def tables(out, vocab, episodes: list, head: tuple[str, str, str], prices: Price
     """(steps, episodes, goals) tables of a replayed batch, and rows per episode."""
     s, e, g = out.steps, out.episodes, out.goals
     n_eps = len(episodes)
+    continuations = [ep.log.continuation for ep in episodes]
     states = Words(vocab.states)
     comps = Words(vocab.comps)
     texts = Words(vocab.texts)
@@ -193,7 +195,7 @@ def tables(out, vocab, episodes: list, head: tuple[str, str, str], prices: Price
         ),
         "origin": coded(
             _ORIGINS,
-            origin_codes(sv["step_k"], sv["step_ep"], [ep.log.continuation for ep in episodes]),
+            origin_codes(sv["step_k"], sv["step_ep"], continuations),
         ),
     }
 
@@ -234,7 +236,7 @@ def tables(out, vocab, episodes: list, head: tuple[str, str, str], prices: Price
         "cost_usd": cost_column(
             ev["prompt"], ev["completion"], ev["prompt_valid"] | ev["completion_valid"], prices
         ),
-        **continuation_columns([ep.log.continuation for ep in episodes]),
+        **continuation_columns(continuations),
     }
 
     gv = {k: v[:n_goals] for k, v in g.items()}
@@ -269,16 +271,15 @@ def tables(out, vocab, episodes: list, head: tuple[str, str, str], prices: Price
 
 
 def continuation_columns(continuations: list) -> dict[str, pa.Array]:
-    """The episodes' continuation columns (null in ordinary runs), from their log lines."""
-    fields = (
-        ("prefix_steps", pa.int64()),
-        ("fixed", pa.bool_()),
-        ("continued", pa.bool_()),
-        ("source_success", pa.bool_()),
-    )
+    """The episodes' continuation columns (null in ordinary runs), from their log lines: one
+    per field of `Continuation`, typed as the episode row declares it."""
+    schema = arrow_schema(EpisodeRow)
     return {
-        name: pa.array([None if c is None else getattr(c, name) for c in continuations], type_)
-        for name, type_ in fields
+        name: pa.array(
+            [None if c is None else getattr(c, name) for c in continuations],
+            schema.field(name).type,
+        )
+        for name in Continuation.__struct_fields__
     }
 
 

@@ -11,6 +11,8 @@ import datetime as _dt
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import msgspec
+
 from .._errors import TaskError
 from ._budget import Budget, goals_reached
 from ._classify import Classifier
@@ -440,14 +442,10 @@ class EpisodeSession:
 
 
 def _continuation_columns(c: Continuation | None) -> dict:
+    """The episode row's columns of the same names as `Continuation`'s fields (null without)."""
     if c is None:
-        return {"prefix_steps": None, "fixed": None, "continued": None, "source_success": None}
-    return {
-        "prefix_steps": c.prefix_steps,
-        "fixed": c.fixed,
-        "continued": c.continued,
-        "source_success": c.source_success,
-    }
+        return dict.fromkeys(Continuation.__struct_fields__)
+    return msgspec.structs.asdict(c)
 
 
 def replay_episode(

@@ -71,9 +71,6 @@ SWITCH_CLASSES = ("NP", "PN", "NN", "PP")
 TERMINATIONS = ("success", "budget_global", "budget_local", "log_ended", "context_exceeded")
 """How an episode ends (PROTOCOL §3.5), in the order of the kernel's codes: a new one goes
 last so that the codes of the others never change."""
-LOG_ENDINGS = ("context_exceeded",)
-"""Why a harness may end a log before any other termination (an episode line's `ended`,
-PROTOCOL §1.4): the episode's termination when its log runs out first."""
 
 PARSE_DETAILS = ("no_action", "multiple_actions", "unknown_action", "malformed")
 """Why a response did not parse (PROTOCOL §2)."""
