@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import typer
 
-from .._errors import AnalyticsError
+from ..reports import check_format
 from ..reports import diff as compute_diff
 from ..store import query_time_limit
 from ._options import episode_ids, ids_option, out_argument, timeout_option
@@ -36,9 +36,7 @@ def diff(
     errors.
     """
     with query_time_limit(timeout):
-        if fmt not in DIFF_FORMATS:
-            # Not latex: a row per episode is no table for a paper.
-            raise AnalyticsError(f"unknown format {fmt!r}; choose one of {', '.join(DIFF_FORMATS)}")
+        check_format(fmt, DIFF_FORMATS)  # not latex: a row per episode is no table for a paper
         result = compute_diff(out, run_a, run_b, episodes=episode_ids(episodes, "--episodes"))
         if fmt == "json":  # the rows alone: what another tool reads
             emit(result.episodes, fmt)

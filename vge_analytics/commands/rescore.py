@@ -59,17 +59,18 @@ def rescore(
     """
     with query_time_limit(timeout):
         check_format(fmt)
+        filters = parse_where(where)
         result = compute_rescore(
             out,
             metrics_dir,
             against=against,
             by=parse_by(by),
-            where=parse_where(where),
+            where=filters,
             metrics=metric_names,
         )
         if not result.changes:
             typer.echo("The metrics folder changes no metric: nothing to report.", err=True)
-        runs = warn_incomplete(out, parse_where(where).get("run_id"))
+        runs = warn_incomplete(out, filters.get("run_id"))
         if fmt in ("json", "csv"):
             table = result.summary if summary else marked(result.rows, runs, fmt, result.by)
             emit(table, fmt, marks=False)

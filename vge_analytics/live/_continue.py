@@ -155,11 +155,11 @@ def cut_episode(
     bare = tuple(replay.LogStep(output=s.output, action=s.action) for s in log.steps)
     if prefix is None:  # nothing to cut at: the source's episode as it was
         return Cut(bare, None, replay.Continuation(n, False, False, success), log.ended)
-    cut = session()
-    for step in log.steps[:prefix]:
-        cut.advance(step)
     action = None
-    if fix:
+    if fix:  # the planner's step from where the prefix leaves the device
+        cut = session()
+        for step in log.steps[:prefix]:
+            cut.advance(step)
         sim = cut.sim
         planned = replay.next_optimal_step(
             machine, sim.state, sim.view, sim.unlocked, tuple(cut.goals[cut.current :])

@@ -39,9 +39,9 @@ SECTIONS_OF_TABLE_2: tuple[tuple[str, tuple[str, ...]], ...] = (
 _NULL = "\u2013"
 
 
-def check_format(fmt: str) -> str:
-    if fmt not in FORMATS:
-        raise AnalyticsError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
+def check_format(fmt: str, allowed: Sequence[str] = FORMATS) -> str:
+    if fmt not in allowed:
+        raise AnalyticsError(f"unknown format {fmt!r}; choose one of {', '.join(allowed)}")
     return fmt
 
 
