@@ -31,13 +31,14 @@ with c4:
 
 where = ui.where(run_id=chosen_runs, category=categories, n_goals=goal_counts)
 names = ui.all_metrics()
-incomplete = dash.incomplete_note(data.completeness())
+done = data.completeness()
+incomplete = dash.incomplete_note(done)
 if incomplete:  # never shown as finished runs (PROTOCOL §10.3)
     st.warning(incomplete, icon=":material/warning:")
 metrics = data.metrics(by=list(by), where=where)
 metrics = dash.with_costs(metrics, data.cost_table(list(by), where), by)
 table = dash.incomplete_groups(
-    ui.labelled(metrics, by), by, [r.run_id for r in data.completeness() if r.incomplete]
+    ui.labelled(metrics, by), by, [r.run_id for r in done if r.incomplete]
 )
 st.dataframe(
     ui.best_styler(table, names),

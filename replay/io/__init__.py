@@ -8,6 +8,7 @@ tables of a batch); the rest of the layer is reached through `replay`'s own expo
 
 from ._durable import append_record, fsync_dir, truncate, write_all, write_atomic
 from ._load import episode_decoder
+from ._manifest import runs_table
 from ._rundir import EPISODES, RUN_JSON, RunDirectory, keep_aside
 from ._worker import reference_tables, worker_state
 
@@ -20,6 +21,7 @@ __all__ = [
     "fsync_dir",
     "keep_aside",
     "reference_tables",
+    "runs_table",
     "truncate",
     "write_all",
     "worker_state",

@@ -8,8 +8,15 @@ from collections.abc import Sequence
 import polars as pl
 
 from ..metrics import Metric, MetricSet
-from ..reports import RunCompleteness, mark_rows
-from ..store import Filters, check_columns, grouped_aggregate, open_store, quote_ident, run_query
+from ..reports import RunCompleteness, mark_incomplete, mark_rows
+from ..store import (
+    Filters,
+    check_columns,
+    grouped_aggregate,
+    open_store,
+    order_by,
+    run_query,
+)
 
 
 def group_labels(df: pl.DataFrame, by: Sequence[str]) -> pl.Series:
@@ -130,11 +137,9 @@ def cost_table(out, by: Sequence[str], where: Filters = None) -> pl.DataFrame:
     store = open_store(out)
     by = list(by)
     check_columns(store, [*by, *(where or {})], ["episodes"], "grouping/filter")
-    sql, params = grouped_aggregate(store, "episodes", by, where, _COST_TERMS)
-    keys = ", ".join(quote_ident(c) for c in by)
-    if by:  # the additive terms of a two-level aggregation, added up per group
-        sums = ", ".join(f"sum({quote_ident(n)}) AS {quote_ident(n)}" for _, n in _COST_TERMS)
-        sql = f"SELECT {keys}, {sums} FROM ({sql}) GROUP BY {keys} ORDER BY {keys} NULLS LAST"
+    sql, params = grouped_aggregate(store, "episodes", by, where, _COST_TERMS)  # a row a group
+    if by:
+        sql = f"SELECT * FROM ({sql}){order_by(by)}"
     df = run_query(store, sql, params)
     return df.with_columns(
         pl.col("episodes", "successes", "costed").cast(pl.Int64),
@@ -176,12 +181,9 @@ def incomplete_groups(table: pl.DataFrame, by: Sequence[str], runs: Sequence[str
     `runs` (the incomplete ones), when the table is grouped by run."""
     if "run_id" not in by or not runs:
         return table
-    flags = (
-        pl.Series([r in runs for r in table["run_id"]])
-        if "run_id" in table.columns
-        else (table["group"].is_in(list(runs)))
-    )
-    return mark_rows(table, "group", flags)
+    if "run_id" in table.columns:
+        return mark_incomplete(table, "group", runs)
+    return mark_rows(table, "group", table["group"].is_in(list(runs)))
 
 
 def incomplete_note(runs: Sequence[RunCompleteness]) -> str | None:

@@ -30,6 +30,7 @@ import pyarrow.dataset as pads
 import pyarrow.fs as pafs
 
 import replay
+from replay.io import runs_table
 
 from .._errors import OutputDirError
 
@@ -54,21 +55,9 @@ class _Dataset(pads.FileSystemDataset):
         return super().scanner(*args, **{**SCAN_OPTIONS, **kwargs})
 
 
-def _empty_runs() -> pa.Table:
-    return pa.table(
-        {
-            "run_id": pa.array([], pa.string()),
-            "model": pa.array([], pa.string()),
-            "agent_kind": pa.array([], pa.string()),
-            "lambda": pa.array([], pa.float64()),
-            "meta": pa.array([], pa.string()),
-        }
-    )
-
-
 def _empty(table: str) -> pa.Table:
-    if table == "runs":
-        return _empty_runs()
+    if table == "runs":  # the fixed columns the replay writes (no meta_* without a run)
+        return runs_table([])
     return replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
 
 

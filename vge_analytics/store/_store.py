@@ -37,9 +37,6 @@ from ._datasets import PARTITIONED, TABLES, table_sources
 from ._limits import SqlLimits
 from ._locked import locked_connection, register_all
 
-RUN_COLUMNS_FIXED: tuple[str, ...] = ("run_id", "model", "agent_kind", "lambda")
-"""Columns every runs table has (meta facets add `meta_<key>` columns and `meta`)."""
-
 NUMERIC_TYPES: tuple[str, ...] = (
     "TINYINT",
     "SMALLINT",
@@ -319,7 +316,6 @@ def table_columns(out: str | Path | Store) -> Mapping[str, list[str]]:
 __all__ = [
     "NUMERIC_TYPES",
     "PARTITIONED",
-    "RUN_COLUMNS_FIXED",
     "resolve_input",
     "TABLES",
     "Store",

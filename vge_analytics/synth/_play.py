@@ -31,7 +31,7 @@ class StepPlayer:
     ) -> tuple[str | None, dict | None, replay.ParsedAction, Decision]:
         """The logged form of the next response: text (`output`) or a structured `record`."""
         decision = self.agent.decide(sim, goal_index, goal)
-        output, record, parsed = _format(decision, self.profile, self.rng, sim)
+        output, record, parsed = _format(decision, self.profile, self.rng)
         self._pending = (decision, parsed, goal_index, goal)
         return output, record, parsed, decision
 
@@ -82,7 +82,7 @@ def play_episode(
 
 
 def _format(
-    decision: Decision, profile: Profile, rng: random.Random, sim: replay.SimState
+    decision: Decision, profile: Profile, rng: random.Random
 ) -> tuple[str | None, dict | None, replay.ParsedAction]:
     """The logged form of a decision and what the engine will parse from it."""
     action = decision.action
