@@ -49,7 +49,10 @@ def _machine(ssm_path: str, device_id: str) -> replay.Machine:
 
 def device_machine(out: str | Path, device_id: str, run_id: str | None = None) -> replay.Machine:
     """The compiled SSM of a device, from the benchmark OUT was replayed against."""
-    bench = bench_dir(out, run_id)
+    return _bench_machine(bench_dir(out, run_id), device_id)
+
+
+def _bench_machine(bench, device_id: str) -> replay.Machine:
     path = bench / "ssm" / f"{device_id}.json"
     if not path.is_file():
         raise OutputDirError(f"{path}: SSM not found (the benchmark moved since the replay?)")
@@ -112,9 +115,8 @@ def view_picture(
     out: str | Path, device_id: str, view: str, run_id: str | None = None
 ) -> ViewPicture:
     """The image of a device view (rendered synthetic views included), or a blank canvas."""
-    bench = bench_dir(out, run_id)
-    machine = device_machine(out, device_id, run_id)
-    got = image_source(bench)(machine, view)
+    bench = bench_dir(out, run_id)  # the manifest read once for the machine and the picture
+    got = image_source(bench)(_bench_machine(bench, device_id), view)
     if got is not None:
         return ViewPicture(*got, rendered=True)
     from PIL import Image

@@ -174,12 +174,16 @@ def _read_manifest(out: Path | replay.Location) -> dict | None:
     return data if isinstance(data, dict) else {}
 
 
-def run_entry(out: str | Path | replay.Location, run_id: str) -> dict:
-    """The manifest's entry of a run (its inputs, options, counts)."""
-    for entry in (_read_manifest(replay.location(out)) or {}).get("runs", []):
+def _entry(runs: list, run_id: str, out: object) -> dict:
+    for entry in runs:
         if entry.get("run_id") == run_id:
             return entry
     raise UnknownRunError(f"run {run_id!r} is not in {out}/manifest.json")
+
+
+def run_entry(out: str | Path | replay.Location, run_id: str) -> dict:
+    """The manifest's entry of a run (its inputs, options, counts)."""
+    return _entry((_read_manifest(replay.location(out)) or {}).get("runs", []), run_id, out)
 
 
 def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Location:
@@ -187,7 +191,7 @@ def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Locat
     runs = (_read_manifest(replay.location(out)) or {}).get("runs", [])
     if not runs:
         raise OutputDirError(f"{out}: the manifest lists no run")
-    entry = run_entry(out, run_id) if run_id is not None else runs[0]
+    entry = _entry(runs, run_id, out) if run_id is not None else runs[0]
     bench = resolve_input(out, entry["inputs"]["bench"])
     if not bench.is_dir():
         raise OutputDirError(
