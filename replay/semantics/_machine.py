@@ -240,6 +240,14 @@ MAX_CHAIN_STATES = 1 << 24
 its states and transitions (each keeps the chain after it): the bound on its memory."""
 
 
+def _immediate_successor(states: dict, name: str) -> str | None:
+    """The state `name`'s first `immediate` transition leads to (None: none, or a state the
+    machine does not have)."""
+    imm = states[name].on.get(IMMEDIATE)
+    nxt = imm[0].next_state if imm else None
+    return nxt if nxt in states else None
+
+
 def _chain_states_held(ssm: StateMachine) -> int:
     """What compiling holds of the immediate chains (see `MAX_CHAIN_STATES`): every state's
     chain, and for every other transition its target and the target's chain. Linear time;
@@ -250,16 +258,14 @@ def _chain_states_held(ssm: StateMachine) -> int:
         path: list[str] = []
         current = start
         while current not in length:
-            imm = states[current].on.get(IMMEDIATE)
-            nxt = imm[0].next_state if imm else None
-            if nxt is None or nxt not in states:
+            nxt = _immediate_successor(states, current)
+            if nxt is None:
                 length[current] = 0
                 break
             path.append(current)
             current = nxt
         for name in reversed(path):
-            imm = states[name].on[IMMEDIATE]
-            length[name] = 1 + length[imm[0].next_state]
+            length[name] = 1 + length[_immediate_successor(states, name)]
     held = sum(length.values())
     for sdef in states.values():
         for comp, trs in sdef.on.items():
@@ -278,11 +284,6 @@ def _immediate_cycles(ssm: StateMachine) -> list[list[str]]:
     states = ssm.states
     order = {name: i for i, name in enumerate(states)}
 
-    def successor(name: str) -> str | None:
-        imm = states[name].on.get(IMMEDIATE)
-        nxt = imm[0].next_state if imm else None
-        return nxt if nxt in states else None
-
     seen: set[str] = set()
     cycles: list[list[str]] = []
     for start in states:
@@ -291,7 +292,7 @@ def _immediate_cycles(ssm: StateMachine) -> list[list[str]]:
         while current is not None and current not in seen:
             seen.add(current)
             walk[current] = len(walk)
-            current = successor(current)
+            current = _immediate_successor(states, current)
         if current is not None and current in walk:  # the walk closed on itself
             members = list(walk)[walk[current] :]
             first = min(range(len(members)), key=lambda k: order[members[k]])
