@@ -1,7 +1,7 @@
 """Hostile input to the replay, at full size (not a test): the figures of docs/REPLAY.md,
-"Hostile input".
+"Hostile input", and of docs/LIVE.md, "A hostile model server" (the `live_` cases).
 
-    python benchmarks/bench_hostile.py [--work DIR] [--keep]
+    python benchmarks/bench_hostile.py [--work DIR] [--keep] [--only NAME,...]
 
 Each case is generated under DIR (a temporary directory by default, removed unless --keep)
 by `tests/hostile/replay_inputs.py`, the generators of the test module
@@ -202,6 +202,104 @@ def label_response(work: Path) -> list[str]:
     return rows
 
 
+# ---------------------------------------------------------------- vge run, a hostile server
+# `vge run` against tests/vge_analytics/live/chat_server.py on 127.0.0.1, every request
+# answered alike; run through /usr/bin/time -v (its figures: the peak resident memory and
+# the wall time), under an address-space bound of 4 GB. The kettle benchmark of the live
+# tests, one episode. For the figures of the code before the bounds, run this file with
+# PYTHONPATH pointing at that code (the server and the table stay this checkout's).
+
+LIVE_BOUND = 4 << 30
+
+
+def _timed_vge(*args: object, timeout: float) -> tuple[Finished, float, int]:
+    """`vge ARGS` under /usr/bin/time -v: the process, its wall seconds, its peak RSS."""
+    done = run_bounded(
+        ["/usr/bin/time", "-v", *VGE, *map(str, args)], address_space=LIVE_BOUND, timeout=timeout
+    )
+    figures = dict(
+        line.strip().rsplit(": ", 1) for line in done.stderr.splitlines() if line.startswith("\t")
+    )
+    if "Maximum resident set size (kbytes)" not in figures:  # killed at the timeout
+        return done, done.seconds, done.peak_memory
+    h, m, sec = ("0:" + figures["Elapsed (wall clock) time (h:mm:ss or m:ss)"]).split(":")[-3:]
+    seconds = int(h) * 3600 + int(m) * 60 + float(sec)
+    return done, seconds, int(figures["Maximum resident set size (kbytes)"]) * 1024
+
+
+def _live(work: Path, case: str, reply: object, *options: str, timeout: float = 600.0) -> str:
+    from tests.vge_analytics.live.chat_server import chat_server
+    from tests.vge_analytics.live.conftest import write_kettle_bench
+
+    bench = write_kettle_bench(work / "bench")
+    run = work / "run"
+    with chat_server([], then=reply) as server:  # type: ignore[arg-type]
+        done, seconds, peak = _timed_vge(
+            "run", bench, "--agent", "openai:scripted-vlm", "--out", run, "--base-url",
+            server.url, "--limit", "1", "--retries", "1", "--retry-wait", "0.01",
+            "--no-progress", *options, timeout=timeout,
+        )  # fmt: skip
+        requests = len(server.requests)
+    notes = [f"requests: {requests}"]
+    killed = seconds >= timeout
+    if killed:
+        notes.append(f"killed after {timeout:.0f} s, still reading")
+    elif done.returncode not in (0, 2):
+        notes.append(done.stderr.strip().splitlines()[0][:120] if done.stderr.strip() else "-")
+    episodes = run / "episodes.jsonl"
+    if episodes.exists():
+        notes.append(f"episodes.jsonl {episodes.stat().st_size:,} bytes")
+    if (run / "failures.jsonl").exists():
+        reason = json.loads((run / "failures.jsonl").read_text().splitlines()[0])["reason"]
+        notes.append(f"failure: {reason.split('; last: ')[-1]}")
+    if (run / "run.json").exists():
+        meta = json.loads((run / "run.json").read_text())["meta"]
+        if "prompt_tokens" in meta:
+            notes.append(f"run.json prompt_tokens {meta['prompt_tokens']:,}")
+        if episodes.exists() and not killed:
+            out = work / "out"
+            replayed = vge("replay", run, "--bench", bench, "--out", out)
+            said = replayed.stderr.strip()[:100]
+            notes.append(f"replay: {quarantined(out) if replayed.returncode in (0, 2) else said}")
+    shown = "-" if killed else f"{peak / MiB:,.0f}"
+    return (
+        f"| {case} | `vge run --limit 1 --retries 1` | {done.returncode} | {seconds:.1f} | "
+        f"{shown} | {'; '.join(notes)} |"
+    )
+
+
+def live_huge_answer(work: Path) -> list[str]:
+    from tests.vge_analytics.live.chat_server import huge
+
+    return [_live(work, "every answer 1 GiB (Content-Length declared)", huge(1 << 30))]
+
+
+def live_50mb_answer(work: Path) -> list[str]:
+    from tests.vge_analytics.live.chat_server import huge
+
+    return [_live(work, "every answer 50 MiB", huge(50 * MiB))]
+
+
+def live_trickle(work: Path) -> list[str]:
+    from tests.vge_analytics.live.chat_server import trickle
+
+    reply = trickle(2.0, size=1000)
+    case = "the answer's body trickled, a byte every 2 s (`--timeout 10`)"
+    return [_live(work, case, reply, "--timeout", "10", timeout=180)]
+
+
+def live_token_counts(work: Path) -> list[str]:
+    from tests.vge_analytics.live.chat_server import Scripted, answer
+
+    rows = []
+    opens = "Thinking: the lid.\nAction: Push(coord=[480, 90], params=[1])"
+    for case, tokens in (("negative token counts (-10^22)", -(10**22)), ("10^22 tokens", 10**22)):
+        body = json.loads(answer(opens).body)
+        body["usage"] = {"prompt_tokens": tokens, "completion_tokens": tokens}
+        rows.append(_live(work / str(len(rows)), case, Scripted(200, json.dumps(body).encode())))
+    return rows
+
+
 CASES: list[Callable[[Path], list[str]]] = [
     large_records,
     long_line,
@@ -213,6 +311,10 @@ CASES: list[Callable[[Path], list[str]]] = [
     long_run_id,
     killed_parent,
     label_response,
+    live_huge_answer,
+    live_50mb_answer,
+    live_trickle,
+    live_token_counts,
 ]
 
 
@@ -222,13 +324,17 @@ def main() -> None:
         "--work", type=Path, help="where to generate the inputs (default: a temp dir)"
     )
     parser.add_argument("--keep", action="store_true", help="keep the generated inputs")
+    parser.add_argument("--only", help="the cases to run, comma-separated (default: all)")
     args = parser.parse_args()
+    only = None if args.only is None else set(args.only.split(","))
     work = args.work or Path(tempfile.mkdtemp(prefix="vge-hostile-"))
     print(f"{os.cpu_count()} cores; Python {sys.version.split()[0]}; gzip level 1 inputs\n")
     print("| input | command | exit | seconds | peak MB | outcome |")
     print("|---|---|---|---|---|---|")
     try:
         for case in CASES:
+            if only is not None and case.__name__ not in only:
+                continue
             for line in case(work / case.__name__):
                 print(line, flush=True)
     finally:

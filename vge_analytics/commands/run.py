@@ -21,6 +21,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from replay import MAX_RECORD_BYTES
+
 from ._options import episode_ids, record_of
 from ._output import finish
 
@@ -89,7 +91,17 @@ def run_command(
     ),
     temperature: float | None = typer.Option(None, "--temperature", help="openai: sampling."),
     max_tokens: int | None = typer.Option(None, "--max-tokens", min=1, help="openai: answer cap."),
-    timeout: float = typer.Option(120.0, "--timeout", min=0.001, help="openai: s per request."),
+    timeout: float = typer.Option(
+        120.0, "--timeout", min=0.001, help="openai: s per request, in all (not per read)."
+    ),
+    max_response_bytes: int = typer.Option(
+        4 << 20,
+        "--max-response-bytes",
+        min=1024,
+        max=MAX_RECORD_BYTES,
+        metavar="BYTES",
+        help="openai: the most one answer may take (4 MiB); a longer one is dropped, and retried.",
+    ),
     retries: int = typer.Option(4, "--retries", min=0, help="openai: retries of a request."),
     retry_wait: float = typer.Option(
         2.0,

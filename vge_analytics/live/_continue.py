@@ -65,6 +65,10 @@ class ContinueFrom(msgspec.Struct, frozen=True, kw_only=True):
         return {"from_run": self.from_run, "at": self.at, "fix": self.fix}
 
 
+UNREAD_SHOWN = 10
+"""Source lines that are not episode records named one by one; the rest are counted."""
+
+
 @dataclass(frozen=True, slots=True)
 class SourceRun:
     """The source run: its header, and each episode's line (file order, the first line of an
@@ -73,6 +77,11 @@ class SourceRun:
     root: Path
     header: replay.RunHeader
     lines: dict[str, bytes]
+    unread: tuple[str, ...] = ()
+    """The source's lines that are not episode records (the replay quarantines them), one
+    line each naming the file and the line (the first `UNREAD_SHOWN`, then how many more):
+    episodes that cannot be continued."""
+    unread_count: int = 0
 
     @classmethod
     def open(cls, run_dir: Path) -> SourceRun:
@@ -80,25 +89,27 @@ class SourceRun:
             raise RunDirError(f"--from {run_dir}: not a run directory")
         header = replay.read_run_header(run_dir)
         lines: dict[str, bytes] = {}
-        for _, line in replay.iter_lines(replay.episodes_file(run_dir)):
+        unread: list[str] = []
+        count = 0
+        path = replay.episodes_file(run_dir)
+        for number, line in replay.iter_lines(path):
             try:
-                episode_id = msgspec.json.decode(line, type=_EpisodeId).episode_id
-            except msgspec.DecodeError:
-                continue  # not an episode record: the replay quarantines it, nothing to continue
+                episode_id = _decoder.decode(line).episode_id
+            except (msgspec.DecodeError, UnicodeDecodeError) as exc:  # the replay's verdict
+                count += 1
+                if count <= UNREAD_SHOWN:
+                    unread.append(
+                        f"{path} line {number}: not an episode record, not continued ({exc})"
+                    )
+                continue
             lines.setdefault(episode_id, line)
-        return cls(run_dir, header, lines)
+        if count > UNREAD_SHOWN:
+            more = count - UNREAD_SHOWN
+            unread.append(f"{path}: {more:,} more lines that are not episode records")
+        return cls(run_dir, header, lines, tuple(unread), count)
 
     def log(self, episode_id: str) -> replay.EpisodeLog:
-        try:
-            return _decoder.decode(self.lines[episode_id])
-        except msgspec.DecodeError as exc:  # the replay quarantines such a line too
-            raise RunDirError(
-                f"{self.root}: episode {episode_id!r}: not an episode ({exc})"
-            ) from None
-
-
-class _EpisodeId(msgspec.Struct):
-    episode_id: str
+        return _decoder.decode(self.lines[episode_id])  # read once already (`open`)
 
 
 @dataclass(frozen=True, slots=True)

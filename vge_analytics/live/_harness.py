@@ -44,7 +44,8 @@ class RunSummary:
     counters: Counters
     failures: list[FailureRecord]
     skipped: list[str] = field(default_factory=list)
-    """Tasks that cannot be played, each with its reason."""
+    """Tasks that cannot be played, each with its reason (a continuation's first: the lines
+    of its source that are not episodes, each naming its file and line)."""
     extended_from: int | None = None
     """The episodes the run had selected before `--resume` extended it (None: not extended)."""
 
@@ -140,6 +141,7 @@ def run_live(
         raise RunDirError("--concurrency must be at least 1")
     if options.max_consecutive_failures < 0:
         raise RunDirError("--max-consecutive-failures must be 0 (never stop) or more")
+    _check_prices(options)
     options = msgspec.structs.replace(options, bench=Path(options.bench), out=Path(options.out))
     bench = replay.Benchmark.open(options.bench)
     source: Source | None = None
@@ -152,6 +154,10 @@ def run_live(
         selected=len(selection),
         prices=replay.Prices(options.prompt_price, options.completion_price),
     )
+    unread: tuple[str, ...] = ()
+    if source is not None and options.episodes is None:
+        # Lines of the source that are not episodes: the continuation is not complete.
+        unread, counters.source_unread = source.run.unread, source.run.unread_count
     rundir = RunDir(options.out)
     header = run_header(agent, options, counters)
     before: replay.RunHeader | None = None
@@ -197,8 +203,28 @@ def run_live(
     rundir.write_header(final)
     kept = [run.failures[e] for e in selection if e in run.failures]
     return RunSummary(
-        options.out, final, counters, kept, run.skipped, extended_from=_extended(before, counters)
+        options.out,
+        final,
+        counters,
+        kept,
+        [*unread, *run.skipped],
+        extended_from=_extended(before, counters),
     )
+
+
+def _check_prices(options: RunOptions) -> None:
+    """A price is what run.json may hold (PROTOCOL §1.4: a finite number of USD, at least 0),
+    so every cost computed from it is a number too."""
+    for option, price in (
+        ("--prompt-price", options.prompt_price),
+        ("--completion-price", options.completion_price),
+    ):
+        try:
+            replay.run_prices({replay.PROMPT_PRICE_KEY: price})
+        except ValueError:
+            raise RunDirError(
+                f"{option}: a price is a finite number of USD, at least 0, not {price!r}"
+            ) from None
 
 
 def _continuing(options: RunOptions) -> tuple[RunOptions, Source]:

@@ -27,10 +27,11 @@ TOTAL_KEYS = (
     "completion_tokens",
     "latency_seconds",
     "cost_usd",
+    "source_lines_unread",
 )
 """Keys of run.json's meta that count what the run did or was asked to play (the others are
 its settings). The selection is one of them: `--resume` may extend it."""
-CONNECTION_KEYS = ("base_url", "request_timeout_seconds", "retries")
+CONNECTION_KEYS = ("base_url", "request_timeout_seconds", "max_response_bytes", "retries")
 """Settings of how the model is reached, which `--resume` may change (a server on a new
 address); every other setting must stay as the run was started."""
 
@@ -73,6 +74,8 @@ class Counters:
     """Finished episodes the model's context window ended (`context_exceeded`)."""
     failures: int = 0
     skipped: int = 0
+    source_unread: int = 0
+    """A continuation's source lines that are not episode records (not continued)."""
     steps: int = 0
     prompt_tokens: int = 0
     completion_tokens: int = 0
@@ -118,9 +121,11 @@ def run_header(agent: LiveAgent, options: RunOptions, counters: Counters) -> rep
         "episodes": counters.finished,
         "infrastructure_failures": counters.failures,
         "tasks_skipped": counters.skipped,
-        "complete": counters.finished + counters.skipped == selected,
+        "complete": counters.finished + counters.skipped == selected and not counters.source_unread,
         "steps": counters.steps,
     }
+    if counters.source_unread:
+        meta["source_lines_unread"] = counters.source_unread
     if counters.has_usage:
         meta["prompt_tokens"] = counters.prompt_tokens
         meta["completion_tokens"] = counters.completion_tokens

@@ -6,16 +6,20 @@ request when the model is not listed there (aliases and wildcard routes are not 
 listed). A server that cannot be reached, a refused key or an unknown model fail there, in
 one line, before anything is played.
 
-Every request has a timeout. A server error (5xx), a rate limit (429), a request timeout
-(408), a conflict (409), a lost connection or an answer that cannot be read is retried, up
-to `retries` more times, waiting about `retry_wait` seconds and doubling each time (or what
-the server's `Retry-After` asks, when longer). Each wait is drawn between half and all of
-its doubled value ("equal jitter"), so the threads of `--concurrency N`, refused together,
-do not all come back together; a run that is stopping cuts the wait short. A request that
-still fails raises `InfrastructureError`: the harness ends that episode as an infrastructure
-failure, never as the agent's. Any other 4xx is never retried (`_refusal.py`): a request
-longer than the model's context window raises `ContextExceededError` (the episode ends
-there), anything else `RequestRefusedError` (every request would be refused alike).
+Every request ends within its time (`timeout`, in all: not per read) and receives at most
+`max_response_bytes` (`_http.py`), and an answer's text and token counts must be what a
+step of the log may hold (PROTOCOL §1.4). A server error (5xx), a rate limit (429), a
+request timeout (408), a conflict (409), a lost connection, a request past its time, or an
+answer that cannot be read (not a chat completion, past the cap, out of the protocol's
+bounds) is retried, up to `retries` more times, waiting about `retry_wait` seconds and
+doubling each time (or what the server's `Retry-After` asks, when longer). Each wait is
+drawn between half and all of its doubled value ("equal jitter"), so the threads of
+`--concurrency N`, refused together, do not all come back together; a run that is stopping
+cuts the wait short. A request that still fails raises `InfrastructureError`: the harness
+ends that episode as an infrastructure failure, never as the agent's. Any other 4xx is never
+retried (`_refusal.py`): a request longer than the model's context window raises
+`ContextExceededError` (the episode ends there), anything else `RequestRefusedError` (every
+request would be refused alike).
 """
 
 from __future__ import annotations
@@ -31,6 +35,8 @@ from typing import Any
 import msgspec
 import openai
 
+import replay
+
 from .._errors import (
     AgentError,
     ContextExceededError,
@@ -38,6 +44,7 @@ from .._errors import (
     RequestRefusedError,
     ServerUnreachableError,
 )
+from ._http import AnswerDropped, RequestBounds
 from ._refusal import Refusal, error_message, refusal
 
 CHECK_TIMEOUT = 10.0
@@ -45,6 +52,9 @@ CHECK_TIMEOUT = 10.0
 when that is shorter): a server that answers nothing is not waited for as long as a model."""
 CHECK_MESSAGE = "Reply with the word OK."
 """The minimal request of `check`, sent with the run's own parameters."""
+MAX_RESPONSE_BYTES = 4 << 20
+"""The most bytes one answer may take by default (4 MiB, about a million tokens of text):
+far more than a step's answer needs, far less than the memory of the machine."""
 
 
 class ClientSettings(msgspec.Struct, frozen=True):
@@ -57,7 +67,11 @@ class ClientSettings(msgspec.Struct, frozen=True):
     max_tokens: int | None = None
     """Longest answer; None: the server's default."""
     timeout: float = 120.0
-    """Seconds one request may take."""
+    """Seconds one request may take, in all: from sending it to the last byte of the answer
+    (not per read: a server trickling its answer is cut off there)."""
+    max_response_bytes: int = MAX_RESPONSE_BYTES
+    """The most bytes the answer to one request may take (headers included); a longer one
+    is dropped, as an answer that cannot be read."""
     retries: int = 4
     """Further attempts after a failed request."""
     retry_wait: float = 2.0
@@ -105,12 +119,14 @@ class ChatClient:
         short when the run stops."""
         self._jitter = jitter
         """A number in [0, 1) per wait (tests fix it)."""
+        self._bounds = RequestBounds(settings.max_response_bytes)
         # Retries are ours (one policy, counted here), so the library makes one attempt.
         self._client = openai.OpenAI(
             api_key=api_key(settings.base_url),
             base_url=settings.base_url,
             timeout=settings.timeout,
             max_retries=0,
+            http_client=self._bounds.http_client(),
         )
 
     @property
@@ -132,32 +148,35 @@ class ChatClient:
         know the model or refuses the run's parameters. One attempt each, no retries; a
         server that is reachable but busy (5xx, 429) passes: the run's retries deal with it."""
         listed: list[str] | None = None
-        quick = self._client.with_options(timeout=min(self.settings.timeout, CHECK_TIMEOUT))
+        seconds = min(self.settings.timeout, CHECK_TIMEOUT)
+        quick = self._client.with_options(timeout=seconds)
         try:
-            listed = [m.id for m in quick.models.list().data]
-        except openai.APIConnectionError as exc:  # timeouts included
-            raise self._unreachable(exc) from None
+            with self._bounds.request(seconds):
+                listed = [m.id for m in quick.models.list().data]
+        except (openai.APIConnectionError, AnswerDropped) as exc:  # timeouts included
+            self._check_unreachable(exc)
         except openai.APIStatusError as exc:
             if refusal(exc) == "key":
                 raise self._refused("key", exc) from None
             # No list here (404 on a server without one, 5xx): the request below decides.
-        except (openai.APIError, ValueError):
+        except _UNREADABLE:
             pass  # a list that cannot be read: likewise
         if listed is not None and self.model in listed:
             return
         try:
-            self._client.chat.completions.create(
-                model=self.model,
-                messages=[{"role": "user", "content": CHECK_MESSAGE}],
-                **self._parameters(),
-            )
-        except openai.APIConnectionError as exc:
-            raise self._unreachable(exc) from None
+            with self._bounds.request(self.settings.timeout):
+                self._client.chat.completions.create(
+                    model=self.model,
+                    messages=[{"role": "user", "content": CHECK_MESSAGE}],
+                    **self._parameters(),
+                )
+        except (openai.APIConnectionError, AnswerDropped) as exc:
+            self._check_unreachable(exc)
         except openai.APIStatusError as exc:
             kind = refusal(exc)
             if kind != "retry":
                 raise self._refused(kind, exc, listed) from None
-        except (openai.APIError, ValueError):
+        except _UNREADABLE:
             pass  # it answered: reachable, and the run's retries deal with the rest
 
     def complete(self, messages: list[dict], *, stop: threading.Event | None = None) -> Completion:
@@ -172,9 +191,10 @@ class ChatClient:
             asked = 0.0  # what the server's Retry-After asks
             started = time.perf_counter()
             try:
-                response = self._client.chat.completions.create(
-                    model=self.model, messages=messages, **extra
-                )
+                with self._bounds.request(s.timeout):
+                    response = self._client.chat.completions.create(
+                        model=self.model, messages=messages, **extra
+                    )
                 latency = time.perf_counter() - started
                 completion = _read(response, latency)
             except openai.APIStatusError as exc:
@@ -184,8 +204,11 @@ class ChatClient:
                 reasons.append(_say(exc))
                 asked = _retry_after(exc)
             except openai.APIConnectionError as exc:  # timeouts included
-                reasons.append(_say(exc))
-            except (openai.APIError, _Unreadable, ValueError) as exc:  # a body that is not JSON
+                dropped = _dropped(exc)
+                reasons.append(_say(exc) if dropped is None else str(dropped))
+            except AnswerDropped as exc:
+                reasons.append(str(exc))
+            except _UNREADABLE as exc:
                 reasons.append(f"unreadable answer: {_say(exc)}")
             else:
                 return completion
@@ -193,7 +216,7 @@ class ChatClient:
                 wait = s.retry_wait * (2**attempt) * (1.0 + self._jitter()) / 2.0
                 self._wait(max(wait, asked), stop)
         raise InfrastructureError(
-            f"no answer after {s.retries + 1} attempt(s); last: {reasons[-1]}"
+            f"no answer from {self.where} after {s.retries + 1} attempt(s); last: {reasons[-1]}"
         )
 
     def _wait(self, seconds: float, stop: threading.Event | None) -> None:
@@ -206,8 +229,18 @@ class ChatClient:
         if stop is not None and stop.is_set():
             raise InfrastructureError("the run is stopping")
 
-    def _unreachable(self, exc: openai.APIConnectionError) -> ServerUnreachableError:
-        return ServerUnreachableError(f"openai agent: cannot reach {self.where}: {_say(exc)}")
+    def _check_unreachable(self, exc: openai.APIConnectionError | AnswerDropped) -> None:
+        """A request of `check` that failed: raises `ServerUnreachableError` unless the
+        server answered (an answer dropped past its cap or compressed: the run's retries
+        deal with it)."""
+        dropped = exc if isinstance(exc, AnswerDropped) else _dropped(exc)
+        if dropped is None:
+            said = _say(exc)
+        elif dropped.late:
+            said = str(dropped)
+        else:
+            return
+        raise ServerUnreachableError(f"openai agent: cannot reach {self.where}: {said}") from None
 
     def _refused(
         self, kind: Refusal, exc: openai.APIStatusError, listed: list[str] | None = None
@@ -229,22 +262,48 @@ class ChatClient:
 
 
 class _Unreadable(Exception):
-    """The server answered 200 with something that is not a chat completion."""
+    """The server answered 200 with something that is not a chat completion, or one a step
+    of the log cannot hold."""
+
+
+_UNREADABLE = (openai.APIError, _Unreadable, AnswerDropped, ValueError, RecursionError)
+"""What an answer that cannot be read raises: not JSON (or nested past the parser's depth),
+not a chat completion, out of the protocol's bounds."""
 
 
 def _read(response: object, latency: float) -> Completion:
     try:
         message = response.choices[0].message  # type: ignore[attr-defined]
-    except (AttributeError, IndexError, TypeError):
+    except (AttributeError, IndexError, KeyError, TypeError):
         raise _Unreadable(f"no choices in {str(response)[:120]!r}") from None
     usage = getattr(response, "usage", None)
+    # What the log will carry, checked by the log's own rule (PROTOCOL §1.4: the text is a
+    # string, token counts are whole numbers from 0 to 2^40) before anything is written.
+    try:
+        step = msgspec.convert(
+            {
+                "output": getattr(message, "content", None) or "",
+                "prompt_tokens": getattr(usage, "prompt_tokens", None),
+                "completion_tokens": getattr(usage, "completion_tokens", None),
+            },
+            replay.LogStep,
+        )
+    except msgspec.ValidationError as exc:
+        raise _Unreadable(f"an answer out of a step's bounds (PROTOCOL §1.4): {exc}") from None
     return Completion(
-        text=message.content or "",
-        prompt_tokens=getattr(usage, "prompt_tokens", None),
-        completion_tokens=getattr(usage, "completion_tokens", None),
+        text=step.output or "",
+        prompt_tokens=step.prompt_tokens,
+        completion_tokens=step.completion_tokens,
         latency_seconds=latency,
         timestamp=time.time(),
     )
+
+
+def _dropped(exc: openai.APIConnectionError) -> AnswerDropped | None:
+    """The bound a request passed, when the `openai` client reported it as a lost
+    connection (its releases built on httpx wrap every error of a request so)."""
+    cause = exc.__cause__
+    return cause if isinstance(cause, AnswerDropped) else None
 
 
 def _retry_after(exc: openai.APIStatusError) -> float:
@@ -261,6 +320,8 @@ def _say(exc: Exception) -> str:
     status = getattr(exc, "status_code", None)
     if isinstance(exc, openai.APIStatusError):
         text = error_message(exc) or str(exc)
+    elif isinstance(exc, _Unreadable):
+        text = str(exc)
     else:
         text = f"{type(exc).__name__}: {exc}"
         if exc.__cause__ is not None:
@@ -269,4 +330,4 @@ def _say(exc: Exception) -> str:
     return f"HTTP {status}: {text}" if status is not None else text
 
 
-__all__ = ["ChatClient", "ClientSettings", "Completion", "api_key"]
+__all__ = ["MAX_RESPONSE_BYTES", "ChatClient", "ClientSettings", "Completion", "api_key"]

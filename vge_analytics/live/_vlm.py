@@ -35,6 +35,7 @@ class OpenAIAgent:
             "history_images": history_text(self.history_images),
             "base_url": s.base_url or "",
             "request_timeout_seconds": s.timeout,
+            "max_response_bytes": s.max_response_bytes,
             "retries": s.retries,
         }
         if s.temperature is not None:

@@ -110,6 +110,7 @@ class Worker:
         assert session is not None
         if cut is not None:
             obs = self._prefix(cut, player, obs, steps)
+        size = sum(map(_size, steps))
         while not session.done:
             if self.stop.is_set():
                 raise Stopped
@@ -135,15 +136,25 @@ class Worker:
                 raise AgentError(
                     f"agent {self.agent.spec}: {exc} (episode {episode_id!r}, step {len(steps)})"
                 ) from None
-            steps.append(
-                msgspec.structs.replace(
-                    recorded(log_step_of(reply.action), info),
-                    timestamp=reply.timestamp,
-                    prompt_tokens=reply.prompt_tokens,
-                    completion_tokens=reply.completion_tokens,
-                    latency_seconds=reply.latency_seconds,
-                )
+            step = msgspec.structs.replace(
+                recorded(log_step_of(reply.action), info),
+                timestamp=reply.timestamp,
+                prompt_tokens=reply.prompt_tokens,
+                completion_tokens=reply.completion_tokens,
+                latency_seconds=reply.latency_seconds,
             )
+            size += _size(step)
+            if size > replay.MAX_RECORD_BYTES:  # the replay would quarantine the line whole
+                return Failed(
+                    FailureRecord(
+                        episode_id,
+                        len(steps),
+                        f"the answers make the episode's line longer than "
+                        f"{replay.MAX_RECORD_BYTES:,} bytes, the most a record may be "
+                        "(PROTOCOL §1.5)",
+                    )
+                )
+            steps.append(step)
             player.observe(obs, info)
         return self._finished(episode_id, steps, ended, None if cut is None else cut.continuation)
 
@@ -191,6 +202,11 @@ class Worker:
             if recall is not None:
                 recall(before, step, obs, info)
         return obs
+
+
+def _size(step: replay.LogStep) -> int:
+    """At least the bytes a step takes in its episode's line (its unset fields included)."""
+    return len(_encoder.encode(step)) + 1
 
 
 def recorded(step: replay.LogStep, info: dict[str, Any]) -> replay.LogStep:

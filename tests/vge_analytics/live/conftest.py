@@ -43,13 +43,17 @@ TASKS = [
 ]
 
 
-@pytest.fixture
-def kettle_bench(tmp_path: Path) -> Path:
-    bench = tmp_path / "bench"
+def write_kettle_bench(bench: Path) -> Path:
+    """The two-task kettle benchmark, written at `bench`."""
     (bench / "ssm").mkdir(parents=True)
     shutil.copy(DATA / "kettle_ssm.json", bench / "ssm" / "kettle.json")
     (bench / "tasks.jsonl").write_text("".join(json.dumps(t) + "\n" for t in TASKS))
     return bench
+
+
+@pytest.fixture
+def kettle_bench(tmp_path: Path) -> Path:
+    return write_kettle_bench(tmp_path / "bench")
 
 
 @pytest.fixture

@@ -225,3 +225,52 @@ def test_both_engines_replay_a_continuation_to_the_same_files(
         replay.replay_runs([cont], kettle_bench, out, progress=False)
         files[engine] = {str(p.relative_to(out)): p.read_bytes() for p in out.rglob("*.parquet")}
     assert files["reference"] == files["kernel"] and len(files["kernel"]) == 4
+
+
+def test_source_lines_that_are_not_episodes_are_named_and_the_run_is_not_complete(
+    kettle_bench: Path, source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Lines of the source that the replay would quarantine (not JSON, a step that is not a
+    step, a byte that is not UTF-8) cannot be continued: each is named with its file and
+    line, the others are continued, and the run says it is not complete."""
+    episodes = source / "episodes.jsonl"
+    good = episodes.read_bytes().splitlines(keepends=True)
+    bad = [
+        b"not json\n",
+        b'{"episode_id": "boil", "steps": [{"output": 5}]}\n',
+        b'{"episode_id": "\xff", "steps": []}\n',
+    ]
+    episodes.write_bytes(good[0] + b"".join(bad) + good[1])
+    cont = tmp_path / "cut"
+    assert _continue(kettle_bench, source, cont, "after_cut", "--at", "1") == 0
+    shown = [x for x in capsys.readouterr().out.splitlines() if x.startswith("not playable")]
+    assert [x.split(": not an episode record, not continued (")[0] for x in shown] == [
+        f"not playable: {episodes} line {n}" for n in (2, 3, 4)
+    ]
+    assert "Expected `str | null`, got `int` - at `$.steps[0].output`" in shown[1]
+    assert list(_lines(cont)) == ["three", "open-lid"]
+    meta = replay.read_run_header(cont).meta
+    assert (meta["episodes"], meta["complete"], meta["source_lines_unread"]) == (2, False, 3)
+
+    # Named episodes: the selection is whole, the run complete.
+    named = tmp_path / "named"
+    assert (
+        _continue(
+            kettle_bench, source, named, "after_cut", "--at", "1", "--episodes", "three,open-lid"
+        )
+        == 0
+    )
+    meta = replay.read_run_header(named).meta
+    assert meta["complete"] is True and "source_lines_unread" not in meta
+
+
+def test_many_unreadable_source_lines_are_counted_not_listed(
+    kettle_bench: Path, source: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    episodes = source / "episodes.jsonl"
+    episodes.write_bytes(episodes.read_bytes() + b"[]\n" * 5000)
+    assert _continue(kettle_bench, source, tmp_path / "cut", "after_cut", "--at", "1") == 0
+    shown = [x for x in capsys.readouterr().out.splitlines() if x.startswith("not playable")]
+    assert len(shown) == 11 and f"line {2 + 10}:" in shown[9]  # lines 3 to 12
+    assert shown[10] == f"not playable: {episodes}: 4,990 more lines that are not episode records"
+    assert replay.read_run_header(tmp_path / "cut").meta["source_lines_unread"] == 5000

@@ -11,8 +11,10 @@ HTTP server on 127.0.0.1 with scripted answers (PROTOCOL §10.3):
   `context_exceeded`, scored as a failure and never an infrastructure failure;
 - `--resume` may extend a run with more episodes.
 
-Request counts say where retries happened and where none were due; wall times bound how
-fast it fails.
+Request counts say where retries happened and where none were due, and that a run which
+fails before the first episode asked for none (`episode_requests`). No test bounds the
+time a run takes (the machine may be busy), except where a wait of minutes is the fault:
+there the bound is minutes too.
 """
 
 from __future__ import annotations
@@ -26,8 +28,8 @@ import pytest
 
 import replay
 import vge_analytics
-import vge_analytics.live._openai  # noqa: F401 - imported once here: wall times time the run alone
 from vge_analytics.cli import main
+from vge_analytics.live._openai import ChatClient
 
 from .chat_server import Scripted, answer, chat_server, error, model_list
 from .conftest import OPEN_LID, PUSH_POWER, WAIT
@@ -38,6 +40,21 @@ MODEL = "scripted-vlm"
 @pytest.fixture(autouse=True)
 def _no_key(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("OPENAI_API_KEY", raising=False)
+
+
+@pytest.fixture
+def episode_requests(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The requests of episodes (`ChatClient.complete`, not the check before the first
+    episode), one entry each: a run that fails before the first episode makes none."""
+    made: list[int] = []
+    complete = ChatClient.complete
+
+    def counted(self: ChatClient, *args: object, **kwargs: object) -> object:
+        made.append(1)
+        return complete(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(ChatClient, "complete", counted)
+    return made
 
 
 def _vge_run(bench: Path, out: Path, url: str, *extra: str) -> int:
@@ -99,28 +116,32 @@ def _files(run: Path) -> dict[str, tuple[bytes, int]]:
 
 
 def test_nothing_listening_fails_at_once_and_writes_nothing(
-    kettle_bench: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    kettle_bench: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    episode_requests: list[int],
 ) -> None:
     url = f"http://127.0.0.1:{_free_port()}/v1"
     run = tmp_path / "run"
-    code, seconds = _timed_run(kettle_bench, run, url)
+    # One attempt, no retries, no episode: with a retry wait of 5 minutes, any wait shows.
+    code, seconds = _timed_run(kettle_bench, run, url, "--retry-wait", "300")
     assert code == 1
     assert _one_line(capsys) == (
         f"error: openai agent: cannot reach {url}: APIConnectionError: Connection error. "
         "([Errno 111] Connection refused)"
     )
     assert not run.exists()
-    # One attempt, no retries: the 5 attempts x 3 episodes of a retried connection took 61 s.
-    assert seconds < 1.5, seconds
+    assert episode_requests == [] and seconds < 150, seconds
 
     # A run being resumed is not touched either.
     with chat_server([answer(OPEN_LID), error(500, "down")]) as server:
         assert _vge_run(kettle_bench, run, server.url, "--retries", "0") == 2
     before = _files(run)
     capsys.readouterr()
-    code, seconds = _timed_run(kettle_bench, run, url, "--resume")
-    assert code == 1 and seconds < 1.5
+    episode_requests.clear()
+    assert _vge_run(kettle_bench, run, url, "--resume") == 1
     assert "cannot reach" in _one_line(capsys)
+    assert episode_requests == []
     assert _files(run) == before
 
 
@@ -137,8 +158,7 @@ def test_an_unknown_model_fails_before_the_first_episode(
     }
     refusal = _refusal(404, vllm_body)
     with chat_server([refusal], models=model_list("Qwen/Qwen2.5-VL-7B")) as server:
-        code, seconds = _timed_run(kettle_bench, run, server.url)
-    assert code == 1 and seconds < 1.5
+        assert _vge_run(kettle_bench, run, server.url) == 1
     assert _one_line(capsys) == (
         f"error: openai agent: no model '{MODEL}' at {server.url} (it serves "
         f"'Qwen/Qwen2.5-VL-7B'): HTTP 404: The model `{MODEL}` does not exist."
@@ -180,8 +200,7 @@ def test_a_refused_key_fails_before_the_first_episode(
         _body("Incorrect API key provided: sk-test.", "invalid_api_key", "invalid_request_error"),
     )
     with chat_server([], models=refused) as server:
-        code, seconds = _timed_run(kettle_bench, run, server.url)
-    assert code == 1 and seconds < 1.5
+        assert _vge_run(kettle_bench, run, server.url) == 1
     assert _one_line(capsys) == (
         "error: openai agent: the service refused the key: HTTP 401: Incorrect API key "
         "provided: sk-test."
@@ -211,9 +230,8 @@ def test_a_refusal_for_good_is_not_retried_and_stops_the_run(
     run = tmp_path / "run"
     script = [answer(OPEN_LID), _refusal(status, _body(message), retry_after="0")]
     with chat_server(script) as server:
-        # The default retries (4) and retry wait (2 s): none is due, none is waited for.
-        code, seconds = _timed_run(kettle_bench, run, server.url, "--retry-wait", "2")
-    assert code == 1 and seconds < 1.5, seconds
+        # The default retries (4): none is due (the second request is the last).
+        assert _vge_run(kettle_bench, run, server.url, "--retry-wait", "2") == 1
     assert _one_line(capsys) == (
         f"error: openai agent: {server.url} refused the request, and would refuse every "
         f"request alike: HTTP {status}: {message}; 1 of 2 episodes written to {run}: the same "
@@ -252,16 +270,15 @@ def test_ten_failures_in_a_row_stop_the_run_and_resume_completes_it(
     run = tmp_path / "run"
     # Two episodes play, then the server answers 500 to everything (the script has ended).
     with chat_server(_script(ids[:2])) as server:
-        code, seconds = _timed_run(many_tasks, run, server.url, "--retries", "1")
+        code = _vge_run(many_tasks, run, server.url, "--retries", "1")
     assert code == 2
     assert _one_line(capsys) == (
-        "stopped after 10 infrastructure failures in a row (last: no answer after 2 "
-        f"attempt(s); last: HTTP 500: script ended); 2 of 24 episodes written to {run}: the "
-        "same command with --resume continues"
+        f"stopped after 10 infrastructure failures in a row (last: no answer from {server.url} "
+        "after 2 attempt(s); last: HTTP 500: script ended); 2 of 24 episodes written to "
+        f"{run}: the same command with --resume continues"
     )
     # 3 answers, then 10 episodes of 2 attempts each (1 retry); the 12 others never asked.
     assert len(server.requests) == 3 + 10 * 2
-    assert seconds < 10, seconds
     assert _ids(run / "episodes.jsonl") == ids[:2]
     assert _ids(run / "failures.jsonl") == ids[2:12]
     meta = replay.read_run_header(run).meta
@@ -314,14 +331,15 @@ def test_a_finished_episode_starts_the_count_again(
 def test_a_stopping_run_does_not_wait_for_retries(
     many_tasks: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Two episodes at once: one request is refused for good while the other waits the 60 s
-    its server asked before a retry; the wait is cut short and the run ends at once."""
-    busy = _refusal(500, _body("busy"), retry_after="60")
+    """Two episodes at once: one request is refused for good while the other waits the 5
+    minutes its server asked before a retry; the wait is cut short and the run ends at once
+    (in a second or two; the bound is far from both)."""
+    busy = _refusal(500, _body("busy"), retry_after="300")
     refused = _refusal(400, _body("Unsupported parameter: 'max_tokens'"))
     run = tmp_path / "run"
     with chat_server([busy, refused]) as server:
         code, seconds = _timed_run(many_tasks, run, server.url, "--concurrency", "2")
-    assert code == 1 and seconds < 5, seconds
+    assert code == 1 and seconds < 150, seconds
     assert "refused the request" in _one_line(capsys)
     assert len(server.requests) == 2
     meta = replay.read_run_header(run).meta
