@@ -80,8 +80,10 @@ def test_runaway_query_ends_and_the_page_answers_the_next(name, app_page, app_se
 
     with TreeMemory(app_server.pid) as tree:
         seconds = browser.run_query(query, expect)
-    # Within the limit (and its grace): the query's own timer ends it first.
-    assert seconds < SQL_LIMITS["timeout"] + 4, seconds
+    # The bound that ends it is the one its message names (the query's own timer for the
+    # time limit); it ends in about its limit and a second on an idle machine (7.6 s on a
+    # busy one): ten times that is the bound, far below a query that nothing stops.
+    assert seconds < 10 * (SQL_LIMITS["timeout"] + 1), seconds
     assert tree.largest_below() <= idle_peak + memory_headroom(LIMITS), tree.peaks
     errors = browser.errors()
     if allowed:

@@ -56,8 +56,10 @@ def assert_bounded(done, baseline) -> None:
         done.peak_memory,
         baseline.peak_memory,
     )
-    # Ended within the limit: start-up, the time limit, and a second for the last batch.
-    assert done.seconds <= baseline.seconds + TIMEOUT + 1.5, done.seconds
+    # Ended by its limit (the message names which): start-up, the limit and a second for the
+    # last batch on an idle machine; ten times that on a busy one, never the minutes of a
+    # query that nothing stops.
+    assert done.seconds <= 10 * (baseline.seconds + TIMEOUT + 1.5), done.seconds
 
 
 def test_cross_join_streams_csv_until_the_time_limit(sample_out, baseline):
@@ -114,7 +116,7 @@ def test_python_api_limits(hand_out):
         va.sql(hand_out, "select range from range(20000000)", memory_limit="64MB")
     assert info.value.limit == "result"
     # The same connection answers the next query.
-    assert va.sql(hand_out, "select count(*) as n from steps", timeout=0.5)["n"][0] == 77
+    assert va.sql(hand_out, "select count(*) as n from steps", timeout=30)["n"][0] == 77
 
 
 def test_head_reads_only_what_it_shows(sample_out):
