@@ -2,9 +2,9 @@
 hostile server must not pass (PROTOCOL §10.3):
 
 - a **deadline** per request: the request, its answer and any redirect on the way end
-  within the request's time (`--timeout`), however the server spreads its bytes out; a
-  server that trickles its answer a byte at a time (each read in time, the answer never
-  done) is cut off there;
+  within the request's time (`--timeout`) from its first operation on the network
+  (connecting included), however the server spreads its bytes out; a server that trickles
+  its answer a byte at a time (each read in time, the answer never done) is cut off there;
 - a **cap** on the bytes received for one request (`--max-response-bytes`: status line,
   headers and body, an error's body included): past it the answer is dropped, so an answer
   of a gigabyte costs the cap in memory, not a gigabyte.
@@ -46,20 +46,32 @@ class AnswerDropped(Exception):
 
 
 class _Budget:
-    """What one request may still take: time and bytes. The watchdog (a timer) marks it
-    expired when its time is up and interrupts the socket operation in progress, if any."""
+    """What one request may still take: time and bytes. Its time runs from its first
+    network operation (what the client does before, building the request, is not the
+    server's to pay for); the watchdog (a timer) then marks it expired when the time is up
+    and interrupts the socket operation in progress, if any."""
 
     def __init__(self, seconds: float, max_bytes: int) -> None:
         self.seconds = seconds
         self.max_bytes = max_bytes
         self.received = 0
-        self.deadline = time.monotonic() + seconds
+        self.deadline = float("inf")
+        """Set by the first network operation."""
         self.expired = False
         self._lock = threading.Lock()
         self._busy: Any = None
         """The network stream an operation of this request is blocked on, if any."""
         self._timer = threading.Timer(seconds, self._expire)
         self._timer.daemon = True
+
+    def _start(self) -> None:
+        """Start the clock, at the first network operation (under the lock)."""
+        if self.deadline == float("inf"):
+            self.deadline = time.monotonic() + self.seconds
+            self._timer.start()
+
+    def end(self) -> None:
+        self._timer.cancel()  # harmless when it never started
 
     def _expire(self) -> None:
         with self._lock:
@@ -77,6 +89,8 @@ class _Budget:
 
     def left(self, timeout: float | None) -> float:
         """`timeout`, shortened to the time left (for connecting: no socket to interrupt)."""
+        with self._lock:
+            self._start()
         left = self.deadline - time.monotonic()
         if left <= 0:
             raise self.late()
@@ -86,6 +100,7 @@ class _Budget:
     def operation(self, stream: Any) -> Iterator[None]:
         """One socket operation on `stream`, which the watchdog interrupts at the deadline."""
         with self._lock:
+            self._start()
             if self.expired:
                 raise self.late()
             self._busy = stream
@@ -132,11 +147,10 @@ class RequestBounds:
         `seconds` and receives at most `max_bytes`; else `AnswerDropped`."""
         budget = _Budget(seconds, self.max_bytes)
         self._local.budget = budget
-        budget._timer.start()
         try:
             yield
         finally:
-            budget._timer.cancel()
+            budget.end()
             self._local.budget = None
 
     def current(self) -> _Budget | None:
