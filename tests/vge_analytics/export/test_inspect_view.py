@@ -20,8 +20,12 @@ from tests.app.streamlit_browser import free_port
 from vge_analytics.export import export
 
 ARTIFACTS = Path(__file__).resolve().parents[2] / "_artifacts"
-STARTUP = 90.0
-"""Seconds `inspect view` may take to answer (it imports the whole of inspect_ai)."""
+STARTUP = 300.0
+"""Seconds `inspect view` may take to answer (it imports the whole of inspect_ai: seconds on
+an idle machine, a minute and more on a busy one). A wait, not a measure."""
+WAIT_MS = 180_000
+"""How long the page may take to show each thing the test waits for (Playwright's default,
+30 s, is too short for a busy machine). A wait, not a measure."""
 
 _IMAGES_JS = """() => Array.from(document.images)
   .filter(i => i.src.startsWith('data:image/jpeg'))
@@ -75,6 +79,7 @@ def test_inspect_view_shows_a_sample_with_its_pictures(page, inspect_view, sampl
         "instruction"
     ]
     steps = va.episode_steps(sample_out, RUN, episode)
+    page.set_default_timeout(WAIT_MS)
     page.goto(inspect_view)  # one log in the folder: the viewer opens it, listing its samples
     for other in shown["others"]:
         page.get_by_text(other, exact=True).first.wait_for()
