@@ -29,7 +29,7 @@ import contextlib
 import socket
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
@@ -193,17 +193,35 @@ class _Backend:
         self._inner = inner
         self._bounds = bounds
 
-    def connect_tcp(self, host: str, port: int, timeout: float | None = None, **kw: Any) -> Any:
-        budget = self._bounds.current()
-        if budget is not None:
-            timeout = budget.left(timeout)
-        return _Stream(self._inner.connect_tcp(host, port, timeout=timeout, **kw), self._bounds)
+    def connect_tcp(
+        self,
+        host: str,
+        port: int,
+        timeout: float | None = None,
+        local_address: str | None = None,
+        socket_options: Iterable[Any] | None = None,
+    ) -> _Stream:
+        stream = self._inner.connect_tcp(
+            host,
+            port,
+            timeout=self._timeout(timeout),
+            local_address=local_address,
+            socket_options=socket_options,
+        )
+        return _Stream(stream, self._bounds)
 
-    def connect_unix_socket(self, path: str, timeout: float | None = None, **kw: Any) -> Any:
+    def connect_unix_socket(
+        self, path: str, timeout: float | None = None, socket_options: Iterable[Any] | None = None
+    ) -> _Stream:
+        stream = self._inner.connect_unix_socket(
+            path, timeout=self._timeout(timeout), socket_options=socket_options
+        )
+        return _Stream(stream, self._bounds)
+
+    def _timeout(self, timeout: float | None) -> float | None:
+        """Connecting: no socket yet for the watchdog, so the timeout ends at the deadline."""
         budget = self._bounds.current()
-        if budget is not None:
-            timeout = budget.left(timeout)
-        return _Stream(self._inner.connect_unix_socket(path, timeout=timeout, **kw), self._bounds)
+        return timeout if budget is None else budget.left(timeout)
 
     def sleep(self, seconds: float) -> None:
         self._inner.sleep(seconds)
