@@ -207,9 +207,17 @@ def test_replaying_simulated_logs_matches_the_simulation(synth_tiny, scale):
     from vge_analytics.synth import measure_output
 
     measures = measure_output(synth_tiny)
-    assert len(measures) >= 9
+    # The tiny scale: 4 categories of 2 devices, 1 single-goal and 2 multi-goal tasks each
+    # = 24 episodes, all played by every run (human and history fractions 1.0): the six
+    # profiles, the human-like run and two history-length variants of sim-vlm-f.
+    assert sorted(measures) == [
+        "sim-human",
+        *(f"sim-vlm-{p}" for p in "abcdef"),
+        "sim-vlm-f-hist0",
+        "sim-vlm-f-hist3",
+    ]
     for m in measures.values():
-        assert m.episodes > 0
+        assert m.episodes == 24
         assert m.truncated_steps == 0
         assert m.diverged_steps == 0
         assert "log_ended" not in m.terminations
