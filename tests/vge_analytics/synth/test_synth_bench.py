@@ -34,7 +34,7 @@ def _tasks(out: Path) -> list[replay.Task]:
 
 def test_every_ssm_validates_with_no_problem(synth_tiny):
     paths = _ssm_paths(synth_tiny)
-    assert len(paths) >= 4
+    assert len(paths) == 8  # the tiny scale: 4 categories of 2 devices
     for path in paths:
         ssm = replay.decode_state_machine(path)
         assert replay.validate_machine(ssm, str(path)) == [], path.name
@@ -118,7 +118,7 @@ def _oracle_log(setup: replay.EpisodeSetup, episode_id: str) -> replay.EpisodeLo
 def test_oracle_reaches_every_goal_at_exactly_c_opt(synth_tiny):
     bench = replay.Benchmark.open(synth_tiny / "bench")
     tasks = _tasks(synth_tiny)
-    assert len(tasks) >= 12
+    assert len(tasks) == 24  # 8 devices, 1 single-goal and 2 multi-goal tasks each
     for task in tasks:
         machine = bench.machine(task.device_id)
         setup = replay.setup_episode(machine, task)
