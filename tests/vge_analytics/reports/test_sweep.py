@@ -47,7 +47,7 @@ def test_sweep_at_recorded_lambdas_matches_the_replay(hand_out: Path) -> None:
     # for every episode except none (all succeed) -> SR 100 as in `metrics`.
     sw = va.sweep(hand_out, [8], runs=["oven-human"])
     m = va.metrics(hand_out, where={"run_id": "oven-human"}, metrics=["SR", "SSR"])
-    assert sw["SR"].to_list() == m["SR"].to_list()
+    assert sw["SR"].to_list() == m["SR"].to_list() == [100.0]
 
 
 @pytest.fixture(scope="module")
