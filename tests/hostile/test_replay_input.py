@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import gzip
+import hashlib
 import json
 import os
 import random
@@ -532,12 +533,21 @@ def test_an_episode_id_of_300_characters_gets_a_short_unique_file(tmp_path, vge_
         assert done.returncode == 0, done.stderr
         names.append(sorted(p.name for p in (tmp_path / attempt / "mcap" / "run").iterdir()))
     assert names[0] == names[1]  # the same names on every run
-    assert len(set(names[0])) == 4 and "short%2Fone.mcap" in names[0]
-    long_ones = [n for n in names[0] if n != "short%2Fone.mcap"]
-    for name in long_ones:  # 200 bytes, then ".mcap"; the id's hash after "="
-        assert len(name.encode()) == 205 or name.startswith("%C3%A9")
-        assert len(name.encode()) <= 205 and name.split("=")[1][:32].isalnum()
-    assert sorted(replay.safe_file_name(i) + ".mcap" for i in ids[:3]) == long_ones
+    # PROTOCOL §7.8, by hand: the head holds whole characters within 200 - 1 - 32 = 167
+    # bytes, then "=" and 32 hex digits of the id's sha256. "x" encodes to 1 byte: 167 of
+    # them, a name of exactly 200 bytes. "é" encodes to 6 ("%C3%A9"): 27 fit (162 bytes; a
+    # 28th would make 168), so those names are 162 + 1 + 32 = 195 bytes, never a cut "%C3".
+    digest = {i: hashlib.sha256(i.encode()).hexdigest()[:32] for i in ids}
+    want = sorted(
+        [
+            "short%2Fone.mcap",
+            "x" * 167 + f"={digest['x' * 300]}.mcap",
+            "%C3%A9" * 27 + f"={digest[ids[0]]}.mcap",
+            "%C3%A9" * 27 + f"={digest[ids[1]]}.mcap",
+        ]
+    )
+    assert names[0] == want
+    assert sorted(len(n.encode()) for n in want) == [16, 200, 200, 205]  # ".mcap" included
 
 
 def test_a_run_id_that_cannot_name_a_directory_is_refused_in_one_line(
