@@ -14,8 +14,16 @@ from typing import Any
 import msgspec
 
 from .._errors import InputError, Problem, SSMError, TaskError, VGEError, decode_error_message
-from ..semantics._machine import Machine, compile_machine, validate_machine
-from ..semantics._records import EpisodeLog, RunHeader, StateMachine, Task
+from ..semantics import (
+    EpisodeLog,
+    Machine,
+    RunHeader,
+    StateMachine,
+    Task,
+    compile_machine,
+    setup_episode,
+    validate_machine,
+)
 from ._decode import decode
 from ._fs import Location, location
 from ._lines import MAX_RECORD_BYTES, iter_lines, read_whole
@@ -174,8 +182,6 @@ def _problem(exc: InputError) -> Problem:
 
 def validate_benchmark(root: str | Path | Location) -> list[Problem]:
     """Every problem of a benchmark: SSMs, UCSMs, tasks (PROTOCOL §1.1-1.3, 4)."""
-    from ..semantics._episode import setup_episode
-
     root = location(root)
     bench = Benchmark.open(root)
     problems: list[Problem] = []

@@ -6,20 +6,23 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 
-from ..semantics._plan import INF
-from ..semantics._records import Continuation
-from ..semantics._rows import EpisodeRow, GoalRow, StepRow
-from ..semantics._tables import arrow_schema
-from ..semantics._usage import ORIGINS, Prices
-from ..semantics._vocab import (
+from ..semantics import (
     ACTION_NAMES,
     ERROR_DETAILS,
     ERROR_GROUPS,
     ERROR_TYPES,
     FEEDBACK_KINDS,
+    INF,
+    ORIGINS,
     SWITCH_CLASSES,
     TERMINATIONS,
     VIEW_ORDER,
+    Continuation,
+    EpisodeRow,
+    GoalRow,
+    Prices,
+    StepRow,
+    arrow_schema,
 )
 from ._words import Words
 

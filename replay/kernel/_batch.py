@@ -7,10 +7,7 @@ from typing import NamedTuple
 import numpy as np
 import pyarrow as pa
 
-from ..semantics._episode import EpisodeSetup
-from ..semantics._machine import Machine
-from ..semantics._records import EpisodeLog, Task
-from ..semantics._usage import NO_PRICES, Prices
+from ..semantics import NO_PRICES, EpisodeLog, EpisodeSetup, Machine, Prices, Task
 from ._assemble import tables
 from ._engine import Vocab, replay_batch
 

@@ -18,32 +18,29 @@ import math
 
 import numpy as np
 
-from ..semantics._episode import parse_log_step, timestamp_seconds
-from ..semantics._feedback import (
-    NULL_TEXT,
-    OPERATIONAL_TEXT,
-    UNLOCKED_TEXT,
-    WAIT_NO_EFFECT_TEXT,
-    invalid_text,
-    switched_text,
-)
-from ..semantics._parse import Action
-from ..semantics._plan import (
-    c_opt_dynamic,
-    distances,
-    target_components,
-)
-from ..semantics._step import SimState, _apply
-from ..semantics._vocab import (
+from ..semantics import (
     ACTION_NAMES,
     DASHBOARD,
+    ERROR_DETAILS,
     ERROR_TYPES,
     FEEDBACK_KINDS,
+    NULL_TEXT,
+    OPERATIONAL_TEXT,
     ORTHOGRAPHIC_VIEWS,
-    ERROR_DETAILS,
     TERMINATIONS,
+    UNLOCKED_TEXT,
     VIEW_ORDER,
+    WAIT_NO_EFFECT_TEXT,
+    SimState,
+    apply_transition,
+    c_opt_dynamic,
+    distances,
+    invalid_text,
     normalize_param,
+    parse_log_step,
+    switched_text,
+    target_components,
+    timestamp_seconds,
 )
 
 from ._text cimport (
@@ -340,8 +337,10 @@ cdef class KMachine:
             tr_ent.extend(t.entered)
             tr_ent_off[i + 1] = len(tr_ent)
             self.tr_params.append(t.params)
-            # The reference's own text for this transition (`_step._apply`).
-            self.texts.append(_apply(machine, SimState(t.source, "front", False), t)[1].text)
+            # The reference's own text for this transition (`apply_transition`).
+            self.texts.append(
+                apply_transition(machine, SimState(t.source, "front", False), t)[1].text
+            )
         self.tr_action = self._ints(arrays["action"])
         self.tr_comp = self._ints(arrays["comp"])
         self.tr_index = self._ints(arrays["index"])

@@ -12,7 +12,7 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap.reader import make_reader
 
 import replay
-from replay import safe_file_name
+from replay.io import safe_file_name
 
 from ..conftest import IMAGE_SIZE, Sample
 

@@ -22,16 +22,22 @@ import pyarrow.parquet as pq
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from replay.kernel._text import parse_fields
 
 import replay
-from replay.io._load import episode_decoder
-from replay.kernel._batch import EpisodeInput, replay_kernel
-from replay.semantics._episode import setup_episode
-from replay.semantics._parse import parse_action
-from replay.semantics._rows import EpisodeRow, GoalRow, StepRow
-from replay.semantics._tables import rows_to_table
-from replay.semantics._vocab import ACTION_NAMES, FEEDBACK_KINDS, STANDARD_VIEWS, normalize_param
+from replay.io import episode_decoder
+from replay.kernel import EpisodeInput, parse_fields, replay_kernel
+from replay.semantics import (
+    ACTION_NAMES,
+    FEEDBACK_KINDS,
+    STANDARD_VIEWS,
+    EpisodeRow,
+    GoalRow,
+    StepRow,
+    normalize_param,
+    parse_action,
+    rows_to_table,
+    setup_episode,
+)
 
 ROOT = Path(__file__).resolve().parents[3]
 DATA = ROOT / "tests" / "data"
@@ -391,11 +397,11 @@ def test_runner_files_identical_with_either_engine(
         return real(*args, data_page_size=4096, **kwargs)
 
     monkeypatch.setattr("replay.io._files.pq.write_table", small_pages)
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 64)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 64)
     runs = sorted(str(p) for p in (LOGS / "runs").iterdir())[:3]
     outs = {}
     for engine in ("reference", "kernel"):
-        monkeypatch.setattr("replay.io._worker.KERNEL", engine == "kernel")
+        monkeypatch.setattr("replay.io._batch.KERNEL", engine == "kernel")
         replay.replay_runs(runs, LOGS / "bench", tmp_path / engine, progress=False)
         outs[engine] = _digests(tmp_path / engine)
     assert outs["reference"] == outs["kernel"]
@@ -405,7 +411,7 @@ def test_runner_files_identical_with_either_engine(
 def test_runner_files_identical_with_any_number_of_workers(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 64)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 64)
     runs = sorted(str(p) for p in (LOGS / "runs").iterdir())[:3]
     outs = []
     for workers in (1, 2):
