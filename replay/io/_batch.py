@@ -257,14 +257,14 @@ def _write_mcaps(
     tables: BatchTables,
     results: dict[int, EpisodeResult],
 ) -> dict[int, str]:
-    """The MCAP file of each episode that wants one, from the reference's rows (replayed
-    again when the kernel made the tables): episode index -> its temporary file name."""
-    mcap = {}
-    for j, (_, number, e) in enumerate(todo):
-        if ctx.wants_mcap(e.task.episode_id):
-            result = results.get(j) or _replay_reference(ctx, number, e)
-            mcap[j] = _write_mcap(state, ctx, number, e.machine, result)
-    return mcap
+    """The MCAP file of each episode that wants one, written from the rows of the replay
+    that made the tables (no second replay): episode index -> its temporary file name."""
+    wanted = [j for j, (_, _, e) in enumerate(todo) if ctx.wants_mcap(e.task.episode_id)]
+    if not wanted:
+        return {}
+    missing = [j for j in wanted if j not in results]
+    results = {**results, **dict(zip(missing, tables.episode_results(missing), strict=True))}
+    return {j: _write_mcap(state, ctx, todo[j][1], todo[j][2].machine, results[j]) for j in wanted}
 
 
 def _write_parts(task: BatchTask, tables: BatchTables) -> dict[str, int]:

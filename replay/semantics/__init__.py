@@ -75,7 +75,7 @@ from ._records import (
 )
 from ._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
 from ._step import Outcome, SimState, apply_transition, reset, step
-from ._tables import TABLE_ROWS, arrow_schema, rows_to_table
+from ._tables import TABLE_ROWS, arrow_schema, rows_to_table, table_rows, table_tuples
 from ._usage import (
     COMPLETION_PRICE_KEY,
     NO_PRICES,
@@ -223,4 +223,6 @@ __all__ = [
     "StepRow",
     "arrow_schema",
     "rows_to_table",
+    "table_rows",
+    "table_tuples",
 ]

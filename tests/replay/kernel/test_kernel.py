@@ -24,18 +24,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import replay
-from replay.io import episode_decoder
+from replay.io import episode_decoder, reference_tables
 from replay.kernel import EpisodeInput, parse_fields, replay_kernel
 from replay.semantics import (
     ACTION_NAMES,
     FEEDBACK_KINDS,
     STANDARD_VIEWS,
-    EpisodeRow,
-    GoalRow,
-    StepRow,
     normalize_param,
     parse_action,
-    rows_to_table,
     setup_episode,
 )
 
@@ -70,7 +66,13 @@ def assert_same(got: pa.Table, want: pa.Table, what: str) -> None:
 
 
 def scalar_tables(episodes: list[EpisodeInput], head=("run", "model", "vlm")):
-    results = [
+    return reference_tables(scalar_results(episodes, head))
+
+
+def scalar_results(
+    episodes: list[EpisodeInput], head=("run", "model", "vlm")
+) -> list[replay.EpisodeResult]:
+    return [
         replay.replay_episode(
             e.machine,
             e.task,
@@ -83,23 +85,27 @@ def scalar_tables(episodes: list[EpisodeInput], head=("run", "model", "vlm")):
         )
         for e in episodes
     ]
-    return (
-        rows_to_table([t for r in results for t in r.step_tuples], StepRow),
-        rows_to_table([r.episode for r in results], EpisodeRow),
-        rows_to_table([g for r in results for g in r.goals], GoalRow),
-        [len(r.step_tuples) for r in results],
-        [len(r.goals) for r in results],
-    )
 
 
 def check_batch(episodes: list[EpisodeInput]) -> None:
-    """The kernel's tables of a batch equal the reference ones, row counts included."""
-    steps, eps, goals, step_counts, goal_counts = scalar_tables(episodes)
+    """The kernel's tables of a batch equal the reference ones, row counts included, and
+    its rows read back per episode (what the MCAP writer gets) encode to the reference's
+    JSON, byte for byte (an int where a float is due would show)."""
+    results = scalar_results(episodes)
+    steps, eps, goals, step_counts, goal_counts = reference_tables(results)
     got = replay_kernel(episodes, run_id="run", model="model", agent_kind="vlm")
     assert_same(got.steps, steps, "steps")
     assert_same(got.episodes, eps, "episodes")
     assert_same(got.goals, goals, "goals")
     assert list(got.step_counts) == step_counts and list(got.goal_counts) == goal_counts
+    mine = got.episode_results(list(range(len(episodes))))
+    for j, (a, b) in enumerate(zip(mine, results, strict=True)):
+        assert _json(a) == _json(b), f"episode {j}: rows read back differ from the reference's"
+
+
+def _json(result: replay.EpisodeResult) -> list[bytes]:
+    encode = msgspec.json.encode
+    return [encode(result.episode), *map(encode, result.steps), *map(encode, result.goals)]
 
 
 @cache
