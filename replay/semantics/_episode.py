@@ -486,15 +486,3 @@ def replay_episode(
     for log_step in log.steps:
         advance(log_step)
     return session.finish(log.ended)
-
-
-__all__ = [
-    "EpisodeResult",
-    "EpisodeSession",
-    "EpisodeSetup",
-    "TaskError",
-    "parse_log_step",
-    "replay_episode",
-    "setup_episode",
-    "timestamp_seconds",
-]

@@ -14,7 +14,6 @@ from .._errors import Problem, SSMError
 from ._records import StateMachine
 from ._vocab import (
     ATOMIC_ACTIONS,
-    AXONOMETRIC_VIEWS,
     DASHBOARD,
     IMMEDIATE,
     ORTHOGRAPHIC_VIEWS,
@@ -121,16 +120,9 @@ class Machine:
     def state_id(self, name: str) -> int:
         return self.state_index[name]
 
-    def interactable(self, view: str) -> bool:
-        return view in ORTHOGRAPHIC_VIEWS or view == DASHBOARD
-
     def in_dashboard_region(self, view: str, px: float, py: float) -> bool:
         return any(rect_contains(r, px, py) for r in self.dashboard_regions.get(view, ()))
 
-    def components(self) -> tuple[str, ...]:
-        """Real components of the device, sorted by name."""
-        names = {t.component for t in self.transitions if t.action is not None}
-        return tuple(sorted(names))
 
 
 def _is_error_state(name: str, state) -> bool:
@@ -512,16 +504,3 @@ def _rect_tables(transitions: list[CompiledTransition]) -> tuple[dict, dict, dic
                     bucket.append(r)
                 component_rects.setdefault(view, {})[(ct.component, r)] = None
     return by_state_view, component_rects, state_component_rects
-
-
-__all__ = [
-    "AXONOMETRIC_VIEWS",
-    "CompiledTransition",
-    "Machine",
-    "Rect",
-    "compile_machine",
-    "rect_contains",
-    "rect_distance",
-    "rect_from_coordinate",
-    "validate_machine",
-]
