@@ -203,3 +203,16 @@ def test_each_subpackage_chooses_its_public_names() -> None:
         assert loaded.__all__, package
         missing = [n for n in loaded.__all__ if not hasattr(loaded, n)]
         assert not missing, (package, missing)
+
+
+def test_what_is_built_on_replay_names_its_public_modules_only() -> None:
+    """The analytics, the app and the benchmarks import `replay` and its layers, never a
+    private module of it (the tests may: they test the parts)."""
+    found = []
+    for folder in ("vge_analytics", "app", "benchmarks"):
+        for path in sorted((REPLAY.parent / folder).rglob("*.py")):
+            for level, name in _imported_names(ast.parse(path.read_text())):
+                parts = name.split(".")
+                if level == 0 and parts[0] == "replay" and any(p.startswith("_") for p in parts):
+                    found.append(f"{path.relative_to(REPLAY.parent)} imports {name}")
+    assert not found, "\n".join(found)
