@@ -250,6 +250,11 @@ def _replay_episodes(task: BatchTask, todo: _Todo) -> tuple[BatchTables, dict[in
     return tables, {}
 
 
+MCAP_ROWS_AT_ONCE = 256
+"""Episodes whose rows are read back from the tables together for their MCAP files: bounds
+the Python objects held at once, whatever the size of the batch."""
+
+
 def _write_mcaps(
     state: WorkerState,
     ctx: RunContext,
@@ -260,11 +265,16 @@ def _write_mcaps(
     """The MCAP file of each episode that wants one, written from the rows of the replay
     that made the tables (no second replay): episode index -> its temporary file name."""
     wanted = [j for j, (_, _, e) in enumerate(todo) if ctx.wants_mcap(e.task.episode_id)]
-    if not wanted:
-        return {}
-    missing = [j for j in wanted if j not in results]
-    results = {**results, **dict(zip(missing, tables.episode_results(missing), strict=True))}
-    return {j: _write_mcap(state, ctx, todo[j][1], todo[j][2].machine, results[j]) for j in wanted}
+    mcap = {}
+    for start in range(0, len(wanted), MCAP_ROWS_AT_ONCE):
+        chunk = wanted[start : start + MCAP_ROWS_AT_ONCE]
+        missing = [j for j in chunk if j not in results]
+        read_back = dict(zip(missing, tables.episode_results(missing), strict=True))
+        for j in chunk:
+            _, number, e = todo[j]
+            result = results[j] if j in results else read_back[j]
+            mcap[j] = _write_mcap(state, ctx, number, e.machine, result)
+    return mcap
 
 
 def _write_parts(task: BatchTask, tables: BatchTables) -> dict[str, int]:

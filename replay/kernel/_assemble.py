@@ -133,7 +133,7 @@ class _Columns:
 
     def __init__(self, out, vocab, episodes: list, head: tuple[str, str, str]) -> None:
         self.out = out
-        self.episodes_in = episodes
+        self.inputs = episodes
         self.continuations = [ep.log.continuation for ep in episodes]
         self.states = Words(vocab.states)
         self.comps = Words(vocab.comps)
@@ -236,7 +236,7 @@ class _Columns:
         }
 
     def episodes(self, prices: Prices) -> dict[str, pa.Array]:
-        out, states, episodes = self.out, self.states, self.episodes_in
+        out, states, episodes = self.out, self.states, self.inputs
         n_eps = len(episodes)
         ev = {k: v[:n_eps] for k, v in out.episodes.items()}
         c_opt_stated = [ep.task.c_opt for ep in episodes]
@@ -284,7 +284,7 @@ class _Columns:
         }
 
     def goals(self, n_goals: int) -> dict[str, pa.Array]:
-        out, episodes = self.out, self.episodes_in
+        out, episodes = self.out, self.inputs
         ev_n_goals = out.episodes["n_goals"][: len(episodes)]
         gv = {k: v[:n_goals] for k, v in out.goals.items()}
         instructions = [
