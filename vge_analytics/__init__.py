@@ -40,9 +40,9 @@ Rows for a dashboard:
     episode_steps(out, run_id, episode_id), steps_with_error(out, error_type, where)
 
 Live runs (`vge run`): `vge_analytics.live` (agents, the OpenAI-compatible client, the
-prompt, the run writer; docs/LIVE.md). `vge_analytics.envs` registers the Gymnasium
+prompt, the run writer; docs/LIVE.md). `vge_analytics.rendered_envs` registers the Gymnasium
 environments with the rendered synthetic views:
-`gymnasium.make("vge_analytics.envs:vge/DeviceRL-v0", bench=...)`.
+`gymnasium.make("vge_analytics.rendered_envs:vge/RenderedDeviceRL-v0", bench=...)`.
 
 Read-only SQL (within a memory and a time limit, see `store`):
     sql(out, "SELECT ...", timeout=300, memory_limit=None)   views steps, episodes, goals, runs

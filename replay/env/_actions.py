@@ -25,7 +25,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .._errors import ActionError
-from ..semantics._vocab import ACTION_NAMES, DISPLAY_NAMES, SCALE, TIMED_WAIT, VIEW_ORDER
+from ..semantics import ACTION_NAMES, DISPLAY_NAMES, SCALE, TIMED_WAIT, VIEW_ORDER
 
 ACTION_TYPES: tuple[str, ...] = tuple(DISPLAY_NAMES[name] for name in ACTION_NAMES)
 """`Press, Rotate, Push, Pull, Grasp, Switch_view, Timed_wait`: the first integer."""

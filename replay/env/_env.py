@@ -20,14 +20,17 @@ import numpy as np
 from gymnasium.error import ResetNeeded
 
 from .._errors import ActionError, ConfigError, VGEError
-from ..io._images import BenchImages, ImageSource
-from ..io._load import Benchmark
-from ..semantics._budget import episode_lambda
-from ..semantics._episode import EpisodeSession
-from ..semantics._machine import Machine
-from ..semantics._records import ActionRecord, Continuation, LogStep
-from ..semantics._rows import StepRow
-from ..semantics._vocab import DASHBOARD
+from ..io import BenchImages, Benchmark, ImageSource
+from ..semantics import (
+    DASHBOARD,
+    ActionRecord,
+    Continuation,
+    EpisodeSession,
+    LogStep,
+    Machine,
+    StepRow,
+    episode_lambda,
+)
 from ._bounds import BenchBounds, bench_bounds
 from ._images import ViewImages
 from ._spaces import action_space, observation_space

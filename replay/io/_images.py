@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from ..semantics._machine import Machine
+from ..semantics import Machine
 from ._fs import Location, location
 
 MAX_IMAGE_BYTES = 64 << 20

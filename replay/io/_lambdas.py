@@ -18,8 +18,8 @@ import msgspec
 import numpy as np
 import pyarrow as pa
 
-from ..kernel._batch import EpisodeInput, replay_kernel
-from ..semantics._budget import episode_lambda
+from ..kernel import EpisodeInput, replay_kernel
+from ..semantics import episode_lambda
 from ._decode import decode
 from ._load import episode_decoder
 from ._worker import worker_state

@@ -14,8 +14,16 @@ from typing import Any
 import msgspec
 
 from .._errors import InputError, Problem, SSMError, TaskError, VGEError, decode_error_message
-from ..semantics._machine import Machine, compile_machine, validate_machine
-from ..semantics._records import EpisodeLog, RunHeader, StateMachine, Task
+from ..semantics import (
+    EpisodeLog,
+    Machine,
+    RunHeader,
+    StateMachine,
+    Task,
+    compile_machine,
+    setup_episode,
+    validate_machine,
+)
 from ._decode import decode
 from ._fs import Location, location
 from ._lines import MAX_RECORD_BYTES, iter_lines, read_whole
@@ -174,34 +182,11 @@ def _problem(exc: InputError) -> Problem:
 
 def validate_benchmark(root: str | Path | Location) -> list[Problem]:
     """Every problem of a benchmark: SSMs, UCSMs, tasks (PROTOCOL §1.1-1.3, 4)."""
-    from ..semantics._episode import setup_episode
-
     root = location(root)
     bench = Benchmark.open(root)
     problems: list[Problem] = []
     for device_id, path in bench.ssm_paths.items():
-        try:
-            ssm = decode_state_machine(path)
-        except InputError as exc:
-            problems.append(_problem(exc))
-            continue
-        problems.extend(validate_machine(ssm, str(path)))
-        if ssm.device_id is not None and ssm.device_id != device_id:
-            problems.append(
-                Problem(
-                    str(path),
-                    "device_id",
-                    f"device_id {ssm.device_id!r} differs from the file name; the file name is used",
-                    "warning",
-                )
-            )
-        for view, ref in (ssm.images or {}).items():
-            if not (root / ref.path).exists():
-                problems.append(
-                    Problem(
-                        str(path), f"images.{view}", f"image file {ref.path!r} not found", "warning"
-                    )
-                )
+        problems.extend(_ssm_problems(root, device_id, path))
     ucsm_dir = root / "ucsm"
     if ucsm_dir.is_dir():
         for path in [ucsm_dir / n for n in ucsm_dir.names() if n.endswith(".json")]:
@@ -213,49 +198,73 @@ def validate_benchmark(root: str | Path | Location) -> list[Problem]:
             problems.extend(validate_machine(ucsm, str(path), require_geometry=False))
     problems.extend(bench.task_problems)
     for episode_id, entry in bench.tasks.items():
-        where = f"{bench.tasks_path}:{entry.line}"
-        try:
-            machine = bench.machine(entry.task.device_id)
-        except InputError:
+        problems.extend(_task_problems(bench, episode_id, entry))
+    return problems
+
+
+def _ssm_problems(root: Location, device_id: str, path: Location) -> list[Problem]:
+    """An SSM file's problems: its machine's, a `device_id` other than the file's name, a
+    picture it names that is not there."""
+    try:
+        ssm = decode_state_machine(path)
+    except InputError as exc:
+        return [_problem(exc)]
+    problems = validate_machine(ssm, str(path))
+    if ssm.device_id is not None and ssm.device_id != device_id:
+        problems.append(
+            Problem(
+                str(path),
+                "device_id",
+                f"device_id {ssm.device_id!r} differs from the file name; the file name is used",
+                "warning",
+            )
+        )
+    for view, ref in (ssm.images or {}).items():
+        if not (root / ref.path).exists():
             problems.append(
                 Problem(
-                    where, f"episode {episode_id!r}", f"unknown device {entry.task.device_id!r}"
+                    str(path), f"images.{view}", f"image file {ref.path!r} not found", "warning"
                 )
             )
-            continue
-        except VGEError:
-            problems.append(
-                Problem(
-                    where,
-                    f"episode {episode_id!r}",
-                    f"device {entry.task.device_id!r} has an invalid SSM",
-                )
+    return problems
+
+
+def _task_problems(bench: Benchmark, episode_id: str, entry: TaskEntry) -> list[Problem]:
+    """A task's problems: its device, whether it can be played there, its instructions and
+    its stated C_opt against the planner's."""
+    where = f"{bench.tasks_path}:{entry.line}"
+    episode = f"episode {episode_id!r}"
+    task = entry.task
+    try:
+        machine = bench.machine(task.device_id)
+    except InputError:
+        return [Problem(where, episode, f"unknown device {task.device_id!r}")]
+    except VGEError:
+        return [Problem(where, episode, f"device {task.device_id!r} has an invalid SSM")]
+    try:
+        setup = setup_episode(machine, task)
+    except TaskError as exc:
+        return [Problem(where, episode, str(exc).split(": ", 1)[-1])]
+    problems = []
+    if len(task.instructions) not in (0, len(task.goals)):
+        problems.append(
+            Problem(
+                where,
+                episode,
+                f"{len(task.instructions)} instructions for {len(task.goals)} goals",
+                "warning",
             )
-            continue
-        try:
-            setup = setup_episode(machine, entry.task)
-        except TaskError as exc:
-            problems.append(Problem(where, f"episode {episode_id!r}", str(exc).split(": ", 1)[-1]))
-            continue
-        if len(entry.task.instructions) not in (0, len(entry.task.goals)):
-            problems.append(
-                Problem(
-                    where,
-                    f"episode {episode_id!r}",
-                    f"{len(entry.task.instructions)} instructions for {len(entry.task.goals)} goals",
-                    "warning",
-                )
+        )
+    stated = task.c_opt
+    if stated is not None and list(stated) != list(setup.plan.c_opt):
+        problems.append(
+            Problem(
+                where,
+                episode,
+                f"stated c_opt {list(stated)} differs from the computed {list(setup.plan.c_opt)}; the computed one is used",
+                "warning",
             )
-        stated = entry.task.c_opt
-        if stated is not None and list(stated) != list(setup.plan.c_opt):
-            problems.append(
-                Problem(
-                    where,
-                    f"episode {episode_id!r}",
-                    f"stated c_opt {list(stated)} differs from the computed {list(setup.plan.c_opt)}; the computed one is used",
-                    "warning",
-                )
-            )
+        )
     return problems
 
 

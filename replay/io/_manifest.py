@@ -20,7 +20,7 @@ import pyarrow as pa
 from msgspec import Meta
 
 from .._errors import InputError, decode_error_message
-from ..semantics._budget import run_lambda
+from ..semantics import run_lambda
 from ._fs import Location, location
 from ._lines import MAX_RECORD_BYTES
 

@@ -35,16 +35,13 @@ from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from .._version import ENGINE_VERSION
-from ..semantics._machine import Machine, Rect
-from ..semantics._plan import target_rects
-from ..semantics._rows import StepRow
-from ..semantics._vocab import SCALE
+from ..semantics import SCALE, Machine, Rect, StepRow, target_rects
+from ._file_names import safe_file_name
 from ._fs import Location, location
 from ._images import ViewImage
-from ._task import safe_file_name
 
 if TYPE_CHECKING:
-    from ..semantics._episode import EpisodeResult
+    from ..semantics import EpisodeResult
 
 MCAP_LIBRARY = f"vge-analytics replay {ENGINE_VERSION}"
 """The `library` field of every MCAP file: which engine wrote it."""

@@ -15,7 +15,7 @@ import pyarrow.parquet as pq
 
 from .._errors import ConfigError
 from .._version import ENGINE_VERSION
-from ..semantics._records import SCHEMA_VERSION
+from ..semantics import SCHEMA_VERSION
 from ._files import STATE_DIR, atomic_write, atomic_write_bytes
 from ._fs import Location, location
 from ._manifest import (

@@ -9,12 +9,11 @@ from dataclasses import dataclass
 from queue import Full, Queue
 
 from .._errors import ConfigError, InputError
-from ..semantics._records import RunHeader
-from ..semantics._usage import Prices, run_prices
+from ..semantics import Prices, RunHeader, run_prices
+from ._file_names import NAME_BYTES
 from ._fs import Location, location
 from ._lines import iter_lines
 from ._load import episodes_file, read_run_header
-from ._task import NAME_BYTES
 
 
 @dataclass(frozen=True)

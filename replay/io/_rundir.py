@@ -24,7 +24,7 @@ from typing import Any, BinaryIO
 import msgspec
 
 from .._errors import InputError
-from ..semantics._records import RunHeader
+from ..semantics import RunHeader
 from ._decode import decode
 from ._durable import append_record, truncate, write_atomic
 from ._load import episode_decoder, read_run_header, run_header_bytes

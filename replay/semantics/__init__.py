@@ -1,1 +1,228 @@
-"""The rules, as a readable reference: records, action grammar, machine, pure step, planner, classification, episode replay."""
+"""The rules, as a readable reference: records, action grammar, machine, pure step, planner, classification, episode replay.
+
+PROTOCOL §1 to §5 as plain Python, with no I/O: the records the inputs decode into, the
+vocabularies (views, actions, feedback kinds, error types, terminations), the compiled
+machine, the step function and the transition it applies, the planner, the budgets, the
+classification of a step, one episode played step by step, and the output rows with their
+Arrow schema. The compiled kernel restates these rules and is proven identical to them;
+`replay.io` and `replay.env` build on them. The names users need are also on `replay`.
+"""
+
+from ._budget import (
+    Budget,
+    episode_lambda,
+    goals_reached,
+    refreshed_budget,
+    run_lambda,
+    termination_after,
+)
+from ._classify import Classification, Classifier
+from ._episode import (
+    EpisodeResult,
+    EpisodeSession,
+    EpisodeSetup,
+    parse_log_step,
+    replay_episode,
+    setup_episode,
+    timestamp_seconds,
+)
+from ._feedback import (
+    NULL_TEXT,
+    OPERATIONAL_TEXT,
+    UNLOCKED_TEXT,
+    WAIT_NO_EFFECT_TEXT,
+    invalid_text,
+    switched_text,
+    transition_text,
+)
+from ._machine import (
+    CompiledTransition,
+    Machine,
+    Rect,
+    compile_machine,
+    rect_contains,
+    rect_distance,
+    validate_machine,
+)
+from ._parse import Action, ParsedAction, action_from_record, parse_action
+from ._plan import (
+    INF,
+    Plan,
+    PlannedStep,
+    c_opt_dynamic,
+    distances,
+    next_optimal_step,
+    plan_goals,
+    progressing,
+    target_components,
+    target_rects,
+)
+from ._records import (
+    INPUT_RECORDS,
+    SCHEMA_VERSION,
+    ActionRecord,
+    BBox,
+    Continuation,
+    Dashboard,
+    DashboardRegion,
+    EpisodeLog,
+    LogStep,
+    RunHeader,
+    StateDef,
+    StateMachine,
+    Task,
+    Transition,
+)
+from ._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
+from ._step import Outcome, SimState, apply_transition, reset, step
+from ._tables import TABLE_ROWS, arrow_schema, rows_to_table, table_rows, table_tuples
+from ._usage import (
+    COMPLETION_PRICE_KEY,
+    NO_PRICES,
+    ORIGINS,
+    PROMPT_PRICE_KEY,
+    Prices,
+    origin_of,
+    run_prices,
+    usage_cost,
+)
+from ._vocab import (
+    ACTION_NAMES,
+    AXONOMETRIC_VIEWS,
+    DASHBOARD,
+    DEFAULT_LAMBDA,
+    DISPLAY_NAMES,
+    ERROR_DETAILS,
+    ERROR_GROUPS,
+    ERROR_TYPES,
+    FEEDBACK_KINDS,
+    INTERACTIONS,
+    INVALID_DETAILS,
+    ORTHOGRAPHIC_VIEWS,
+    PARSE_DETAILS,
+    SCALE,
+    STANDARD_VIEWS,
+    SWITCH_CLASSES,
+    SWITCH_VIEW,
+    TERMINATIONS,
+    TIMED_WAIT,
+    VIEW_ORDER,
+    VIEW_RANK,
+    normalize_param,
+    normalize_params,
+)
+
+__all__ = [
+    # vocabularies (PROTOCOL §1 to §5)
+    "ACTION_NAMES",
+    "AXONOMETRIC_VIEWS",
+    "COMPLETION_PRICE_KEY",
+    "DASHBOARD",
+    "DEFAULT_LAMBDA",
+    "DISPLAY_NAMES",
+    "ERROR_DETAILS",
+    "ERROR_GROUPS",
+    "ERROR_TYPES",
+    "FEEDBACK_KINDS",
+    "INTERACTIONS",
+    "INVALID_DETAILS",
+    "ORIGINS",
+    "ORTHOGRAPHIC_VIEWS",
+    "PARSE_DETAILS",
+    "PROMPT_PRICE_KEY",
+    "SCALE",
+    "STANDARD_VIEWS",
+    "SWITCH_CLASSES",
+    "SWITCH_VIEW",
+    "TERMINATIONS",
+    "TIMED_WAIT",
+    "VIEW_ORDER",
+    "VIEW_RANK",
+    "normalize_param",
+    "normalize_params",
+    # feedback texts (PROTOCOL §3)
+    "NULL_TEXT",
+    "OPERATIONAL_TEXT",
+    "UNLOCKED_TEXT",
+    "WAIT_NO_EFFECT_TEXT",
+    "invalid_text",
+    "switched_text",
+    "transition_text",
+    # records
+    "INPUT_RECORDS",
+    "SCHEMA_VERSION",
+    "ActionRecord",
+    "BBox",
+    "Continuation",
+    "Dashboard",
+    "DashboardRegion",
+    "EpisodeLog",
+    "LogStep",
+    "RunHeader",
+    "StateDef",
+    "StateMachine",
+    "Task",
+    "Transition",
+    # the machine
+    "CompiledTransition",
+    "Machine",
+    "Rect",
+    "compile_machine",
+    "rect_contains",
+    "rect_distance",
+    "validate_machine",
+    # the grammar
+    "Action",
+    "ParsedAction",
+    "action_from_record",
+    "parse_action",
+    # the step
+    "Outcome",
+    "SimState",
+    "apply_transition",
+    "reset",
+    "step",
+    # the planner
+    "INF",
+    "Plan",
+    "PlannedStep",
+    "c_opt_dynamic",
+    "distances",
+    "next_optimal_step",
+    "plan_goals",
+    "progressing",
+    "target_components",
+    "target_rects",
+    # budgets, usage
+    "Budget",
+    "NO_PRICES",
+    "Prices",
+    "episode_lambda",
+    "goals_reached",
+    "origin_of",
+    "refreshed_budget",
+    "run_lambda",
+    "run_prices",
+    "termination_after",
+    "usage_cost",
+    # classification, the episode
+    "Classification",
+    "Classifier",
+    "EpisodeResult",
+    "EpisodeSession",
+    "EpisodeSetup",
+    "parse_log_step",
+    "replay_episode",
+    "setup_episode",
+    "timestamp_seconds",
+    # the output rows
+    "OUTPUT_RECORDS",
+    "TABLE_ROWS",
+    "EpisodeRow",
+    "GoalRow",
+    "StepRow",
+    "arrow_schema",
+    "rows_to_table",
+    "table_rows",
+    "table_tuples",
+]

@@ -104,13 +104,3 @@ class Budget:
         self.termination = termination_after(
             current, self.n_goals, self.taken, self.budget_global, local
         )
-
-
-__all__ = [
-    "Budget",
-    "episode_lambda",
-    "goals_reached",
-    "refreshed_budget",
-    "run_lambda",
-    "termination_after",
-]

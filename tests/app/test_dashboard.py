@@ -224,7 +224,7 @@ def test_view_boxes_targets_are_the_planners(tiny_out):
         hit=row["hit_components"],
     )
     s, g = machine.state_index[row["state_before"]], machine.state_index[row["goal_state"]]
-    expected = {c for c, _ in replay.target_rects(machine, s, g, row["view_before"])}
+    expected = {c for c, _ in replay.semantics.target_rects(machine, s, g, row["view_before"])}
     assert {b.component for b in boxes if b.role == "target"} == expected
     hits = {b.component for b in boxes if b.role == "hit"}
     assert hits == set(row["hit_components"]) - expected

@@ -45,7 +45,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
         run_id=header.run_id,
         model=header.model,
         agent_kind=header.agent_kind,
-        prices=replay.run_prices(header.meta),  # replayed already: the prices are valid
+        prices=replay.semantics.run_prices(header.meta),  # replayed already: the prices are valid
     )
     source = image_source(bench_root)
     buf = io.BytesIO()
@@ -61,7 +61,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
 
 def _find_episode_log(path: Path, episode_id: str) -> replay.EpisodeLog:
     needle = json.dumps(episode_id).encode()
-    for _, line in replay.iter_lines(path):
+    for _, line in replay.io.iter_lines(path):
         if needle not in line:
             continue
         log = msgspec.json.decode(line, type=replay.EpisodeLog)

@@ -80,7 +80,7 @@ def view_boxes(
     elif state is not None and goal is not None and state in machine.state_index:
         s, g = machine.state_index[state], machine.state_index.get(goal)
         if g is not None:
-            for component, rect in replay.target_rects(machine, s, g, view):
+            for component, rect in replay.semantics.target_rects(machine, s, g, view):
                 target_names.add(component)
                 boxes.append(Box(component, *rect[:4], role="target"))
     hit_names = set(hit)

@@ -65,7 +65,7 @@ def export(
     """Write the runs of OUT (all, or `runs`; their episodes, or `episodes` of them) to `dest`
     as Inspect logs (`fmt="inspect"`: `dest/<run_id>.eval`) or ATIF trajectories
     (`fmt="atif"`: `dest/<run_id>/<episode_id>.json`), with the views' pictures or not
-    (`images`: `embed` or `none`). File names are made from ids by `replay.safe_file_name`."""
+    (`images`: `embed` or `none`). File names are made from ids by `replay.io.safe_file_name`."""
     check_choice(fmt, FORMATS, "--format")
     check_choice(images, IMAGES, "--images")
     require(fmt)
@@ -139,7 +139,7 @@ def _write_inspect(
         results = eval_results(run, va.load_metrics(metrics_dir))
         return results, eval_stats(run, usage[0] if usage else None)
 
-    path = root / f"{replay.safe_file_name(run.run_id)}.eval"
+    path = root / f"{replay.io.safe_file_name(run.run_id)}.eval"
     spec, plan = eval_spec(run, images), eval_plan(run)
     write_eval(path, spec, plan, samples(), finish, condense=pictures is not None)
     return path
@@ -150,13 +150,13 @@ def _write_atif(
 ) -> tuple[Path, int]:
     from ._atif import PictureFiles, trajectory, trajectory_json, write_atomic
 
-    folder = root / replay.safe_file_name(run.run_id)
+    folder = root / replay.io.safe_file_name(run.run_id)
     folder.mkdir(parents=True, exist_ok=True)
     pictures = PictureFiles(folder, views) if images == "embed" else None
     written = 0
     for episode in episodes:
         traj = trajectory(run, episode, views.names(episode.row["device_id"]), pictures)
-        path = folder / f"{replay.safe_file_name(episode.episode_id)}.json"
+        path = folder / f"{replay.io.safe_file_name(episode.episode_id)}.json"
         write_atomic(path, trajectory_json(traj))
         written += 1
     return folder, written

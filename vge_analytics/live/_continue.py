@@ -80,7 +80,7 @@ class SourceRun:
             raise RunDirError(f"--from {run_dir}: not a run directory")
         header = replay.read_run_header(run_dir)
         lines: dict[str, bytes] = {}
-        for _, line in replay.iter_lines(replay.episodes_file(run_dir)):
+        for _, line in replay.io.iter_lines(replay.episodes_file(run_dir)):
             try:
                 episode_id = msgspec.json.decode(line, type=_EpisodeId).episode_id
             except msgspec.DecodeError:

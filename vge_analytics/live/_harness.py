@@ -150,7 +150,7 @@ def run_live(
         selection = _chosen(source.run.lines, str(source.run.root), options.episodes, options.limit)
     counters = Counters(
         selected=len(selection),
-        prices=replay.Prices(options.prompt_price, options.completion_price),
+        prices=replay.semantics.Prices(options.prompt_price, options.completion_price),
     )
     rundir = RunDir(options.out)
     header = run_header(agent, options, counters)

@@ -279,7 +279,7 @@ class HumanRun:
         """The task's device loads and its goals can be planned (PROTOCOL §4)."""
         task = self.bench.tasks[episode_id].task
         try:
-            replay.setup_episode(self.bench.machine(task.device_id), task)
+            replay.semantics.setup_episode(self.bench.machine(task.device_id), task)
         except replay.VGEError:
             return False
         return True

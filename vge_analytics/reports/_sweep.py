@@ -3,7 +3,7 @@
 The inputs come from `OUT/manifest.json` (each run's directory, episodes file and benchmark,
 as given to `vge replay`); their sha256 must still match the manifest (a changed log, task
 file or SSM would make the sweep disagree with OUT, so it is refused). Every episode that OUT
-holds for a run is replayed again at each lambda by `replay.replay_lambdas`, in batches of
+holds for a run is replayed again at each lambda by `replay.io.replay_lambdas`, in batches of
 lines run by the executors of `vge replay` (this process, worker processes, or a Ray
 cluster), and the metrics are computed from the resulting episode rows with the registry's
 own SQL.
@@ -82,11 +82,11 @@ class _RunJob:
     episode_ids: frozenset[str]
     lambdas: tuple[float, ...]
 
-    def tasks(self) -> Iterator[replay.LambdaTask]:
+    def tasks(self) -> Iterator[replay.io.LambdaTask]:
         """The run's lines in batches of BATCH_LINES."""
         lines: list[tuple[int, bytes]] = []
         index = 0
-        for item in replay.iter_lines(self.episodes_file):
+        for item in replay.io.iter_lines(self.episodes_file):
             lines.append(item)
             if len(lines) == BATCH_LINES:
                 yield self._task(index, lines)
@@ -94,8 +94,8 @@ class _RunJob:
         if lines:
             yield self._task(index, lines)
 
-    def _task(self, index: int, lines: list[tuple[int, bytes]]) -> replay.LambdaTask:
-        return replay.LambdaTask(
+    def _task(self, index: int, lines: list[tuple[int, bytes]]) -> replay.io.LambdaTask:
+        return replay.io.LambdaTask(
             run_id=self.run_id,
             model=self.model,
             agent_kind=self.agent_kind,
@@ -190,7 +190,7 @@ def _replay(jobs: list[_RunJob], executor) -> pa.Table:
     """Episode rows of every run at every lambda, in line order (the first occurrence of an
     episode counts); the first refusal, in run and line order, ends the sweep."""
 
-    def items() -> Iterator[tuple[_RunJob, replay.LambdaTask]]:
+    def items() -> Iterator[tuple[_RunJob, replay.io.LambdaTask]]:
         for job in jobs:
             for task in job.tasks():
                 yield job, task
@@ -198,7 +198,7 @@ def _replay(jobs: list[_RunJob], executor) -> pa.Table:
     tables: list[pa.Table] = []
     seen: dict[str, set[str]] = {job.run_id: set() for job in jobs}
     ahead = 2 * executor.slots
-    for job, _, batch in replay.in_order(executor, replay.replay_lambdas, items(), ahead):
+    for job, _, batch in replay.io.in_order(executor, replay.io.replay_lambdas, items(), ahead):
         keep: list[bool] = []
         for eid, refusal in zip(batch.episode_ids, batch.refusals, strict=True):
             first = eid not in seen[job.run_id]
@@ -266,7 +266,7 @@ def sweep(
             f"need steps or goals (episode metrics: {usable})"
         )
     jobs = _jobs(store, runs, lams)
-    executor = replay.make_executor(workers, ray)
+    executor = replay.io.make_executor(workers, ray)
     try:
         episodes = _replay(jobs, executor)
     finally:

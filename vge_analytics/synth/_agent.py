@@ -1,7 +1,7 @@
 """A simulated agent: plays one task through the pure simulator (`replay.reset`/`replay.step`)
 and returns the log steps (PROTOCOL §1.4).
 
-The agent knows, as a simulation, which transitions make progress (`replay.progressing`),
+The agent knows, as a simulation, which transitions make progress (`replay.semantics.progressing`),
 and a `Profile` decides how often it acts on that knowledge: whether it finds the view that
 shows the target, picks the right component, action and parameters, aims well, waits when
 a process runs, keeps to the output format, and remembers within its history window what
@@ -234,7 +234,7 @@ class Agent:
         return ()
 
     @staticmethod
-    def _concrete(tr: replay.CompiledTransition, rng: random.Random) -> tuple[str, ...]:
+    def _concrete(tr: replay.semantics.CompiledTransition, rng: random.Random) -> tuple[str, ...]:
         if not tr.params:
             return ("0",) if tr.action in ("press", "grasp") else ()
         out = []
@@ -265,7 +265,7 @@ class Agent:
             # Without any history the agent cannot tell that its last action changed the
             # device (the pictures look the same): it plans from where the goal began.
             plan_state = start
-        targets = replay.progressing(m, plan_state, goal)
+        targets = replay.semantics.progressing(m, plan_state, goal)
         real = [t for t in targets if t.action is not None]
         wait_needed = any(t.action is None for t in targets)
 
@@ -483,7 +483,7 @@ class Agent:
         self,
         sim: replay.SimState,
         goal_index: int,
-        tr: replay.CompiledTransition,
+        tr: replay.semantics.CompiledTransition,
         recent: list[_Event],
         intent: str,
         refine: bool = False,
@@ -617,7 +617,7 @@ class Agent:
         goal: int,
         completed: int,
     ) -> None:
-        dist = replay.distances(self.m, goal)
+        dist = replay.semantics.distances(self.m, goal)
         progress = completed > 0 or dist[after.state] < dist[before.state]
         moved_away = outcome.dangerous or dist[after.state] > dist[before.state]
         # A format slip says nothing about the action the agent meant.

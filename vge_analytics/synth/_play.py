@@ -61,7 +61,7 @@ def play_episode(
     replay will use (`replay.episode_lambda`) and the replay's own budget rules
     (`replay.Budget`), so the replay of the log ends exactly at its last step."""
     plain = task.to_task()
-    setup = replay.setup_episode(machine, plain)
+    setup = replay.semantics.setup_episode(machine, plain)
     sim, _ = replay.reset(machine, setup.initial_state, setup.initial_view)
     budget = replay.Budget(setup.plan.c_opt, replay.episode_lambda(plain, run_lambda))
     player = StepPlayer(Agent(machine, catalog, profile, task, rng))
@@ -92,7 +92,7 @@ def _format(
             "coord": [round(action.coord[0]), round(action.coord[1])] if action.coord else None,
             "params": list(action.params),
         }
-        parsed = replay.action_from_record(record["type"], record["coord"], record["params"])
+        parsed = replay.semantics.action_from_record(record["type"], record["coord"], record["params"])
         return None, record, parsed
     if rng.random() < profile.slip:
         kind = rng.choice(SLIP_KINDS)

@@ -3,7 +3,7 @@ transition paths from the initial state, phrased with the catalog's goal phrases
 
 Single-turn tasks have one goal; multi-turn ones 2-4 goals, each reachable from where the
 previous one leaves the device, with no goal repeated (returning to the initial state is
-allowed only as the last goal). Every task is checked with `replay.setup_episode` (so it is
+allowed only as the last goal). Every task is checked with `replay.semantics.setup_episode` (so it is
 plannable) and carries the planner's `c_opt`. Instructions never name a component: they are
 the catalog's phrases, with light connectives between the goals of a multi-turn task.
 """
@@ -77,7 +77,7 @@ def _pick_goal(
     for g in candidates:
         if g == start or g in exclude:
             continue
-        d = replay.distances(machine, g)[start]
+        d = replay.semantics.distances(machine, g)[start]
         w = _DISTANCE_WEIGHT.get(d, 0.0) if d < INF else 0.0
         if w > 0:
             options.append((g, w))
@@ -193,7 +193,7 @@ def sample_tasks(
                 initial_view=view,
             )
             try:
-                setup = replay.setup_episode(machine, task)
+                setup = replay.semantics.setup_episode(machine, task)
             except replay.TaskError:
                 continue
             seen.add(key)

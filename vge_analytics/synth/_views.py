@@ -62,7 +62,7 @@ def synthetic_view(machine: replay.Machine, view: str) -> ViewImage | None:
     key = _cache_key(machine)
     path = cache_dir() / "views" / key[:2] / key / f"{view}.png"
     if path.is_file():
-        found = replay.decode_view_image(path.read_bytes())
+        found = replay.io.decode_view_image(path.read_bytes())
         if found is not None:
             return found
     data = _render_png(machine, view, key)

@@ -100,9 +100,9 @@ def test_duplicates_across_batches(
     """Duplicates are decided in the main process, whatever the batch they fall in."""
     s = copy_sample
     expected, n_good = _broken_copy(s)
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 4)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 4)
     small = replay.replay_runs([s.vlm], s.bench, tmp_path / "small", progress=False)
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 1000)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 1000)
     one = replay.replay_runs([s.vlm], s.bench, tmp_path / "one", progress=False)
     assert small.exit_code == one.exit_code == 2
     quarantine = [(tmp_path / d / "quarantine.jsonl").read_bytes() for d in ("small", "one")]

@@ -15,7 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 
 import replay
-from replay.io._load import episode_decoder
+from replay.io import episode_decoder
 
 from ..conftest import COPIES, Sample
 

@@ -28,7 +28,7 @@ def _ssm_paths(out: Path) -> list[Path]:
 def _tasks(out: Path) -> list[replay.Task]:
     return [
         msgspec.json.decode(line, type=replay.Task)
-        for _, line in replay.iter_lines(out / "bench" / "tasks.jsonl")
+        for _, line in replay.io.iter_lines(out / "bench" / "tasks.jsonl")
     ]
 
 
@@ -36,8 +36,8 @@ def test_every_ssm_validates_with_no_problem(synth_tiny):
     paths = _ssm_paths(synth_tiny)
     assert len(paths) == 8  # the tiny scale: 4 categories of 2 devices
     for path in paths:
-        ssm = replay.decode_state_machine(path)
-        assert replay.validate_machine(ssm, str(path)) == [], path.name
+        ssm = replay.io.decode_state_machine(path)
+        assert replay.semantics.validate_machine(ssm, str(path)) == [], path.name
     assert replay.validate_benchmark(synth_tiny / "bench") == []
 
 
@@ -107,7 +107,7 @@ def test_image_sizes_like_the_real_data(synth_tiny):
                 assert 700 <= w <= 1420 and 700 <= h <= 1420, (path.stem, view, w, h)
 
 
-def _oracle_log(setup: replay.EpisodeSetup, episode_id: str) -> replay.EpisodeLog:
+def _oracle_log(setup: replay.semantics.EpisodeSetup, episode_id: str) -> replay.EpisodeLog:
     steps = [
         replay.LogStep(output=f"Thinking: follow the plan.\nAction: {s.action.to_text()}")
         for s in setup.plan.steps
@@ -121,7 +121,7 @@ def test_oracle_reaches_every_goal_at_exactly_c_opt(synth_tiny):
     assert len(tasks) == 24  # 8 devices, 1 single-goal and 2 multi-goal tasks each
     for task in tasks:
         machine = bench.machine(task.device_id)
-        setup = replay.setup_episode(machine, task)
+        setup = replay.semantics.setup_episode(machine, task)
         assert list(setup.plan.c_opt) == list(task.c_opt), task.episode_id
         res = replay.replay_episode(
             machine,
@@ -248,6 +248,6 @@ def test_run_headers_say_they_are_simulated():
         assert meta["instruction_generator"]
         assert header.lam == 5.0
         if header.agent_kind == "human":
-            first = next(replay.iter_lines(replay.episodes_file(run_dir)))[1]
+            first = next(replay.io.iter_lines(replay.episodes_file(run_dir)))[1]
             step = json.loads(first)["steps"][0]
             assert "action" in step and "output" not in step

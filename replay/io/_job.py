@@ -1,17 +1,28 @@
-"""One run, as the main process sees it: batch reports taken in line order (duplicates
-decided here, where every line of the run is seen in order), quarantine records written,
-counts added up; then the staged parts are committed into OUT (`OUT/.replay/staging/<run_id>/`
--> `OUT/<table>/run_id=<run_id>/`, `_files.commit_dir`)."""
+"""The job, one run as the main process of `vge replay` sees it: its lines read in batches
+(`_reading.LineReader`), one `BatchTask` per batch, the batch reports taken in line order
+(duplicates decided here, where every line of the run is seen in order), quarantine records
+written, counts added up; then the staged parts are committed into OUT
+(`OUT/.replay/staging/<run_id>/` -> `OUT/<table>/run_id=<run_id>/`, `_files.commit_dir`)
+and the run's manifest entry made."""
 
 from __future__ import annotations
 
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 from .._errors import InputError, RecordTooLarge
 from .._version import ENGINE_VERSION
-from ..semantics._tables import TABLE_ROWS, arrow_schema
+from ..semantics import TABLE_ROWS, arrow_schema
+from ._batch import (
+    SKIPPED,
+    BatchCounts,
+    BatchFailure,
+    BatchReport,
+    BatchTask,
+    RunContext,
+)
+from ._file_names import part_name
 from ._files import STATE_DIR, commit_dir, remove_dir, write_part
 from ._fs import Location
 from ._images import ImageSource
@@ -27,24 +38,27 @@ from ._manifest import (
 )
 from ._mcap import mcap_file_name
 from ._quarantine import QuarantineRecord, encode_record
-from ._reading import RunInput
-from ._task import (
-    SKIPPED,
-    BatchCounts,
-    BatchFailure,
-    BatchReport,
-    BatchTask,
-    RunContext,
-    part_name,
-)
+from ._reading import LineReader, RunInput
 
+BATCH_LINES = 4096
+"""Episode lines per batch: the unit of work of a worker and of a Parquet part (fixed,
+whatever the workers)."""
+BATCH_BYTES = 32 << 20
+"""A batch ends early once its lines hold this many bytes, so the batches read ahead and in
+flight stay bounded in memory however long the lines are. Twice the largest batch of the
+full synthetic benchmark (15 MB): its batches, and the sample's, are cut by lines only."""
 DIVERGENCE_FIELDS = ("feedback", "state", "view")
 QUARANTINE_SPOOL = 8 << 20
 """Bytes of a run's quarantine records kept in memory before they spill to a temporary file."""
 
 
 class RunJob:
-    """Replays one run into a staging directory, then swaps it into OUT."""
+    """Replays one run into a staging directory, then swaps it into OUT: `batches()` are
+    its tasks, `take` accounts for each report in order, `finish_reading` and `commit` end
+    it (`entry` is then its manifest entry), `abort` drops it."""
+
+    reader: LineReader
+    entry: RunEntry
 
     def __init__(
         self,
@@ -95,8 +109,14 @@ class RunJob:
         # the run's records, moved to OUT/.replay/quarantine/<run_id>.jsonl at the commit
         self._quarantine = tempfile.SpooledTemporaryFile(QUARANTINE_SPOOL)  # noqa: SIM115
 
-    def task(self, index: int, lines: list[tuple[int, bytes]]) -> BatchTask:
-        return BatchTask(self.ctx, self.bench_given, index, tuple(lines))
+    def batches(self) -> Iterator[BatchTask]:
+        """The run's lines, read in batches of `BATCH_LINES` (or fewer: `BATCH_BYTES`), as
+        tasks for `replay_batch`."""
+        self.reader = LineReader(
+            self.run.episodes, BATCH_LINES, BATCH_BYTES, self.options.max_record_bytes
+        )
+        for index, lines in enumerate(self.reader.batches()):
+            yield BatchTask(self.ctx, self.bench_given, index, tuple(lines))
 
     def quarantine(self, line: int, episode_id: str | None, kind: str, reason: str) -> None:
         record = QuarantineRecord(
@@ -178,9 +198,10 @@ class RunJob:
             )
         return result
 
-    def finish_reading(self, last_line: int, error: InputError | None) -> None:
+    def finish_reading(self) -> None:
         """What ends a file early is one record: `record_too_large` at the line too long,
         or `truncated_file` at the first line that could not be read."""
+        last_line, error = self.reader.last_line, self.reader.error
         if error is None:
             return
         self.lines_read += 1
@@ -199,7 +220,13 @@ class RunJob:
         self.staging.rmtree()
 
     def commit(self, inputs: RunInputs) -> RunEntry:
-        """Commit the run's partitions and quarantine records into OUT."""
+        """Commit the run's partitions and quarantine records into OUT; its manifest entry
+        (also kept as `entry`)."""
+        self._commit_files()
+        self.entry = self._entry(inputs)
+        return self.entry
+
+    def _commit_files(self) -> None:
         run_id = self.ctx.run_id
         for name, row_type in TABLE_ROWS.items():
             if not self.parts[name]:  # every run has at least one (empty) part per table
@@ -220,6 +247,9 @@ class RunJob:
             shutil.copyfileobj(self._quarantine, fh)
         self._quarantine.close()
         self.staging.rmtree()
+
+    def _entry(self, inputs: RunInputs) -> RunEntry:
+        run_id = self.ctx.run_id
         c = self.counts
         h = self.run.header
         return RunEntry(
