@@ -2,7 +2,6 @@
 metric files users add, their checks, the computation in DuckDB and the polars cross-check."""
 
 from ._compute import (
-    compose,
     episode_terms,
     metric_table,
     metrics,
@@ -33,7 +32,6 @@ from ._set import (
 
 __all__ = [
     "BUILTIN_NAMES",
-    "compose",
     "CONTINUATION_METRICS",
     "default_folder",
     "episode_terms",

@@ -24,6 +24,11 @@ from ._locked import (
     locked_connection,
     register_all,
 )
+from ._ratios import (
+    Ratio,
+    ratio_query,
+    term_name,
+)
 from ._scope import (
     DEFAULT_BY,
     Filters,
@@ -39,6 +44,7 @@ from ._scope import (
 )
 from ._sql import (
     Batches,
+    guarded_cursor,
     query_time_limit,
     run_query,
     sql,
@@ -50,6 +56,7 @@ from ._store import (
     Store,
     bench_dir,
     clear_cache,
+    memory_store,
     open_store,
     quote_ident,
     resolve_input,
@@ -89,9 +96,11 @@ __all__ = [
     "groupable_columns",
     "GroupBy",
     "grouped_aggregate",
+    "guarded_cursor",
     "IsolatedResult",
     "locked_connection",
     "MAX_METRIC_FILE",
+    "memory_store",
     "null_safe_join",
     "NUMERIC_TYPES",
     "open_store",
@@ -100,6 +109,8 @@ __all__ = [
     "process_memory_cap",
     "query_time_limit",
     "quote_ident",
+    "Ratio",
+    "ratio_query",
     "register_all",
     "resolve_input",
     "run_isolated",
@@ -115,5 +126,6 @@ __all__ = [
     "Store",
     "stream",
     "table_columns",
+    "term_name",
     "text_too_large",
 ]
