@@ -6,7 +6,16 @@ The names below are public for the tools that write run directories (`vge run`, 
 tables of a batch); the rest of the layer is reached through `replay`'s own exports.
 """
 
-from ._durable import append_record, fsync_dir, truncate, write_all, write_atomic
+from ._durable import (
+    append_record,
+    atomic_file,
+    fsync_dir,
+    make_folders,
+    staged_path,
+    truncate,
+    write_all,
+    write_atomic,
+)
 from ._load import episode_decoder
 from ._manifest import runs_table
 from ._rundir import EPISODES, RUN_JSON, RunDirectory, keep_aside
@@ -17,11 +26,14 @@ __all__ = [
     "RUN_JSON",
     "RunDirectory",
     "append_record",
+    "atomic_file",
     "episode_decoder",
     "fsync_dir",
     "keep_aside",
+    "make_folders",
     "reference_tables",
     "runs_table",
+    "staged_path",
     "truncate",
     "write_all",
     "worker_state",

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Sequence
 from pathlib import Path
 
 import polars as pl
 
 import replay
+from replay.io import atomic_file
 
 from ..metrics import MetricsSource, fingerprint, metric_set
 from ..store import (
@@ -94,14 +94,11 @@ def computed_sweep(
     path = _sweep_cache_file(out, runs, lambdas, metrics_dir)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        table.write_parquet(tmp)
-        os.replace(tmp, path)
+        with atomic_file(path, sync=False) as fh:  # a cache: whole, not synced
+            table.write_parquet(fh)
     except OSError:
         pass  # a read-only cache only costs the recomputation
     return table
-
-
 
 
 def sweep_curves(sweep: pl.DataFrame, *, relative: bool = False) -> pl.DataFrame:
