@@ -38,7 +38,7 @@ from pathlib import Path
 
 import replay
 from replay.io import episode_decoder
-from vge_analytics.commands.replay import image_source
+from vge_analytics.synth import image_source
 
 CORES = os.cpu_count() or 1
 

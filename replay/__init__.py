@@ -8,149 +8,155 @@ on its own (it needs Gymnasium), holds the live environments `vge/Device-v0` and
 `vge/DeviceRL-v0` over the same episode (PROTOCOL §10). Everything not named here is private.
 """
 
-# The rules (the readable reference engine): records, grammar, machine, step, planner,
-# classification, episode replay, and the output rows and their Arrow schema.
-from ._errors import (
-    ActionError,
-    ConfigError,
-    InputError,
-    Problem,
-    RecordTooLarge,
-    SSMError,
-    TaskError,
-    VGEError,
-    WorkerError,
-)
-from ._version import ENGINE_VERSION
-from .io._executor import Executor, in_order, make_executor
-from .io._fs import Location, is_uri, location
-from .io._images import (
-    MAX_IMAGE_BYTES,
-    BenchImages,
-    ImageSource,
-    ViewImage,
-    as_view_image,
-    bench_image,
-    decode_view_image,
-)
-from .io._lambdas import LambdaBatch, LambdaTask, replay_lambdas
+from typing import TYPE_CHECKING
 
-# Input and output: loading and validating, the runner (`vge replay`), manifest, quarantine, MCAP,
-# JSON Schemas.
-from .io._lines import MAX_RECORD_BYTES, iter_lines
-from .io._load import (
-    Benchmark,
-    decode_state_machine,
-    episodes_file,
-    load_machine,
-    load_ssm,
-    read_run_header,
-    run_header_bytes,
-    validate_benchmark,
-    validate_run,
-)
-from .io._manifest import Manifest, ManifestFile, RunEntry, read_manifest
-from .io._mcap import (
-    MCAP_LIBRARY,
-    attached_ssm,
-    episode_mcap_path,
-    mcap_file_name,
-    write_episode_mcap,
-)
-from .io._quarantine import QUARANTINE_KINDS, QuarantineRecord
-from .io._runner import replay_runs
-from .io._schemas import schema_documents, write_schemas
-from .io._task import safe_file_name
-from .semantics._budget import (
-    Budget,
-    episode_lambda,
-    goals_reached,
-    refreshed_budget,
-    run_lambda,
-    termination_after,
-)
-from .semantics._classify import Classification, Classifier
-from .semantics._episode import (
-    EpisodeResult,
-    EpisodeSession,
-    EpisodeSetup,
-    parse_log_step,
-    replay_episode,
-    setup_episode,
-    timestamp_seconds,
-)
-from .semantics._machine import (
-    CompiledTransition,
-    Machine,
-    compile_machine,
-    rect_contains,
-    rect_distance,
-    validate_machine,
-)
-from .semantics._parse import Action, ParsedAction, action_from_record, parse_action
-from .semantics._plan import (
-    Plan,
-    PlannedStep,
-    c_opt_dynamic,
-    distances,
-    next_optimal_step,
-    plan_goals,
-    progressing,
-    target_components,
-    target_rects,
-)
-from .semantics._records import (
-    INPUT_RECORDS,
-    SCHEMA_VERSION,
-    ActionRecord,
-    BBox,
-    Continuation,
-    Dashboard,
-    DashboardRegion,
-    EpisodeLog,
-    LogStep,
-    RunHeader,
-    StateDef,
-    StateMachine,
-    Task,
-    Transition,
-)
-from .semantics._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
-from .semantics._step import Outcome, SimState, reset, step
-from .semantics._tables import TABLE_ROWS, arrow_schema, rows_to_table
-from .semantics._usage import (
-    COMPLETION_PRICE_KEY,
-    ORIGINS,
-    PROMPT_PRICE_KEY,
-    Prices,
-    origin_of,
-    run_prices,
-    usage_cost,
-)
-from .semantics._vocab import (
-    ACTION_NAMES,
-    AXONOMETRIC_VIEWS,
-    DASHBOARD,
-    DEFAULT_LAMBDA,
-    DISPLAY_NAMES,
-    ERROR_GROUPS,
-    ERROR_TYPES,
-    FEEDBACK_KINDS,
-    INTERACTIONS,
-    ORTHOGRAPHIC_VIEWS,
-    PARSE_DETAILS,
-    SCALE,
-    STANDARD_VIEWS,
-    SWITCH_CLASSES,
-    SWITCH_VIEW,
-    TERMINATIONS,
-    TIMED_WAIT,
-    VIEW_ORDER,
-    normalize_param,
-    normalize_params,
-)
+from ._lazy import lazy_names
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    # The rules (the readable reference engine): records, grammar, machine, step, planner,
+    # classification, episode replay, and the output rows and their Arrow schema.
+    from ._errors import (
+        ActionError,
+        ConfigError,
+        InputError,
+        Problem,
+        RecordTooLarge,
+        SSMError,
+        TaskError,
+        VGEError,
+        WorkerError,
+    )
+    from ._version import ENGINE_VERSION
+    from .io._executor import Executor, in_order, make_executor
+    from .io._fs import Location, is_uri, location
+    from .io._images import (
+        MAX_IMAGE_BYTES,
+        BenchImages,
+        ImageSource,
+        ViewImage,
+        as_view_image,
+        bench_image,
+        decode_view_image,
+    )
+    from .io._lambdas import LambdaBatch, LambdaTask, replay_lambdas
+
+    # Input and output: loading and validating, the runner (`vge replay`), manifest,
+    # quarantine, MCAP, JSON Schemas.
+    from .io._lines import MAX_RECORD_BYTES, iter_lines
+    from .io._load import (
+        Benchmark,
+        decode_state_machine,
+        episodes_file,
+        load_machine,
+        load_ssm,
+        read_run_header,
+        run_header_bytes,
+        validate_benchmark,
+        validate_run,
+    )
+    from .io._manifest import Manifest, ManifestFile, RunEntry, read_manifest
+    from .io._mcap import (
+        MCAP_LIBRARY,
+        attached_ssm,
+        episode_mcap_path,
+        mcap_file_name,
+        write_episode_mcap,
+    )
+    from .io._quarantine import QUARANTINE_KINDS, QuarantineRecord
+    from .io._runner import replay_runs
+    from .io._schemas import schema_documents, write_schemas
+    from .io._task import safe_file_name
+    from .semantics._budget import (
+        Budget,
+        episode_lambda,
+        goals_reached,
+        refreshed_budget,
+        run_lambda,
+        termination_after,
+    )
+    from .semantics._classify import Classification, Classifier
+    from .semantics._episode import (
+        EpisodeResult,
+        EpisodeSession,
+        EpisodeSetup,
+        parse_log_step,
+        replay_episode,
+        setup_episode,
+        timestamp_seconds,
+    )
+    from .semantics._machine import (
+        CompiledTransition,
+        Machine,
+        compile_machine,
+        rect_contains,
+        rect_distance,
+        validate_machine,
+    )
+    from .semantics._parse import Action, ParsedAction, action_from_record, parse_action
+    from .semantics._plan import (
+        Plan,
+        PlannedStep,
+        c_opt_dynamic,
+        distances,
+        next_optimal_step,
+        plan_goals,
+        progressing,
+        target_components,
+        target_rects,
+    )
+    from .semantics._records import (
+        INPUT_RECORDS,
+        SCHEMA_VERSION,
+        ActionRecord,
+        BBox,
+        Continuation,
+        Dashboard,
+        DashboardRegion,
+        EpisodeLog,
+        LogStep,
+        RunHeader,
+        StateDef,
+        StateMachine,
+        Task,
+        Transition,
+    )
+    from .semantics._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
+    from .semantics._step import Outcome, SimState, reset, step
+    from .semantics._tables import TABLE_ROWS, arrow_schema, rows_to_table
+    from .semantics._usage import (
+        COMPLETION_PRICE_KEY,
+        ORIGINS,
+        PROMPT_PRICE_KEY,
+        Prices,
+        origin_of,
+        run_prices,
+        usage_cost,
+    )
+    from .semantics._vocab import (
+        ACTION_NAMES,
+        AXONOMETRIC_VIEWS,
+        DASHBOARD,
+        DEFAULT_LAMBDA,
+        DISPLAY_NAMES,
+        ERROR_GROUPS,
+        ERROR_TYPES,
+        FEEDBACK_KINDS,
+        INTERACTIONS,
+        ORTHOGRAPHIC_VIEWS,
+        PARSE_DETAILS,
+        SCALE,
+        STANDARD_VIEWS,
+        SWITCH_CLASSES,
+        SWITCH_VIEW,
+        TERMINATIONS,
+        TIMED_WAIT,
+        VIEW_ORDER,
+        normalize_param,
+        normalize_params,
+    )
 
 __all__ = [
+    "lazy_names",
     "ACTION_NAMES",
     "AXONOMETRIC_VIEWS",
     "COMPLETION_PRICE_KEY",
@@ -290,3 +296,5 @@ __all__ = [
     "write_episode_mcap",
     "write_schemas",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

@@ -76,7 +76,8 @@ def test_each_room_says_what_it_is_and_chooses_its_public_names() -> None:
         init = PACKAGE / room / "__init__.py"
         tree = ast.parse(init.read_text())
         assert ast.get_docstring(tree), f"{room}/__init__.py has no purpose line"
-        names = {t.id for n in tree.body if isinstance(n, ast.Assign) for t in n.targets}
+        targets = [t for n in tree.body if isinstance(n, ast.Assign) for t in n.targets]
+        names = {e.id for t in targets for e in getattr(t, "elts", [t]) if isinstance(e, ast.Name)}
         assert "__all__" in names, f"{room}/__init__.py chooses no public names"
 
 

@@ -14,10 +14,8 @@ import replay
 from replay.io import atomic_file
 
 from ..metrics import MetricsSource, fingerprint, metric_set
-from ..store import (
-    open_store,
-)
-from ._out import out_version
+from ..store import open_store, run_query
+from ._replay_output import out_version
 
 SWEEP_AUTO_LIMIT = 12_000
 """Episode replays (episodes x lambdas) a sweep may take without asking (a few seconds)."""
@@ -27,16 +25,12 @@ SWEEP_SECONDS_PER_REPLAY = 0.0005
 
 def sweep_size(out: str | Path, runs: Sequence[str], lambdas: Sequence[float]) -> int:
     """Episode replays a sweep of `runs` at `lambdas` takes."""
-    store = open_store(out)
-    n = (
-        store.cursor()
-        .execute(
-            "SELECT count(*) FROM episodes WHERE list_contains(CAST(? AS VARCHAR[]), run_id)",
-            [list(runs)],
-        )
-        .fetchall()[0][0]
+    counted = run_query(
+        open_store(out),
+        "SELECT count(*) AS n FROM episodes WHERE list_contains(CAST(? AS VARCHAR[]), run_id)",
+        [list(runs)],
     )
-    return int(n) * len(lambdas)
+    return int(counted["n"][0]) * len(lambdas)
 
 
 def _sweep_cache_file(

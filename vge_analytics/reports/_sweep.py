@@ -50,8 +50,7 @@ from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunErro
 from ..metrics import Metric, MetricSet, MetricsSource, metric_set
 from ..metrics import metrics as computed_metrics
 from ..store import Store, memory_store, open_store, resolve_input, run_query
-
-DEFAULT_SWEEP_METRICS: tuple[str, ...] = ("SR", "SSR")
+from ._defaults import DEFAULT_SWEEP_METRICS
 
 
 def parse_lambdas(value: str | Sequence[float]) -> list[float]:
@@ -289,4 +288,4 @@ def sweep(
     return df.select(order).sort("run_id", "lambda")
 
 
-__all__ = ["DEFAULT_SWEEP_METRICS", "parse_lambdas", "sweep"]
+__all__ = ["SWEEP_BY", "parse_lambdas", "sweep"]

@@ -22,9 +22,10 @@ from ._scope import (
     grouped_aggregate,
     null_safe_join,
     order_by,
+    quote_ident,
     run_keys_scope,
 )
-from ._store import Store, quote_ident
+from ._store import Store
 
 
 class Ratio(Protocol):

@@ -55,18 +55,6 @@ NUMERIC_TYPES: tuple[str, ...] = (
 _SCALAR_TYPES = ("BOOLEAN", *NUMERIC_TYPES, "VARCHAR", "DATE", "TIMESTAMP")
 
 
-def quote_ident(name: str) -> str:
-    """Quote a column name as a DuckDB identifier.
-
-    Only ever applied to names that were checked to be existing columns (see
-    `Store.check_column`) or to the fixed metric names of the registry. Inside double quotes
-    the parser reads everything up to the next unescaped `"` as one identifier, and every `"`
-    in the name is doubled, so the name cannot end the identifier early: whatever characters a
-    meta facet key holds, the result is one identifier naming that existing column, never SQL.
-    """
-    return '"' + name.replace('"', '""') + '"'
-
-
 def _signature(out: Path) -> tuple:
     """Cheap fingerprint of OUT: changes when a replay rewrites it."""
     parts = []
@@ -359,6 +347,5 @@ __all__ = [
     "clear_cache",
     "memory_store",
     "open_store",
-    "quote_ident",
     "table_columns",
 ]
