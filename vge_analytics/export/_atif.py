@@ -38,9 +38,7 @@ from replay.io import make_folders, write_atomic
 
 from ._conversation import Said, conversation
 from ._pictures import Views
-from ._source import Episode, Run
-from ._time import iso_time
-from ._verdicts import episode_verdict, step_usage, step_verdict
+from ._source import Episode, Run, episode_verdict, iso_time, step_usage, step_verdict
 
 SCHEMA_VERSION = "ATIF-v1.6"
 IMAGES_DIR = "images"

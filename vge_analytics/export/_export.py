@@ -12,6 +12,7 @@ from pathlib import Path
 import replay
 from replay.io import make_folders, staged_path, write_atomic
 
+from ..metrics import load_metrics
 from ._pictures import Views
 from ._source import Episode, Run, Source, open_source
 
@@ -120,8 +121,6 @@ def _write_inspect(
     from inspect_ai.log import EvalResults, EvalSample, EvalStats
     from inspect_ai.model import ModelUsage
 
-    import vge_analytics as va
-
     from ._inspect import eval_plan, eval_results, eval_sample, eval_spec, eval_stats
     from ._inspect_log import write_eval
 
@@ -137,7 +136,7 @@ def _write_inspect(
             yield sample
 
     def finish() -> tuple[EvalResults, EvalStats]:
-        results = eval_results(run, va.load_metrics(metrics_dir))
+        results = eval_results(run, load_metrics(metrics_dir))
         return results, eval_stats(run, usage[0] if usage else None)
 
     path = root / f"{replay.safe_file_name(run.run_id)}.eval"
