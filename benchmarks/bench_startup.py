@@ -6,7 +6,7 @@ docs/PERFORMANCE.md, "Start-up".
 DIR is a checkout of the baseline commit with its kernel built in place (for example
 `git worktree add DIR c7fd47c`, then `python setup.py build_ext --inplace` there). Each
 command runs as `python -m vge_analytics.cli ...` with PYTHONPATH set to this checkout or
-DIR, the two alternating run by run (the machine is shared: ratios hold where absolute times
+DIR (and run from there), the two alternating run by run (the machine is shared: ratios hold where absolute times
 do not); each figure is the median wall time and the peak resident memory of the process
 (`wait4`). The commands:
 
@@ -33,11 +33,16 @@ MiB = 1 << 20
 
 
 def run(tree: Path, args: list[str]) -> tuple[float, int, int]:
-    """(wall seconds, peak resident bytes, exit code) of one process run from `tree`."""
+    """(wall seconds, peak resident bytes, exit code) of one process run from `tree` (its
+    folder the current one: `python -m` looks there first)."""
     env = {**os.environ, "PYTHONPATH": str(tree)}
     started = time.perf_counter()
     proc = subprocess.Popen(
-        [sys.executable, *args], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        [sys.executable, *args],
+        env=env,
+        cwd=tree,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
     )
     _, status, usage = os.wait4(proc.pid, 0)
     seconds = time.perf_counter() - started
