@@ -8,7 +8,8 @@ DIR is a checkout of the baseline commit with its kernel built in place (for exa
 command runs as `python -m vge_analytics.cli ...` with PYTHONPATH set to this checkout or
 DIR (and run from there), the two alternating run by run (the machine is shared: ratios hold where absolute times
 do not); each figure is the median wall time and the peak resident memory of the process
-(`wait4`). The commands:
+(`wait4`), and the median CPU time (user and system), which a busy machine changes less than
+the wall time. The commands:
 
 - `--help` and `metrics --help`: the help of the router and of a command;
 - `metrics MISSING`: the fixed cost of a command that reads OUT, everything before its
@@ -32,9 +33,9 @@ ROOT = Path(__file__).resolve().parents[1]
 MiB = 1 << 20
 
 
-def run(tree: Path, args: list[str]) -> tuple[float, int, int]:
-    """(wall seconds, peak resident bytes, exit code) of one process run from `tree` (its
-    folder the current one: `python -m` looks there first)."""
+def run(tree: Path, args: list[str]) -> tuple[float, float, int, int]:
+    """(wall seconds, CPU seconds, peak resident bytes, exit code) of one process run from
+    `tree` (its folder the current one: `python -m` looks there first)."""
     env = {**os.environ, "PYTHONPATH": str(tree)}
     started = time.perf_counter()
     proc = subprocess.Popen(
@@ -47,7 +48,7 @@ def run(tree: Path, args: list[str]) -> tuple[float, int, int]:
     _, status, usage = os.wait4(proc.pid, 0)
     seconds = time.perf_counter() - started
     proc.returncode = os.waitstatus_to_exitcode(status)
-    return seconds, usage.ru_maxrss * 1024, proc.returncode
+    return seconds, usage.ru_utime + usage.ru_stime, usage.ru_maxrss * 1024, proc.returncode
 
 
 def main() -> None:
@@ -63,26 +64,26 @@ def main() -> None:
         "python -c pass": ["-c", "pass"],
     }
     trees = {"baseline": options.base.resolve(), "this tree": ROOT}
-    print(f"{options.runs} runs each, alternating; median wall time, peak RSS", flush=True)
-    print("| command | baseline | this tree | ratio |")
-    print("|---|---|---|---|")
+    print(f"{options.runs} runs each, alternating; median wall time, median CPU time, peak RSS")
+    print("| command | baseline | this tree | ratio (wall, CPU) |")
+    print("|---|---|---|---|", flush=True)
     for name, args in cases.items():
-        seen: dict[str, list[tuple[float, int]]] = {t: [] for t in trees}
+        seen: dict[str, list[tuple[float, float, int]]] = {t: [] for t in trees}
         for _ in range(options.runs):
             for tree, path in trees.items():
-                seconds, peak, code = run(path, args)
+                seconds, cpu, peak, code = run(path, args)
                 expected = 1 if "MISSING" in name else 0
                 if code != expected:
                     raise SystemExit(f"{name} in {tree}: exit code {code}, expected {expected}")
-                seen[tree].append((seconds, peak))
-        cells = []
-        medians = {}
+                seen[tree].append((seconds, cpu, peak))
+        cells, wall, cpu = [], {}, {}
         for tree in trees:
-            medians[tree] = statistics.median(s for s, _ in seen[tree])
-            peak = max(p for _, p in seen[tree])
-            cells.append(f"{medians[tree]:.2f} s, {peak / MiB:,.0f} MB")
-        ratio = medians["baseline"] / medians["this tree"]
-        print(f"| `{name}` | {cells[0]} | {cells[1]} | {ratio:.1f}x |", flush=True)
+            wall[tree] = statistics.median(w for w, _, _ in seen[tree])
+            cpu[tree] = statistics.median(c for _, c, _ in seen[tree])
+            peak = max(p for _, _, p in seen[tree])
+            cells.append(f"{wall[tree]:.2f} s (CPU {cpu[tree]:.2f} s), {peak / MiB:,.0f} MB")
+        ratios = f"{wall['baseline'] / wall['this tree']:.1f}x, {cpu['baseline'] / cpu['this tree']:.1f}x"
+        print(f"| `{name}` | {cells[0]} | {cells[1]} | {ratios} |", flush=True)
 
 
 if __name__ == "__main__":
