@@ -18,11 +18,6 @@ LIMIT = 80
 ALLOWED: dict[str, str] = {
     # split by issue 24, other branch
     "vge_analytics/reports/_compare.py::compare": "split by issue 24, other branch",
-    "vge_analytics/commands/run.py::run_command": "split by issue 24, other branch",
-    "vge_analytics/metrics/_file.py::parse_metric_file": "split by issue 24, other branch",
-    "vge_analytics/reports/_rescore.py::rescore": "split by issue 24, other branch",
-    "vge_analytics/synth/_agent.py::Agent.decide": "split by issue 24, other branch",
-    "vge_analytics/synth/_layout.py::_place_panel": "split by issue 24, other branch",
 }
 """`path::qualified name` -> why it may be longer. Data tables (a function that only states
 a table) would be listed here too; there are none."""

@@ -54,66 +54,72 @@ of steps/goals where the result is computed from them); `by` lists grouping colu
 Errors are `replay.VGEError` subclasses with one-line messages.
 """
 
+from typing import TYPE_CHECKING
+
+from replay import lazy_names
+
 from . import _errors
 from ._errors import *  # noqa: F403 - every error class is public (_errors.__all__)
-from .metrics import (
-    CONTINUATION_METRICS,
-    MAIN_TABLE,
-    METRIC_NAMES,
-    METRICS_DIR_ENV,
-    Metric,
-    MetricSet,
-    episode_terms,
-    get_metric,
-    load_metrics,
-    metric_table,
-    metrics,
-    polars_metrics,
-    registry,
-)
-from .reports import (
-    ERROR_GROUPS,
-    ERROR_LABELS,
-    ERROR_TYPES,
-    FORMATS,
-    SWITCH_CLASSES,
-    Comparison,
-    Diff,
-    Rescore,
-    RunCompleteness,
-    compare,
-    competition_ranks,
-    completeness,
-    diff,
-    error_distribution,
-    error_groups,
-    incomplete_runs,
-    kendall_tau_b,
-    mcnemar_exact,
-    parse_lambdas,
-    render,
-    render_latex,
-    render_markdown,
-    rescore,
-    sweep,
-    switch_classes,
-)
-from .store import (
-    DEFAULT_BY,
-    clear_cache,
-    episode_steps,
-    episodes,
-    facets,
-    goals,
-    groupable_columns,
-    open_store,
-    query_time_limit,
-    runs,
-    sql,
-    steps,
-    steps_with_error,
-    table_columns,
-)
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from .metrics import (
+        CONTINUATION_METRICS,
+        MAIN_TABLE,
+        METRIC_NAMES,
+        METRICS_DIR_ENV,
+        Metric,
+        MetricSet,
+        episode_terms,
+        get_metric,
+        load_metrics,
+        metric_table,
+        metrics,
+        polars_metrics,
+        registry,
+    )
+    from .reports import (
+        ERROR_GROUPS,
+        ERROR_LABELS,
+        ERROR_TYPES,
+        FORMATS,
+        SWITCH_CLASSES,
+        Comparison,
+        Diff,
+        Rescore,
+        RunCompleteness,
+        compare,
+        competition_ranks,
+        completeness,
+        diff,
+        error_distribution,
+        error_groups,
+        incomplete_runs,
+        kendall_tau_b,
+        mcnemar_exact,
+        parse_lambdas,
+        render,
+        render_latex,
+        render_markdown,
+        rescore,
+        sweep,
+        switch_classes,
+    )
+    from .store import (
+        DEFAULT_BY,
+        clear_cache,
+        episode_steps,
+        episodes,
+        facets,
+        goals,
+        groupable_columns,
+        open_store,
+        query_time_limit,
+        runs,
+        sql,
+        steps,
+        steps_with_error,
+        table_columns,
+    )
 
 __all__ = [
     *_errors.__all__,
@@ -170,3 +176,5 @@ __all__ = [
     "switch_classes",
     "table_columns",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

@@ -4,7 +4,10 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _data as data
-from app import _ui as ui
+from app import _lifecycle as page
+from app import _links as links
+from app import _sidebar as sidebar
+from app import _tables as tables
 from vge_analytics import AnalyticsError
 from vge_analytics import dashboard as dash
 
@@ -15,18 +18,18 @@ st.caption(
 )
 
 runs = data.runs()
-humans, models = dash.run_choices(runs.filter(runs["run_id"].is_in(ui.runs_matching_facets(runs))))
+humans, models = dash.run_choices(runs.filter(runs["run_id"].is_in(sidebar.runs_matching_facets(runs))))
 c1, c2 = st.columns(2)
 human = c1.selectbox("Human (or reference) run", humans, key="hvv_human")
 model = c2.selectbox("Model run", [r for r in models if r != human], key="hvv_model")
 if human is None or model is None:
     st.info("This needs two runs.")
-    ui.stop()
+    page.stop()
 try:
     cmp = data.compare(model, human)
 except AnalyticsError as exc:
-    ui.show_error(exc)
-    ui.stop()
+    page.show_error(exc)
+    page.stop()
 
 mc = cmp.mcnemar.row(0, named=True)
 st.markdown(
@@ -35,7 +38,7 @@ st.markdown(
     f"{mc['b_only']}, neither {mc['neither']}; McNemar exact p = {mc['p_value']:.3g}."
 )
 table = dash.comparison_rows(cmp.metrics, model, human, data.metric_set())
-ui.number_table(table, key="hvv_metrics", every_row=True)
+tables.number_table(table, key="hvv_metrics", every_row=True)
 st.altair_chart(charts.side_by_side(cmp.metrics, model, human), width="content")
 st.markdown(
     f"**{human} − {model}**, 95% paired bootstrap interval (green: {human} better, "
@@ -45,7 +48,7 @@ st.altair_chart(charts.diff_forest(cmp.metrics, model, human), width="content")
 
 st.subheader("Error distribution")
 errors = dash.error_difference_rows(cmp.errors, model, human)
-ui.number_table(errors, digits=1)
+tables.number_table(errors, digits=1)
 
 st.subheader("Episodes that flip")
 flips = dash.flip_rows(cmp.flips, model, human)
@@ -56,5 +59,5 @@ st.caption(
 picked = st.dataframe(
     flips, hide_index=True, on_select="rerun", selection_mode="single-row", key="hvv_flips"
 )
-ui.open_step_link(flips, picked)
-ui.open_side_by_side_link(flips, picked, human, model)
+links.open_step_link(flips, picked)
+links.open_side_by_side_link(flips, picked, human, model)

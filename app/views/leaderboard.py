@@ -4,7 +4,9 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _data as data
-from app import _ui as ui
+from app import _pickers as pickers
+from app import _sidebar as sidebar
+from app import _tables as tables
 from vge_analytics import dashboard as dash
 
 st.title("Leaderboard")
@@ -27,10 +29,10 @@ goal_counts = c3.multiselect(
     "Goal count", data.column_values("episodes", "n_goals"), placeholder="all"
 )
 with c4:
-    by = ui.group_by_picker("leaderboard_by")
+    by = pickers.group_by_picker("leaderboard_by")
 
-where = ui.where(run_id=chosen_runs, category=categories, n_goals=goal_counts)
-names = ui.all_metrics()
+where = sidebar.where(run_id=chosen_runs, category=categories, n_goals=goal_counts)
+names = tables.all_metrics()
 done = data.completeness()
 incomplete = dash.incomplete_note(done)
 if incomplete:  # never shown as finished runs (PROTOCOL §10.3)
@@ -38,12 +40,12 @@ if incomplete:  # never shown as finished runs (PROTOCOL §10.3)
 metrics = data.metrics(by=list(by), where=where)
 metrics = dash.with_costs(metrics, data.cost_table(list(by), where), by)
 table = dash.incomplete_groups(
-    ui.labelled(metrics, by), by, [r.run_id for r in done if r.incomplete]
+    tables.labelled(metrics, by), by, [r.run_id for r in done if r.incomplete]
 )
 st.dataframe(
-    ui.best_styler(table, names),
+    tables.best_styler(table, names),
     hide_index=True,
-    column_config={**ui.metric_column_config(names), **ui.cost_column_config()},
+    column_config={**tables.metric_column_config(names), **tables.cost_column_config()},
     key="leaderboard_table",
 )
 st.download_button("Download CSV", table.write_csv(), file_name="leaderboard.csv", mime="text/csv")

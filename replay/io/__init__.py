@@ -12,47 +12,61 @@ function of `vge sweep`, file names made from ids, the JSON Schemas, and for the
 the episode decoder, a process's worker state and the reference's tables of a batch.
 """
 
-from ._batch import reference_tables, replay_batch
-from ._durable import append_record, fsync_dir, truncate, write_all, write_atomic
-from ._executor import Executor, in_order, make_executor
-from ._file_names import safe_file_name
-from ._fs import Location, is_uri, location
-from ._images import (
-    MAX_IMAGE_BYTES,
-    BenchImages,
-    ImageSource,
-    ViewImage,
-    as_view_image,
-    bench_image,
-    decode_view_image,
-)
-from ._lambdas import LambdaBatch, LambdaTask, replay_lambdas
-from ._lines import MAX_RECORD_BYTES, iter_lines
-from ._load import (
-    Benchmark,
-    decode_state_machine,
-    episode_decoder,
-    episodes_file,
-    load_machine,
-    load_ssm,
-    read_run_header,
-    run_header_bytes,
-    validate_benchmark,
-    validate_run,
-)
-from ._manifest import Manifest, ManifestFile, RunEntry, read_manifest, runs_table
-from ._mcap import (
-    MCAP_LIBRARY,
-    attached_ssm,
-    episode_mcap_path,
-    mcap_file_name,
-    write_episode_mcap,
-)
-from ._quarantine import QUARANTINE_KINDS, QuarantineRecord
-from ._rundir import EPISODES, RUN_JSON, RunDirectory, keep_aside
-from ._runner import replay_runs
-from ._schemas import schema_documents, write_schemas
-from ._worker import worker_state
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_names
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ._batch import reference_tables, replay_batch
+    from ._durable import (
+        append_record,
+        atomic_file,
+        fsync_dir,
+        make_folders,
+        staged_path,
+        truncate,
+        write_all,
+        write_atomic,
+    )
+    from ._executor import Executor, in_order, make_executor
+    from ._file_names import safe_file_name
+    from ._fs import Location, is_uri, location
+    from ._images import (
+        MAX_IMAGE_BYTES,
+        BenchImages,
+        ImageSource,
+        ViewImage,
+        as_view_image,
+        bench_image,
+        decode_view_image,
+    )
+    from ._lambdas import LambdaBatch, LambdaTask, replay_lambdas
+    from ._lines import MAX_RECORD_BYTES, iter_lines
+    from ._load import (
+        Benchmark,
+        decode_state_machine,
+        episode_decoder,
+        episodes_file,
+        load_machine,
+        load_ssm,
+        read_run_header,
+        run_header_bytes,
+        validate_benchmark,
+        validate_run,
+    )
+    from ._manifest import Manifest, ManifestFile, RunEntry, read_manifest, runs_table
+    from ._mcap import (
+        MCAP_LIBRARY,
+        attached_ssm,
+        episode_mcap_path,
+        mcap_file_name,
+        write_episode_mcap,
+    )
+    from ._quarantine import QUARANTINE_KINDS, QuarantineRecord
+    from ._rundir import EPISODES, RUN_JSON, RunDirectory, keep_aside
+    from ._runner import replay_runs
+    from ._schemas import schema_documents, write_schemas
+    from ._worker import worker_state
 
 __all__ = [
     # the runner and its output
@@ -97,9 +111,12 @@ __all__ = [
     "RUN_JSON",
     "RunDirectory",
     "append_record",
+    "atomic_file",
     "fsync_dir",
     "keep_aside",
+    "make_folders",
     "run_header_bytes",
+    "staged_path",
     "truncate",
     "write_all",
     "write_atomic",
@@ -118,3 +135,5 @@ __all__ = [
     "schema_documents",
     "write_schemas",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

@@ -27,8 +27,7 @@ import pytest
 
 import replay
 import vge_analytics as va
-from vge_analytics.commands.replay import image_source
-from vge_analytics.synth import generate
+from vge_analytics.synth import generate, image_source
 
 from ..vge_analytics.metrics.metric_files import SR_AS_SSR, SR_MULTI, write_folder
 from .streamlit_browser import CHROMIUM, LAUNCH_ARGS, AppPage, AppServer

@@ -134,9 +134,9 @@ def test_import_chains_are_short() -> None:
     assert max(v for m, v in floors.items() if _layer(m) == "semantics") <= 5
 
 
-SHARED = frozenset({"replay._errors", "replay._version"})
-"""The root's private modules every layer imports: the error classes and the engine version
-(leaves: they import nothing of the package)."""
+SHARED = frozenset({"replay._errors", "replay._lazy", "replay._version"})
+"""The root's private modules every layer imports: the error classes, the lazy loading of a
+package face's names and the engine version (leaves: they import nothing of the package)."""
 
 
 def _private_imports(path: Path) -> list[str]:

@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import typer
 
-from ..reports import DEFAULT_RESAMPLES, DEFAULT_SEED, check_format
-from ..reports import compare as compute_compare
-from ..store import query_time_limit
-from ._complete import warn_incomplete
+from ..reports import DEFAULT_RESAMPLES, DEFAULT_SEED
+from ._incomplete import warn_incomplete
 from ._options import (
     format_option,
     metric_names_option,
@@ -34,6 +32,10 @@ def compare(
     Metrics of A and B, B - A with paired bootstrap 95% CIs, McNemar's exact test on
     success, error-distribution difference in percentage points, flipped episodes.
     """
+    from ..reports import check_format
+    from ..reports import compare as compute_compare
+    from ..store import query_time_limit
+
     with query_time_limit(timeout):
         check_format(fmt)
         result = compute_compare(

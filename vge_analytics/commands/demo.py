@@ -9,16 +9,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.console import Console
 
-from replay import replay_runs
-
-from ..metrics import MetricSet
-from ..metrics import metrics as compute_metrics
-from ..store import DEFAULT_BY
-from ..synth import image_source
-from ._output import emit
-from .metrics import for_people
+from ._output import emit, for_people
 
 _REPO_SAMPLE = Path(__file__).resolve().parents[2] / "logs"
 
@@ -41,6 +33,15 @@ def demo(
     force: bool = typer.Option(False, "--force", help="Replay every run again."),
 ) -> None:
     """Replay the bundled sample (building it first if needed) and print the main table."""
+    from rich.console import Console
+
+    from replay import replay_runs
+
+    from ..metrics import MetricSet
+    from ..metrics import metrics as compute_metrics
+    from ..store import DEFAULT_BY
+    from ..synth import image_source
+
     console = Console(highlight=False)
     sample_dir = sample or _bundled_sample()
     bench = sample_dir / "bench"

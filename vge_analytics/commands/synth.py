@@ -7,8 +7,6 @@ import time
 from pathlib import Path
 
 import typer
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from replay import ConfigError
 
@@ -25,6 +23,9 @@ def synth(
     ),
 ) -> None:
     """Generate a synthetic VGEBench-style benchmark and simulated agent runs."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
     from vge_analytics.synth import SCALES, SynthError, generate
 
     if scale not in SCALES:

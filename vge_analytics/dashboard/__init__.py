@@ -6,117 +6,120 @@ Everything reads the tables through the analytics' locked store (values bound, n
 formatted into SQL).
 """
 
-from ..store import bench_dir
-from ._budgets import (
-    SWEEP_AUTO_LIMIT,
-    SWEEP_SECONDS_PER_REPLAY,
-    computed_sweep,
-    stored_sweep,
-    sweep_curves,
-    sweep_size,
-)
-from ._episode_file import (
-    episode_mcap,
-)
-from ._episode_viewer import (
-    CLASSIFICATION_FIELDS,
-    TERMINATION_LABELS,
-    episode_labels,
-    step_caption,
-    step_classification,
-    step_markdown,
-    termination_label,
-)
-from ._error_page import (
-    error_share_wide,
-    error_step_sample,
-)
-from ._grounding import (
-    CLICK_OUTCOMES,
-    click_counts,
-    click_points,
-    clicked_targets,
-    device_labels,
-    interaction_views,
-    scatter_boxes,
-)
-from ._human_vs_vlm import (
-    comparison_rows,
-    error_difference_rows,
-    flip_rows,
-    run_choices,
-)
-from ._leaderboard import (
-    COST_COLUMNS,
-    ORIGIN_MARKS,
-    best_rows,
-    cost_frontier,
-    cost_table,
-    group_labels,
-    incomplete_groups,
-    incomplete_note,
-    metric_headers,
-    metric_help,
-    metrics_long,
-    metrics_note,
-    with_costs,
-)
-from ._navigation import (
-    switch_summary,
-)
-from ._out import (
-    DEFAULT_OUT,
-    OUT_ENV,
-    OutSummary,
-    app_script,
-    check_out,
-    column_values,
-    out_summary,
-    out_version,
-    runs_matching,
-)
-from ._pictures import (
-    CLICK_COLOR,
-    ROLE_COLORS,
-    Box,
-    ViewPicture,
-    device_machine,
-    draw_step,
-    step_picture,
-    view_boxes,
-    view_picture,
-)
-from ._rescore_page import (
-    rank_slopes,
-    rescore_changes,
-    rescore_rankings,
-)
-from ._side_by_side import (
-    SIDE_STEP_COLUMNS,
-    OptimalStep,
-    SidePicture,
-    default_episode,
-    optimal_next_step,
-    pair_labels,
-    pair_rows,
-    pair_summary,
-    side_caption,
-    side_picture,
-    side_steps,
-    step_label,
-    step_marks,
-)
-from ._sql_page import (
-    EXAMPLE_QUERIES,
-    csv_bytes,
-    sql_caption,
-    sql_limits_note,
-    sql_preview,
-    table_columns_frame,
-)
+from typing import TYPE_CHECKING
+
+from replay import lazy_names
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ..store import bench_dir
+    from ._budgets import (
+        SWEEP_AUTO_LIMIT,
+        SWEEP_SECONDS_PER_REPLAY,
+        computed_sweep,
+        stored_sweep,
+        sweep_curves,
+        sweep_size,
+    )
+    from ._episode_file import (
+        episode_mcap,
+    )
+    from ._episode_viewer import (
+        CLASSIFICATION_FIELDS,
+        TERMINATION_LABELS,
+        episode_labels,
+        step_caption,
+        step_classification,
+        step_markdown,
+        termination_label,
+    )
+    from ._error_page import (
+        error_share_wide,
+        error_step_sample,
+    )
+    from ._grounding import (
+        CLICK_OUTCOMES,
+        click_counts,
+        click_points,
+        clicked_targets,
+        device_labels,
+        interaction_views,
+        scatter_boxes,
+    )
+    from ._human_vs_vlm import (
+        comparison_rows,
+        error_difference_rows,
+        flip_rows,
+        run_choices,
+    )
+    from ._leaderboard import (
+        COST_COLUMNS,
+        ORIGIN_MARKS,
+        best_rows,
+        cost_frontier,
+        cost_table,
+        group_labels,
+        incomplete_groups,
+        incomplete_note,
+        metric_headers,
+        metric_help,
+        metrics_long,
+        metrics_note,
+        with_costs,
+    )
+    from ._navigation import (
+        switch_summary,
+    )
+    from ._pictures import (
+        CLICK_COLOR,
+        ROLE_COLORS,
+        Box,
+        ViewPicture,
+        device_machine,
+        draw_step,
+        step_picture,
+        view_boxes,
+        view_picture,
+    )
+    from ._replay_output import (
+        DEFAULT_OUT,
+        OUT_ENV,
+        OutSummary,
+        check_out,
+        column_values,
+        out_summary,
+        out_version,
+        runs_matching,
+    )
+    from ._rescore_page import (
+        rank_slopes,
+        rescore_changes,
+        rescore_rankings,
+    )
+    from ._side_by_side import (
+        SIDE_STEP_COLUMNS,
+        OptimalStep,
+        SidePicture,
+        default_episode,
+        optimal_next_step,
+        pair_labels,
+        pair_rows,
+        pair_summary,
+        side_caption,
+        side_picture,
+        side_steps,
+        step_label,
+        step_marks,
+    )
+    from ._sql_page import (
+        EXAMPLE_QUERIES,
+        csv_bytes,
+        sql_caption,
+        sql_limits_note,
+        sql_preview,
+        table_columns_frame,
+    )
 
 __all__ = [
-    "app_script",
     "bench_dir",
     "best_rows",
     "Box",
@@ -199,3 +202,5 @@ __all__ = [
     "ViewPicture",
     "with_costs",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

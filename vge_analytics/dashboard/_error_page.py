@@ -14,6 +14,7 @@ from ..store import (
     check_columns,
     open_store,
     quote_ident,
+    run_query,
 )
 
 
@@ -34,22 +35,19 @@ def error_step_sample(
     scope = build_scope(store, "steps", [], where)
     base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
     params = [*scope.params, error_type, int(limit)]
-    total, runs = (
-        store.cursor()
-        .execute(
-            f"SELECT (SELECT count(*) {base}), "
-            f"(SELECT list(DISTINCT run_id) FROM (SELECT g.run_id {base} {order}))",
-            [*params[:-1], *params],
-        )
-        .fetchall()[0]
-    )
+    total, runs = run_query(
+        store,
+        f"SELECT (SELECT count(*) {base}) AS total, "
+        f"(SELECT list(DISTINCT run_id) FROM (SELECT g.run_id {base} {order})) AS runs",
+        [*params[:-1], *params],
+    ).row(0)
     # The wide columns are read from the runs of the first rows only: the scan skips the
     # other runs' files instead of reading every column of every step (same rows).
     scope = build_scope(store, "steps", [], {**(where or {}), "run_id": runs or []})
     cols = ", ".join(f"g.{quote_ident(c)}" for c in columns)
     base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
-    df = store.cursor().sql(f"SELECT {cols} {base} {order}", params=[*scope.params, *params[-2:]])
-    return df.pl(), int(total)
+    df = run_query(store, f"SELECT {cols} {base} {order}", [*scope.params, *params[-2:]])
+    return df, int(total)
 
 
 def error_share_wide(dist: pl.DataFrame) -> pl.DataFrame:

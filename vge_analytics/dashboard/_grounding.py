@@ -13,6 +13,7 @@ from ..store import (
     build_scope,
     check_columns,
     open_store,
+    run_query,
 )
 from ._pictures import device_machine, view_boxes
 
@@ -28,7 +29,7 @@ def interaction_views(out: str | Path, where: Filters = None) -> pl.DataFrame:
         f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.is_interaction "
         "GROUP BY ALL ORDER BY interactions DESC, g.device_id, view"
     )
-    return store.cursor().sql(sql, params=scope.params).pl()
+    return run_query(store, sql, scope.params)
 
 
 def device_labels(views: pl.DataFrame) -> dict[str, str]:
@@ -64,7 +65,7 @@ def click_points(
         "ORDER BY g.run_id, g.episode_id, g.step LIMIT ?"
     )
     params = [*scope.params, device_id, view, int(limit)]
-    return store.cursor().sql(sql, params=params).pl()
+    return run_query(store, sql, params)
 
 
 def clicked_targets(points: pl.DataFrame) -> tuple[str, ...]:

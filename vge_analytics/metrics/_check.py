@@ -3,7 +3,7 @@ table, as one aggregate giving numbers.
 
 DuckDB binds (without running) `SELECT g.run_id, (<expression>) FROM <grain> AS g GROUP BY
 g.run_id` over empty tables with the replay's output schema (`replay.arrow_schema`), the
-shape in which `_metrics.compose` uses the expression. That catches an unknown column, a
+shape in which `store.ratio_query` uses the expression. That catches an unknown column, a
 syntax error, a column used outside an aggregate, an expression that is not a number, and
 text that is not one expression (a `;`, extra columns). The connection doing it is locked
 like the store's (`_locked`: no file access, a read-only catalog, no extensions, settings
@@ -70,7 +70,7 @@ def _schema_connection() -> duckdb.DuckDBPyConnection:
 
 
 def bind_query(grain: str, expression: str) -> str:
-    """The statement that binds `expression` as `_metrics.compose` uses it (the expression
+    """The statement that binds `expression` as `store.ratio_query` uses it (the expression
     starts on line 2; `grain` is one of the three fixed table names)."""
     return (
         "SELECT g.run_id AS __group, (\n"

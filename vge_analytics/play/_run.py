@@ -34,15 +34,13 @@ from replay.io import (
 from .._errors import PlayConflictError, PlayError
 from ..synth import image_source as default_images
 from ._clicks import action_text
-from ._files import journal_header, journal_steps
+from ._files import DEFAULT_RUN_DIR, journal_header, journal_steps
 
 if TYPE_CHECKING:
     from replay import ImageSource
 
 DEFAULT_MODEL = "human"
 """`model` of a human run unless `--model` names the participant or group."""
-DEFAULT_RUN_DIR = "human-run"
-"""Where `vge play` writes without `--out`."""
 IMAGE_SIZE = 768
 """Side of the square image the environment renders each view at (the scale is relative to
 width and height, so resizing keeps it exact)."""

@@ -29,10 +29,9 @@ from .._errors import AnalyticsError, UnknownRunError
 from ..metrics import MetricsSource, episode_terms, metric_set
 from ..store import open_store, run_query
 from ._completeness import completeness
+from ._defaults import DEFAULT_RESAMPLES, DEFAULT_SEED
 from ._taxonomy import ERROR_LABELS, error_distribution
 
-DEFAULT_RESAMPLES = 2000
-DEFAULT_SEED = 0
 _CHUNK = 250
 
 
@@ -304,4 +303,4 @@ def compare(
     )
 
 
-__all__ = ["DEFAULT_RESAMPLES", "DEFAULT_SEED", "Comparison", "compare", "mcnemar_exact"]
+__all__ = ["Comparison", "compare", "mcnemar_exact"]

@@ -34,23 +34,23 @@ the episode.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import duckdb
 import polars as pl
 import pyarrow as pa
 
 import replay
 
 from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
-from ..metrics import Metric, MetricsSource, compose, metric_set
-from ..store import Store, open_store, resolve_input, run_query
-
-DEFAULT_SWEEP_METRICS: tuple[str, ...] = ("SR", "SSR")
+from ..metrics import Metric, MetricSet, MetricsSource, metric_set
+from ..metrics import metrics as computed_metrics
+from ..store import Store, memory_store, open_store, resolve_input, run_query
+from ._defaults import DEFAULT_SWEEP_METRICS
 
 
 def parse_lambdas(value: str | Sequence[float]) -> list[float]:
@@ -211,26 +211,21 @@ def _replay(jobs: list[_RunJob], executor) -> pa.Table:
     return pa.concat_tables(tables) if tables else schema.empty_table()
 
 
-def _metrics_of(episodes: pa.Table, chosen: list[Metric]) -> pl.DataFrame:
-    """Registry metrics per (run_id, model, lambda) over in-memory episode rows."""
-    con = duckdb.connect(":memory:")
-    try:
-        con.from_arrow(episodes).create_view("episodes")
-        for table in ("steps", "goals"):
-            schema = replay.arrow_schema(replay.TABLE_ROWS[table])
-            con.from_arrow(schema.empty_table()).create_view(table)
-        con.sql('SELECT DISTINCT run_id, model, agent_kind, "lambda" FROM episodes').create_view(
-            "runs"
-        )
-        columns = {
-            t: {r[0]: str(r[1]) for r in con.execute(f"DESCRIBE {t}").fetchall()}
-            for t in ("steps", "episodes", "goals", "runs")
-        }
-        store = Store(out=Path("<sweep>"), con=con, columns=columns, manifest={})
-        sql, params = compose(store, ("run_id", "model", "lambda"), chosen)
-        return run_query(store, sql, params)
-    finally:
-        con.close()
+SWEEP_BY: tuple[str, ...] = ("run_id", "model", "lambda")
+"""The groups of a sweep: a run at a lambda."""
+
+
+def _metrics_of(
+    store: Store, episodes: pa.Table, chosen: list[Metric], available: MetricSet
+) -> pl.DataFrame:
+    """Metrics per (run_id, model, lambda) over in-memory episode rows: the registry's SQL on
+    a store of their own (`memory_store`), guarded and limited as a query over OUT is, and
+    named in messages by OUT."""
+    runs = episodes.select(["run_id", "model", "agent_kind", "lambda"])
+    runs = runs.group_by(runs.column_names).aggregate([])  # a run at each lambda, once
+    tables = {"episodes": episodes, "runs": runs}
+    with contextlib.closing(memory_store(tables, label=store.out, limits=store.limits)) as held:
+        return computed_metrics(held, by=SWEEP_BY, metrics=[m.name for m in chosen], metrics_dir=available)
 
 
 def sweep(
@@ -272,7 +267,7 @@ def sweep(
     finally:
         executor.close()
     names = [m.name for m in chosen]
-    df = _metrics_of(episodes, chosen)
+    df = _metrics_of(store, episodes, chosen, available)
     base = df.sort("lambda").group_by("run_id", maintain_order=True).first()
     base = base.select("run_id", *[pl.col(n).alias(f"__base_{n}") for n in names])
     df = df.join(base, on="run_id", how="left")
@@ -293,4 +288,4 @@ def sweep(
     return df.select(order).sort("run_id", "lambda")
 
 
-__all__ = ["DEFAULT_SWEEP_METRICS", "parse_lambdas", "sweep"]
+__all__ = ["SWEEP_BY", "parse_lambdas", "sweep"]

@@ -55,7 +55,8 @@ class _Dataset(pads.FileSystemDataset):
         return super().scanner(*args, **{**SCAN_OPTIONS, **kwargs})
 
 
-def _empty(table: str) -> pa.Table:
+def empty_table(table: str) -> pa.Table:
+    """A table of OUT with no row: the replay's columns."""
     if table == "runs":  # the fixed columns the replay writes (no meta_* without a run)
         return runs_table([])
     return replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
@@ -168,8 +169,8 @@ def table_sources(out: replay.Location, manifest: Mapping | None) -> dict[str, o
     sources: dict[str, object] = {}
     for table in TABLES:
         files = table_files(out, manifest, table)
-        sources[table] = _dataset(out, files) if files else _empty(table)
+        sources[table] = _dataset(out, files) if files else empty_table(table)
     return sources
 
 
-__all__ = ["PARTITIONED", "SCAN_OPTIONS", "TABLES", "table_files", "table_sources"]
+__all__ = ["PARTITIONED", "SCAN_OPTIONS", "TABLES", "empty_table", "table_files", "table_sources"]

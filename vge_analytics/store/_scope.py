@@ -15,9 +15,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from .._errors import UnknownColumnError
-from ._store import Store, quote_ident
+
+if TYPE_CHECKING:
+    from ._store import Store
 
 GroupBy = str | Sequence[str] | None
 Filters = Mapping[str, object] | None
@@ -26,6 +29,18 @@ DEFAULT_BY: tuple[str, ...] = ("run_id", "model")
 GRAINS: tuple[str, ...] = ("episodes", "steps", "goals")
 
 _ALIAS = {"grain": "g", "episodes": "e", "runs": "r"}
+
+
+def quote_ident(name: str) -> str:
+    """Quote a column name as a DuckDB identifier.
+
+    Only ever applied to names that were checked to be existing columns (see
+    `Store.check_column`) or to the fixed metric names of the registry. Inside double quotes
+    the parser reads everything up to the next unescaped `"` as one identifier, and every `"`
+    in the name is doubled, so the name cannot end the identifier early: whatever characters a
+    meta facet key holds, the result is one identifier naming that existing column, never SQL.
+    """
+    return '"' + name.replace('"', '""') + '"'
 
 
 def parse_by(by: GroupBy) -> tuple[str, ...]:
@@ -310,6 +325,7 @@ __all__ = [
     "null_safe_join",
     "order_by",
     "parse_by",
+    "quote_ident",
     "run_keys_scope",
     "source_table",
 ]

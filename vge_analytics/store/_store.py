@@ -33,7 +33,7 @@ import pyarrow as pa
 import replay
 
 from .._errors import OutputDirError, UnknownRunError
-from ._datasets import PARTITIONED, TABLES, table_sources
+from ._datasets import PARTITIONED, TABLES, empty_table, table_sources
 from ._limits import SqlLimits
 from ._locked import locked_connection, register_all
 
@@ -53,18 +53,6 @@ NUMERIC_TYPES: tuple[str, ...] = (
 )
 """DuckDB's number types (and DECIMAL(p, s))."""
 _SCALAR_TYPES = ("BOOLEAN", *NUMERIC_TYPES, "VARCHAR", "DATE", "TIMESTAMP")
-
-
-def quote_ident(name: str) -> str:
-    """Quote a column name as a DuckDB identifier.
-
-    Only ever applied to names that were checked to be existing columns (see
-    `Store.check_column`) or to the fixed metric names of the registry. Inside double quotes
-    the parser reads everything up to the next unescaped `"` as one identifier, and every `"`
-    in the name is doubled, so the name cannot end the identifier early: whatever characters a
-    meta facet key holds, the result is one identifier naming that existing column, never SQL.
-    """
-    return '"' + name.replace('"', '""') + '"'
 
 
 def _signature(out: Path) -> tuple:
@@ -94,7 +82,10 @@ class Store:
     """table -> {column: DuckDB type}, in table order."""
     manifest: dict
     sources: Mapping[str, object] = field(default_factory=dict)
-    """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`)."""
+    """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`), or
+    Arrow tables in memory (`memory_store`)."""
+    limits: SqlLimits | None = None
+    """The memory limits its connection was opened with."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
@@ -104,6 +95,10 @@ class Store:
             cursor = self.con.cursor()
         register_all(cursor, self.sources)
         return cursor
+
+    def close(self) -> None:
+        """Close its connection (a store of `memory_store`; `open_store`'s are cached)."""
+        self.con.close()
 
     def has_column(self, table: str, name: str) -> bool:
         return name in self.columns[table]
@@ -208,14 +203,40 @@ def _store(out: Path | replay.Location, manifest: dict | None, limits: SqlLimits
     except (OSError, ValueError, pa.ArrowException) as exc:  # pyarrow's ArrowInvalid: both
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise OutputDirError(f"{out}: cannot read the Parquet tables ({first})") from None
+    try:
+        return _opened(out, manifest or {}, sources, limits)
+    except duckdb.Error as exc:
+        raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
+
+
+def _opened(
+    out: Path | replay.Location, manifest: dict, sources: Mapping[str, object], limits: SqlLimits
+) -> Store:
+    """A store over `sources` on a new locked connection within `limits`, its catalogue read."""
     con = _connection(limits)
-    store = Store(out=out, con=con, columns={}, manifest=manifest or {}, sources=sources)
+    store = Store(out=out, con=con, columns={}, manifest=manifest, sources=sources, limits=limits)
     try:
         store.columns = _catalogue(store)
-    except duckdb.Error as exc:
+    except BaseException:
         con.close()
-        raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
+        raise
     return store
+
+
+def memory_store(
+    tables: Mapping[str, pa.Table],
+    *,
+    label: Path | replay.Location,
+    limits: SqlLimits | None = None,
+) -> Store:
+    """A store over Arrow tables held in memory (the episode rows a sweep replays at each
+    lambda), on a locked connection within `limits` (default `SqlLimits.make()`) as an OUT's
+    store is: every query over it, a metric file's expressions included, meets the same guard
+    and limits (`guarded_cursor`). A table not given is empty, with the replay's columns.
+    `label` is how messages name it (the OUT the tables come from). Not cached: the caller
+    closes it (`Store.close`)."""
+    sources = {t: tables[t] if t in tables else empty_table(t) for t in TABLES}
+    return _opened(label, {}, sources, limits or SqlLimits.make())
 
 
 def _open(out: Path, limits: SqlLimits) -> Store:
@@ -324,7 +345,7 @@ __all__ = [
     "TABLES",
     "Store",
     "clear_cache",
+    "memory_store",
     "open_store",
-    "quote_ident",
     "table_columns",
 ]

@@ -14,9 +14,9 @@ import polars as pl
 import replay
 
 from .._errors import UnknownColumnError, UnknownRunError
-from ._scope import Filters, build_scope, check_columns
+from ._scope import Filters, build_scope, check_columns, quote_ident
 from ._sql import run_query
-from ._store import open_store, quote_ident
+from ._store import open_store
 
 
 def runs(out) -> pl.DataFrame:

@@ -23,10 +23,10 @@ from ._instantiate import (
     scene_of,
 )
 from ._measure import RunMeasures, measure_output
-from ._play import StepPlayer, play_episode
 from ._profiles import PROFILES, Profile
 from ._render import png_bytes, render_view
 from ._runs import RunSpec, agent_rng, run_specs
+from ._step_player import StepPlayer, play_episode
 from ._tasks import TaskRecord, sample_tasks
 from ._views import cache_dir, image_source, synthetic_view, view_image
 

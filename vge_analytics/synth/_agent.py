@@ -267,48 +267,11 @@ class Agent:
             plan_state = start
         targets = replay.semantics.progressing(m, plan_state, goal)
         real = [t for t in targets if t.action is not None]
-        wait_needed = any(t.action is None for t in targets)
-
-        if wait_needed and (not real or rng.random() < 0.75):
-            if rng.random() < p.wait_knowledge:
-                return Decision(
-                    replay.Action("timed_wait"),
-                    f"{intent} The {self.catalog.device_noun} is still working; the process "
-                    "needs time to finish, so I will wait for it to complete.",
-                )
-        elif not wait_needed and rng.random() < p.spurious_wait:
-            return Decision(
-                replay.Action("timed_wait"),
-                f"{intent} The {self.catalog.device_noun} may need a moment to respond to the "
-                "last operation. I will wait.",
-            )
-
+        waited = self._wait(intent, real, any(t.action is None for t in targets))
+        if waited is not None:
+            return waited
         if view in AXONOMETRIC_VIEWS:
-            axo_seen = any(
-                e.kind == "invalid_action" and e.view == view and e.action.type in INTERACTIONS
-                for e in recent
-            )
-            if rng.random() < p.axo_mistake and not (axo_seen and self._remembers()):
-                comps = self._visible_components("front")
-                rect = None
-                comp = None
-                if real and rng.random() < 0.5:
-                    tr = rng.choice(real)
-                    comp = tr.component
-                    rects = self._rects_in(s, next(iter(tr.rects)), comp)
-                    rect = rects[0] if rects else None
-                elif comps:
-                    comp = rng.choice(comps)
-                    rects = self._rects_in(s, "front", comp)
-                    rect = rects[0] if rects else None
-                point = self._aim(rect, 0) if rect else (500.0, 500.0)
-                action = replay.Action("press", point, ("0",))
-                text = (
-                    f"{intent} In this overview I can see {describe(self._spec(comp), None, view)}. "
-                    f"I will {verb_phrase(action)}."
-                )
-                return Decision(action, text, comp)
-            return self._navigate(sim, goal_index, real, recent, intent, reason="axonometric")
+            return self._in_overview(sim, goal_index, real, recent, intent)
 
         visible = [t for t in real if view in t.rects]
         if not visible:
@@ -326,25 +289,9 @@ class Agent:
                 "for other controls.",
             )
 
-        # Hypothesis refinement: the last attempt hit the right component the wrong way.
-        last = recent[-1] if recent else None
-        if (
-            last is not None
-            and last.kind == "operational_error"
-            and last.state == s
-            and last.view == view
-            and last.component is not None
-            and rng.random() < p.feedback_use
-        ):
-            comp = last.component
-            self.beliefs[(goal_index, s)] = comp
-            same = [t for t in visible if t.component == comp]
-            if same:
-                return self._interact(
-                    sim, goal_index, rng.choice(same), recent, intent, refine=True
-                )
-            return self._interact_component(sim, goal_index, comp, recent, intent, refine=True)
-
+        refined = self._refine(sim, goal_index, visible, recent, intent)
+        if refined is not None:
+            return refined
         comp = self._hypothesis(sim, goal_index, visible, recent)
         same = [t for t in visible if t.component == comp]
         if same:
@@ -352,6 +299,91 @@ class Agent:
         if comp is None:
             return self._interact_empty(sim, intent)
         return self._interact_component(sim, goal_index, comp, recent, intent)
+
+    def _wait(self, intent: str, real: list, wait_needed: bool) -> Decision | None:
+        """A timed wait when the goal needs one and the profile knows it (or, by mistake,
+        when it does not), else None."""
+        rng, p = self.rng, self.p
+        if wait_needed and (not real or rng.random() < 0.75):
+            if rng.random() < p.wait_knowledge:
+                return Decision(
+                    replay.Action("timed_wait"),
+                    f"{intent} The {self.catalog.device_noun} is still working; the process "
+                    "needs time to finish, so I will wait for it to complete.",
+                )
+        elif not wait_needed and rng.random() < p.spurious_wait:
+            return Decision(
+                replay.Action("timed_wait"),
+                f"{intent} The {self.catalog.device_noun} may need a moment to respond to the "
+                "last operation. I will wait.",
+            )
+        return None
+
+    def _in_overview(
+        self,
+        sim: replay.SimState,
+        goal_index: int,
+        real: list,
+        recent: list[_Event],
+        intent: str,
+    ) -> Decision:
+        """In an axonometric view: a press there by mistake (unless the agent remembers that
+        it fails), else a switch to a view where the target is."""
+        rng, p, s, view = self.rng, self.p, sim.state, sim.view
+        axo_seen = any(
+            e.kind == "invalid_action" and e.view == view and e.action.type in INTERACTIONS
+            for e in recent
+        )
+        if rng.random() < p.axo_mistake and not (axo_seen and self._remembers()):
+            comps = self._visible_components("front")
+            rect = None
+            comp = None
+            if real and rng.random() < 0.5:
+                tr = rng.choice(real)
+                comp = tr.component
+                rects = self._rects_in(s, next(iter(tr.rects)), comp)
+                rect = rects[0] if rects else None
+            elif comps:
+                comp = rng.choice(comps)
+                rects = self._rects_in(s, "front", comp)
+                rect = rects[0] if rects else None
+            point = self._aim(rect, 0) if rect else (500.0, 500.0)
+            action = replay.Action("press", point, ("0",))
+            text = (
+                f"{intent} In this overview I can see {describe(self._spec(comp), None, view)}. "
+                f"I will {verb_phrase(action)}."
+            )
+            return Decision(action, text, comp)
+        return self._navigate(sim, goal_index, real, recent, intent, reason="axonometric")
+
+    def _refine(
+        self,
+        sim: replay.SimState,
+        goal_index: int,
+        visible: list,
+        recent: list[_Event],
+        intent: str,
+    ) -> Decision | None:
+        """Hypothesis refinement: the last attempt hit the right component the wrong way, and
+        the profile uses that feedback; else None."""
+        last = recent[-1] if recent else None
+        if (
+            last is not None
+            and last.kind == "operational_error"
+            and last.state == sim.state
+            and last.view == sim.view
+            and last.component is not None
+            and self.rng.random() < self.p.feedback_use
+        ):
+            comp = last.component
+            self.beliefs[(goal_index, sim.state)] = comp
+            same = [t for t in visible if t.component == comp]
+            if same:
+                return self._interact(
+                    sim, goal_index, self.rng.choice(same), recent, intent, refine=True
+                )
+            return self._interact_component(sim, goal_index, comp, recent, intent, refine=True)
+        return None
 
     def _hypothesis(
         self, sim: replay.SimState, goal_index: int, visible: list, recent: list[_Event]

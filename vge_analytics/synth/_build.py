@@ -35,9 +35,9 @@ from replay.io import RunDirectory
 
 from ._catalog import PAPER_DEVICE_COUNTS, UCSM_DIR, available_categories, load_catalog
 from ._instantiate import dashboard_probability, dump_ssm, instantiate_device
-from ._play import play_episode
 from ._rng import rng_for
 from ._runs import LAMBDA, RunSpec, agent_rng, episode_line, in_run, run_specs
+from ._step_player import play_episode
 from ._tasks import sample_tasks
 
 SYNTH_VERSION = 1

@@ -589,36 +589,48 @@ def _place_panel(
     for name in on_panel:
         spec = catalog.components[name]
         orientation = _orientation(name, spec, machine, rng)
-        frac = {"tiny": 0.3, "small": 0.34, "medium": 0.4, "large": 0.5}.get(spec.size, 0.34)
-        s = base * frac * rng.uniform(0.9, 1.1)
-        aspect = KIND_PROPORTION.get(spec.kind, 1.0)
-        if spec.kind in ORIENTED_KINDS and orientation == "v":
-            aspect = 1.0 / aspect
-        if spec.kind == "button" and rng.random() < 0.5:
-            aspect = 1.6
-        pw, ph = s * math.sqrt(aspect), s / math.sqrt(aspect)
-        rect = None
-        for attempt in range(600):
-            if attempt and attempt % 50 == 0:
-                pw, ph = pw * 0.88, ph * 0.88
-            x = rng.uniform(inner[0] + pad, max(inner[0] + pad, inner[2] - pad - pw))
-            y = rng.uniform(inner[1] + pad, max(inner[1] + pad, inner[3] - pad - ph))
-            cand = (round(x), round(y), round(x + pw), round(y + ph))
-            if cand[2] > inner[2] or cand[3] > inner[3]:
-                continue
-            if cand[2] - cand[0] < MIN_BOX or cand[3] - cand[1] < MIN_BOX:
-                continue
-            if all(not _overlap(cand, o, 14) for o in occupied):
-                rect = cand
-                break
-        if rect is None:
-            raise LayoutError(f"cannot place {name} on the dashboard", name)
+        rect = _dashboard_rect(name, spec, orientation, base, inner, pad, occupied, rng)
         occupied.append(rect)
         pbox = _panel_part_box(placer.dims, face, panel_stub, rect)
         style = Style(rng.choice(ACCENT_COLORS), rng.randrange(4))
         parts.append(Part(name, spec, (DASHBOARD,), pbox, style, orientation, rect))
     panel = Panel(face, box, region_faces, width, height, (pu0, pv0, pu1, pv1), display)
     return panel, parts
+
+
+def _dashboard_rect(
+    name: str,
+    spec: ComponentSpec,
+    orientation: str,
+    base: float,
+    inner: PixelRect,
+    pad: int,
+    occupied: list[PixelRect],
+    rng: random.Random,
+) -> PixelRect:
+    """Where a part goes on the dashboard image: sized by its kind and size, placed at random
+    inside `inner` (less `pad`) clear of the `occupied` rects, shrunk a little every 50 tries."""
+    frac = {"tiny": 0.3, "small": 0.34, "medium": 0.4, "large": 0.5}.get(spec.size, 0.34)
+    s = base * frac * rng.uniform(0.9, 1.1)
+    aspect = KIND_PROPORTION.get(spec.kind, 1.0)
+    if spec.kind in ORIENTED_KINDS and orientation == "v":
+        aspect = 1.0 / aspect
+    if spec.kind == "button" and rng.random() < 0.5:
+        aspect = 1.6
+    pw, ph = s * math.sqrt(aspect), s / math.sqrt(aspect)
+    for attempt in range(600):
+        if attempt and attempt % 50 == 0:
+            pw, ph = pw * 0.88, ph * 0.88
+        x = rng.uniform(inner[0] + pad, max(inner[0] + pad, inner[2] - pad - pw))
+        y = rng.uniform(inner[1] + pad, max(inner[1] + pad, inner[3] - pad - ph))
+        cand = (round(x), round(y), round(x + pw), round(y + ph))
+        if cand[2] > inner[2] or cand[3] > inner[3]:
+            continue
+        if cand[2] - cand[0] < MIN_BOX or cand[3] - cand[1] < MIN_BOX:
+            continue
+        if all(not _overlap(cand, o, 14) for o in occupied):
+            return cand
+    raise LayoutError(f"cannot place {name} on the dashboard", name)
 
 
 def _panel_part_box(dims: Dims, face: str, panel: Panel, rect: PixelRect) -> Box3:

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import orjson
 
 from ._agent import AgentStep
-from ._play import think_seconds
 from ._profiles import PROFILES, STRONGEST_VLM, Profile
 from ._rng import derive_seed, rng_for
+from ._step_player import think_seconds
 
 LAMBDA = 5.0
 EPOCH = 1767225600

@@ -14,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 import replay
-from vge_analytics.commands.replay import image_source
+from vge_analytics.synth import image_source
 
 LOGS = Path(__file__).resolve().parents[3] / "logs"
 RUNS = sorted(p for p in (LOGS / "runs").iterdir() if p.is_dir())

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 import vge_analytics as va
-from vge_analytics.store._store import quote_ident
+from vge_analytics.store import quote_ident
 
 PAPER_METRICS = ("SR", "SSR", "SPL", "State-F1", "EIR", "TIR", "VSPS", "GVPE", "EER", "PSR",
          "AvgDist", "AvgWDist")  # fmt: skip
