@@ -20,7 +20,6 @@ from ._episode_file import (
 )
 from ._episode_viewer import (
     CLASSIFICATION_FIELDS,
-    TERMINATION_LABELS,
     episode_labels,
     step_caption,
     step_classification,
@@ -193,7 +192,6 @@ __all__ = [
     "switch_summary",
     "table_columns_frame",
     "termination_label",
-    "TERMINATION_LABELS",
     "view_boxes",
     "view_picture",
     "ViewPicture",

@@ -54,6 +54,7 @@ from ._page import (
     click_hint,
     goal_text,
     history,
+    result_headline,
     result_text,
 )
 from ._run import (
@@ -93,6 +94,7 @@ __all__ = [
     "goal_text",
     "history",
     "parse_params",
+    "result_headline",
     "result_text",
     "scale_coordinate",
 ]
