@@ -32,6 +32,7 @@ from ._vocab import (
     LOG_ENDED,
     ORTHOGRAPHIC_VIEWS,
     PARAMETER_CODES,
+    PARAMETER_NAMES,
     PRESS,
     PRESS_KINDS,
     PSEUDO_COMPONENTS,
@@ -53,6 +54,7 @@ from ._vocab import (
     VIEW_ORDER,
     VIEW_RANK,
     VIEWS,
+    codes_text,
 )
 
 __all__ = [
@@ -87,6 +89,7 @@ __all__ = [
     "LOG_ENDED",
     "ORTHOGRAPHIC_VIEWS",
     "PARAMETER_CODES",
+    "PARAMETER_NAMES",
     "PRESS",
     "PRESS_KINDS",
     "PSEUDO_COMPONENTS",
@@ -112,4 +115,5 @@ __all__ = [
     "VIEW_RANK",
     "WARNING",
     "Ending",
+    "codes_text",
 ]

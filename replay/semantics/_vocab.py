@@ -64,6 +64,20 @@ PARAMETER_CODES: dict[str, tuple[str, ...]] = {
     GRASP: GRASP_STATES,
 }
 """Each interaction's first parameter: code `i` means entry `i`."""
+PARAMETER_NAMES: dict[str, tuple[str, ...]] = {
+    PRESS: ("kind",),
+    ROTATE: ("direction", "steps"),
+    PUSH: ("direction",),
+    PULL: ("direction",),
+    GRASP: ("state",),
+}
+"""What an interaction's parameters are called, in order (`Rotate(params=[direction, steps])`)."""
+
+
+def codes_text(action: str) -> str:
+    """`0 a short press, 1 ..., 2 a double press`: the codes of an interaction's first parameter."""
+    return ", ".join(f"{code} {meaning}" for code, meaning in enumerate(PARAMETER_CODES[action]))
+
 
 IMMEDIATE = "immediate"
 PSEUDO_COMPONENTS = frozenset({IMMEDIATE, TIMED_WAIT})

@@ -22,25 +22,27 @@ from replay.semantics import (
     DASHBOARD,
     DISPLAY_NAMES,
     GRASP,
-    GRASP_STATES,
     ORTHOGRAPHIC_VIEWS,
+    PARAMETER_NAMES,
     PRESS,
-    PRESS_KINDS,
     PULL,
-    PULL_DIRECTIONS,
     PUSH,
-    PUSH_DIRECTIONS,
     ROTATE,
-    ROTATE_DIRECTIONS,
     SCALE,
     SWITCH_VIEW,
     TIMED_WAIT,
+    codes_text,
 )
 
 
-def _codes(meanings: tuple[str, ...]) -> str:
-    """`0 first, 1 second, ...`: the codes of a parameter (PROTOCOL §2)."""
-    return ", ".join(f"{code} {meaning}" for code, meaning in enumerate(meanings))
+def _call(action: str) -> str:
+    """`Press(coord, params=[kind])`: an interaction as the prompt shows it."""
+    return f"{DISPLAY_NAMES[action]}(coord, params=[{', '.join(PARAMETER_NAMES[action])}])"
+
+
+def _first(action: str) -> str:
+    """`kind: 0 a short press, ...`: the codes of the interaction's first parameter."""
+    return f"{PARAMETER_NAMES[action][0]}: {codes_text(action)}"
 
 
 _N = DISPLAY_NAMES
@@ -67,17 +69,12 @@ to {SCALE} (right edge), y from 0 (top edge) to {SCALE} (bottom edge), both as w
 [0, 0] is the top-left corner, [{SCALE}, {SCALE}] the bottom-right one.
 
 ## 3. Actions
-- {_N[PRESS]}(coord, params=[kind]): buttons, touch areas, switches, triggers. kind: \
-{_codes(PRESS_KINDS)}.
-- {_N[ROTATE]}(coord, params=[direction, steps]): knobs, dials, keys, winders. direction: \
-{_codes(ROTATE_DIRECTIONS)}; steps: how many notches. Either may be * when it does not \
-matter.
-- {_N[PUSH]}(coord, params=[direction]): sliding, closing, inserting. direction: \
-{_codes(PUSH_DIRECTIONS)}.
-- {_N[PULL]}(coord, params=[direction]): opening, lifting off, unplugging. direction: \
-{_codes(PULL_DIRECTIONS)}.
-- {_N[GRASP]}(coord, params=[state]): handles and handheld devices. state: \
-{_codes(GRASP_STATES)}.
+- {_call(PRESS)}: buttons, touch areas, switches, triggers. {_first(PRESS)}.
+- {_call(ROTATE)}: knobs, dials, keys, winders. {_first(ROTATE)}; \
+{PARAMETER_NAMES[ROTATE][1]}: how many notches. Either may be * when it does not matter.
+- {_call(PUSH)}: sliding, closing, inserting. {_first(PUSH)}.
+- {_call(PULL)}: opening, lifting off, unplugging. {_first(PULL)}.
+- {_call(GRASP)}: handles and handheld devices. {_first(GRASP)}.
 - {_N[SWITCH_VIEW]}(params=[view]): look at the device from another side. view is one of the \
 views listed for the device. Use it when what you need is not visible here.
 - {_N[TIMED_WAIT]}(): let time pass while the device finishes something it is doing.
