@@ -27,7 +27,7 @@ from ..semantics._episode import EpisodeSession
 from ..semantics._machine import Machine
 from ..semantics._records import ActionRecord, Continuation, LogStep
 from ..semantics._rows import StepRow
-from ..semantics._vocab import DASHBOARD
+from ..semantics._vocab import BUDGET_GLOBAL, BUDGET_LOCAL, DASHBOARD, SUCCESS
 from ._bounds import BenchBounds, bench_bounds
 from ._images import ViewImages
 from ._spaces import action_space, observation_space
@@ -35,8 +35,8 @@ from ._spaces import action_space, observation_space
 STEP_FIELDS: tuple[str, ...] = tuple(StepRow.__struct_fields__)
 """The keys a step's `info` may hold: the columns of the steps table (PROTOCOL §7.2)."""
 
-TERMINATED = "success"
-TRUNCATED = ("budget_global", "budget_local")
+TERMINATED = SUCCESS
+TRUNCATED = (BUDGET_GLOBAL, BUDGET_LOCAL)
 
 _RESET_OPTIONS = ("episode_id", "continuation")
 

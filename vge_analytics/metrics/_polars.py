@@ -13,6 +13,8 @@ from pathlib import Path
 
 import polars as pl
 
+from replay.semantics import SWITCH_VIEW
+
 from .._errors import OutputDirError, UnknownColumnError
 from ..store import GroupBy, parse_by
 from ._registry import METRIC_NAMES, resolve_metrics
@@ -72,7 +74,7 @@ def _episode_aggs() -> dict[str, pl.Expr]:
 def _step_aggs() -> dict[str, pl.Expr]:
     inter = pl.col("is_interaction").fill_null(False)
     has_dist = pl.col("distance").is_not_null()
-    non_switch = pl.col("action_type").is_null() | (pl.col("action_type") != "switch_view")
+    non_switch = pl.col("action_type").is_null() | (pl.col("action_type") != SWITCH_VIEW)
     return {
         "EIR": _ratio((inter & pl.col("hit_component")).sum(), inter.sum(), 100.0),
         "TIR": _ratio((inter & pl.col("hit_target")).sum(), inter.sum(), 100.0),
