@@ -34,6 +34,7 @@ from .io._images import (
     decode_view_image,
 )
 from .io._lambdas import LambdaBatch, LambdaTask, replay_lambdas
+from .io._layout import TABLE_ROWS
 
 # Input and output: loading and validating, the runner (`vge replay`), manifest, quarantine, MCAP,
 # JSON Schemas.
@@ -117,7 +118,7 @@ from .semantics._records import (
 )
 from .semantics._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
 from .semantics._step import Outcome, SimState, reset, step
-from .semantics._tables import TABLE_ROWS, arrow_schema, rows_to_table
+from .semantics._tables import arrow_schema, rows_to_table
 from .semantics._usage import (
     COMPLETION_PRICE_KEY,
     ORIGINS,

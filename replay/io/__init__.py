@@ -2,26 +2,102 @@
 MCAP, the runner, and the one run-directory writer with its crash-safe file primitives.
 
 The names below are public for the tools that write run directories (`vge run`, `vge play`,
-`vge synth`) and for the benchmarks (the episode decoder, a worker's state, the reference's
-tables of a batch); the rest of the layer is reached through `replay`'s own exports.
+`vge synth`), for every reader of a benchmark, a run or OUT (the on-disk layout: file, folder
+and table names and the paths built from them, `_layout.py`), and for the benchmarks (the
+episode decoder, a worker's state, the reference's tables of a batch); the rest of the layer
+is reached through `replay`'s own exports.
 """
 
 from ._durable import append_record, fsync_dir, truncate, write_all, write_atomic
+from ._layout import (
+    EPISODES,
+    EPISODES_FILES,
+    EPISODES_GZ,
+    EPISODES_TABLE,
+    FAILURES,
+    GOALS_TABLE,
+    GRAINS,
+    IMAGE_EXTENSIONS,
+    IMAGES_DIR,
+    MANIFEST,
+    MCAP_DIR,
+    PARTITION_KEY,
+    PARTITIONED,
+    QUARANTINE,
+    RUN_JSON,
+    RUNS_FILE,
+    RUNS_TABLE,
+    SSM_DIR,
+    SSM_SUFFIX,
+    STEPS_TABLE,
+    TABLE_ROWS,
+    TABLES,
+    TASKS,
+    UCSM_DIR,
+    image_path,
+    image_paths,
+    listed_mcap,
+    listed_part,
+    manifest_path,
+    mcap_dir,
+    partition,
+    partition_dir,
+    quarantine_path,
+    run_json_path,
+    runs_path,
+    ssm_path,
+    tasks_path,
+)
 from ._load import episode_decoder
 from ._manifest import runs_table
-from ._rundir import EPISODES, RUN_JSON, RunDirectory, keep_aside
+from ._rundir import RunDirectory, keep_aside
 from ._worker import reference_tables, worker_state
 
 __all__ = [
     "EPISODES",
+    "EPISODES_FILES",
+    "EPISODES_GZ",
+    "EPISODES_TABLE",
+    "FAILURES",
+    "GOALS_TABLE",
+    "GRAINS",
+    "IMAGES_DIR",
+    "IMAGE_EXTENSIONS",
+    "MANIFEST",
+    "MCAP_DIR",
+    "PARTITIONED",
+    "PARTITION_KEY",
+    "QUARANTINE",
+    "RUNS_FILE",
+    "RUNS_TABLE",
     "RUN_JSON",
+    "SSM_DIR",
+    "SSM_SUFFIX",
+    "STEPS_TABLE",
+    "TABLES",
+    "TABLE_ROWS",
+    "TASKS",
+    "UCSM_DIR",
     "RunDirectory",
     "append_record",
     "episode_decoder",
     "fsync_dir",
+    "image_path",
+    "image_paths",
     "keep_aside",
+    "listed_mcap",
+    "listed_part",
+    "manifest_path",
+    "mcap_dir",
+    "partition",
+    "partition_dir",
+    "quarantine_path",
     "reference_tables",
+    "run_json_path",
+    "runs_path",
     "runs_table",
+    "ssm_path",
+    "tasks_path",
     "truncate",
     "write_all",
     "worker_state",

@@ -42,6 +42,7 @@ from ..semantics._rows import StepRow
 from ..semantics._vocab import SCALE
 from ._fs import Location, location
 from ._images import ViewImage
+from ._layout import mcap_dir
 from ._task import safe_file_name
 
 if TYPE_CHECKING:
@@ -80,7 +81,7 @@ def mcap_file_name(episode_id: str) -> str:
 
 def episode_mcap_path(out: str | Location, run_id: str, episode_id: str) -> Location:
     """Where `vge replay --mcap` writes an episode's MCAP file."""
-    return location(out) / "mcap" / run_id / mcap_file_name(episode_id)
+    return mcap_dir(location(out), run_id) / mcap_file_name(episode_id)
 
 
 def attached_ssm(machine: Machine) -> bytes:

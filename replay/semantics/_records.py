@@ -12,8 +12,6 @@ from typing import Annotated, Any, Literal
 import msgspec
 from msgspec import Meta, field
 
-from ._vocab import FRONT
-
 SCHEMA_VERSION = 1
 """Version of the input and output record formats; bump on any incompatible change."""
 
@@ -114,7 +112,7 @@ class Task(msgspec.Struct):
     device_id: Annotated[str, _doc("Device whose SSM the episode runs on")]
     goals: Annotated[list[str], _doc("Ordered goal states; goal i completes when it is entered")]
     instructions: Annotated[list[str], _doc("Instruction shown while goal i is current")] = []
-    initial_view: Annotated[str, _doc("View the agent starts in")] = FRONT
+    initial_view: Annotated[str, _doc("View the agent starts in")] = "front"
     initial_state: Annotated[str | None, _doc("Overrides the SSM's initial state")] = None
     lam: Annotated[float | None, _doc("Budget redundancy factor lambda for this task")] = field(
         default=None, name="lambda"
