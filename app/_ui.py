@@ -21,6 +21,7 @@ import streamlit as st
 import vge_analytics as va
 from app import _data as data
 from app._data import metric_set, out_dir, script_option
+from replay.io import EPISODES_TABLE
 from vge_analytics import dashboard as dash
 from vge_analytics import play
 from vge_analytics.store import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits, default_max_queries
@@ -215,7 +216,7 @@ def filter_row(key: str) -> Selection:
     c1, c2, c3 = st.columns([3, 2, 2])
     runs = c1.multiselect("Runs", data.runs()["run_id"].to_list(), placeholder="all runs")
     categories = c2.multiselect(
-        "Category", data.column_values("episodes", "category"), placeholder="all"
+        "Category", data.column_values(EPISODES_TABLE, "category"), placeholder="all"
     )
     with c3:
         by = group_by_picker(f"{key}_by")

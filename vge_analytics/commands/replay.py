@@ -13,6 +13,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from replay import Manifest, location, replay_runs
+from replay.io import MANIFEST, quarantine_path
 
 from ..synth import image_source
 from ._options import episode_ids, max_record_bytes_option
@@ -101,10 +102,10 @@ def replay_command(
     console.print(_summary(manifest))
     for run_id in manifest.skipped:
         console.print(f"{escape(run_id)}: up to date, skipped (--force redoes it)", soft_wrap=True)
-    listed = escape(str(location(out) / "quarantine.jsonl"))
+    listed = escape(str(quarantine_path(location(out))))
     n = manifest.quarantined
     problem = f"{n:,} record(s) quarantined[/]: see {listed}" if n else None
-    finish(console, f"wrote {escape(str(out))} (manifest.json)", problem)
+    finish(console, f"wrote {escape(str(out))} ({MANIFEST})", problem)
 
 
 def register(app: typer.Typer) -> None:

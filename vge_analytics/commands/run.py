@@ -21,6 +21,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from replay.io import FAILURES
+
 from ._options import episode_ids, record_of
 from ._output import finish
 
@@ -202,7 +204,7 @@ def run_command(
         out_console.print(f"[yellow]not playable[/]: {escape(reason)}", soft_wrap=True)
     wrote = f"wrote {escape(str(out))}; score it: vge replay {escape(str(out))} --bench {escape(str(bench))} --out OUT"
     failed = len(summary.failures)
-    listed = escape(str(out / "failures.jsonl"))
+    listed = escape(str(out / FAILURES))
     problem = f"{failed} episode(s) ended on an infrastructure failure[/] (see {listed}); --resume plays them again"
     finish(out_console, wrote, problem if failed else None)
 

@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 
 import replay
 import vge_analytics as va
+from replay.io import STEPS_TABLE
 from vge_analytics.store import bench_dir
 
 BATCH_STEPS = 5000
@@ -229,7 +230,7 @@ def open_source(
         chosen = [r for r in chosen if contents[r["run_id"]]]
         run_ids = [r["run_id"] for r in chosen]
     metrics = _metrics(out, run_ids, episodes, metrics_dir)
-    columns = va.table_columns(out)["steps"]
+    columns = va.table_columns(out)[STEPS_TABLE]
     return Source(
         out=shown,
         runs=[

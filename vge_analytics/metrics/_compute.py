@@ -13,6 +13,8 @@ from collections.abc import Sequence
 
 import polars as pl
 
+from replay.io import EPISODES_TABLE, GOALS_TABLE, GRAINS, RUNS_TABLE, STEPS_TABLE
+
 from .._errors import UnknownColumnError
 from ..store import (
     Filters,
@@ -53,9 +55,9 @@ def _check_grains(
 ) -> None:
     """A steps- or goals-only column can group only the metrics computed from that table."""
     for col in columns:
-        if store.has_column("episodes", col) or store.has_column("runs", col):
+        if store.has_column(EPISODES_TABLE, col) or store.has_column(RUNS_TABLE, col):
             continue
-        tables = [t for t in ("steps", "goals") if store.has_column(t, col)]
+        tables = [t for t in (STEPS_TABLE, GOALS_TABLE) if store.has_column(t, col)]
         if not tables:
             continue  # unknown everywhere: check_columns says so
         blocked = [m.name for m in metrics if m.grain not in tables]
@@ -83,7 +85,7 @@ def compose(
     (`"<name>:num"`, `"<name>:den"`) instead of its value. `available`: the set `metrics`
     come from (named in messages; default the built-ins).
     """
-    grains = [g for g in ("episodes", "steps", "goals") if any(m.grain == g for m in metrics)]
+    grains = [g for g in GRAINS if any(m.grain == g for m in metrics)]
     clash = [m.name for m in metrics if m.name in by]
     if clash:
         raise UnknownColumnError(

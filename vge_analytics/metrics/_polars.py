@@ -13,6 +13,7 @@ from pathlib import Path
 
 import polars as pl
 
+from replay.io import EPISODES_TABLE, GOALS_TABLE, RUNS_TABLE, STEPS_TABLE
 from replay.semantics import SWITCH_VIEW
 
 from .._errors import OutputDirError, UnknownColumnError
@@ -104,8 +105,8 @@ def polars_metrics(
     out = Path(out).resolve()
     names = [m.name for m in resolve_metrics(metrics)]
     by_cols = list(parse_by(by))
-    episodes = _scan(out, "episodes")
-    runs = _scan(out, "runs")
+    episodes = _scan(out, EPISODES_TABLE)
+    runs = _scan(out, RUNS_TABLE)
     ep_cols = set(episodes.collect_schema().names())
     run_cols = set(runs.collect_schema().names())
     for col in by_cols:
@@ -122,8 +123,8 @@ def polars_metrics(
     parts: list[pl.DataFrame] = []
     plan = (
         (episodes, _episode_aggs(), _EPISODE_METRICS),
-        (_scan(out, "steps").filter(~pl.col("truncated")), _step_aggs(), _STEP_METRICS),
-        (_scan(out, "goals"), _goal_aggs(), _GOAL_METRICS),
+        (_scan(out, STEPS_TABLE).filter(~pl.col("truncated")), _step_aggs(), _STEP_METRICS),
+        (_scan(out, GOALS_TABLE), _goal_aggs(), _GOAL_METRICS),
     )
     for frame, aggs, group in plan:
         wanted = [n for n in names if n in group]

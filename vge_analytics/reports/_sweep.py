@@ -45,6 +45,7 @@ import polars as pl
 import pyarrow as pa
 
 import replay
+from replay.io import EPISODES_TABLE, GOALS_TABLE, RUNS_TABLE, STEPS_TABLE, TABLE_ROWS, TABLES
 
 from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
 from ..metrics import Metric, MetricsSource, compose, metric_set
@@ -215,16 +216,16 @@ def _metrics_of(episodes: pa.Table, chosen: list[Metric]) -> pl.DataFrame:
     """Registry metrics per (run_id, model, lambda) over in-memory episode rows."""
     con = duckdb.connect(":memory:")
     try:
-        con.from_arrow(episodes).create_view("episodes")
-        for table in ("steps", "goals"):
-            schema = replay.arrow_schema(replay.TABLE_ROWS[table])
+        con.from_arrow(episodes).create_view(EPISODES_TABLE)
+        for table in (STEPS_TABLE, GOALS_TABLE):
+            schema = replay.arrow_schema(TABLE_ROWS[table])
             con.from_arrow(schema.empty_table()).create_view(table)
         con.sql('SELECT DISTINCT run_id, model, agent_kind, "lambda" FROM episodes').create_view(
-            "runs"
+            RUNS_TABLE
         )
         columns = {
             t: {r[0]: str(r[1]) for r in con.execute(f"DESCRIBE {t}").fetchall()}
-            for t in ("steps", "episodes", "goals", "runs")
+            for t in TABLES
         }
         store = Store(out=Path("<sweep>"), con=con, columns=columns, manifest={})
         sql, params = compose(store, ("run_id", "model", "lambda"), chosen)
@@ -258,9 +259,9 @@ def sweep(
     lams = parse_lambdas(lambdas)
     available = metric_set(metrics_dir)
     chosen = available.resolve(list(metrics) if metrics else list(DEFAULT_SWEEP_METRICS))
-    not_episode = [m.name for m in chosen if m.grain != "episodes"]
+    not_episode = [m.name for m in chosen if m.grain != EPISODES_TABLE]
     if not_episode:
-        usable = ", ".join(m.name for m in available if m.grain == "episodes")
+        usable = ", ".join(m.name for m in available if m.grain == EPISODES_TABLE)
         raise ConfigError(
             f"the sweep computes metrics from episode rows only; {', '.join(not_episode)} "
             f"need steps or goals (episode metrics: {usable})"
