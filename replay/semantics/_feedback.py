@@ -61,18 +61,3 @@ def transition_text(description: str, state_description: str) -> str:
     if first and second:
         return f"{first}. Now: {second}."
     return (first or second or "The device changed state") + "."
-
-
-def text_for(kind: str, detail: str | None = None) -> str:
-    """Text of the kinds whose text does not depend on the device."""
-    if kind == v.FB_INVALID:
-        return invalid_text(detail or "")
-    if kind == v.FB_OPERATIONAL:
-        return OPERATIONAL_TEXT
-    if kind == v.FB_NULL:
-        return NULL_TEXT
-    if kind == v.FB_WAIT_NO_EFFECT:
-        return WAIT_NO_EFFECT_TEXT
-    if kind == v.FB_UNLOCKED:
-        return UNLOCKED_TEXT
-    raise ValueError(f"feedback kind {kind!r} needs context ({v.FB_SWITCHED}, {v.FB_TRANSITION})")

@@ -317,16 +317,6 @@ def _body_print(canvas: Image.Image, g: Geometry, view: str, body, occupied) -> 
         return
 
 
-def _labels_beside(canvas: Image.Image, g: Geometry, view: str, body, occupied) -> None:
-    """Printed labels under (or over) knobs, dials, sliders, ports... when there is room."""
-    d = ImageDraw.Draw(canvas)
-    ink = ink_on(g.palette.body)
-    for part in g.parts:
-        if view not in part.views or part.spec.kind not in _LABEL_BESIDE or not part.spec.label:
-            continue
-        _label_near(d, part, _scaled(g.part_rect(part, view)), body, occupied, ink, g.palette.body)
-
-
 def _label_near(d, part: Part, rect, bounds, occupied, ink, bg) -> None:
     """Print a part's label on the surface under (or over, or beside) it, where it does not
     cover anything; skipped when there is no room."""
