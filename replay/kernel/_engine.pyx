@@ -861,7 +861,7 @@ cdef class Vocab:
             got = (len(self.states), len(self.comps), len(self.texts), km)
             self.states.extend(km.state_names)
             self.comps.extend(km.comp_names)
-            self.comps.append("timed_wait")
+            self.comps.append(TIMED_WAIT)
             self.texts.extend(km.texts)
             self.offsets[id(km)] = got
         return got

@@ -45,7 +45,15 @@ import polars as pl
 import pyarrow as pa
 
 import replay
-from replay.io import EPISODES_TABLE, GOALS_TABLE, RUNS_TABLE, STEPS_TABLE, TABLE_ROWS, TABLES
+from replay.io import (
+    EPISODES_TABLE,
+    GOALS_TABLE,
+    RUNS_TABLE,
+    STEPS_TABLE,
+    TABLE_ROWS,
+    TABLES,
+    manifest_path,
+)
 
 from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
 from ..metrics import Metric, MetricsSource, compose, metric_set
@@ -150,7 +158,7 @@ def _check_unchanged(out: Path | replay.Location, entry, run_id: str) -> None:
 def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> list[_RunJob]:
     manifest = replay.read_manifest(store.out)
     if manifest is None:
-        raise SweepInputError(f"{store.out}/manifest.json: not found; the sweep needs it")
+        raise SweepInputError(f"{manifest_path(store.out)}: not found; the sweep needs it")
     entries = {e.run_id: e for e in manifest.runs}
     known = store.run_ids()
     wanted = list(run_ids) if run_ids else known
@@ -158,7 +166,7 @@ def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> 
         if run not in known:
             raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
         if run not in entries:
-            raise SweepInputError(f"run {run}: not in {store.out}/manifest.json")
+            raise SweepInputError(f"run {run}: not in {manifest_path(store.out)}")
     eps = run_query(
         store,
         "SELECT run_id, episode_id FROM episodes WHERE run_id IN "

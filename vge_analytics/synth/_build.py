@@ -161,7 +161,7 @@ def build_device(job: DeviceJob, ctx: _Context) -> DeviceResult:
     text = dump_ssm(device.ssm)
     ssm = msgspec.json.decode(text.encode("utf-8"), type=replay.StateMachine)
     machine = replay.compile_machine(
-        ssm, device_id=job.device_id, source=f"ssm/{job.device_id}.json"
+        ssm, device_id=job.device_id, source=f"{SSM_DIR}/{job.device_id}{SSM_SUFFIX}"
     )
     tasks = sample_tasks(
         machine, job.category, job.n_single, job.n_multi, rng_for(ctx.seed, "tasks", job.device_id)
