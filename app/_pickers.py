@@ -11,6 +11,7 @@ import streamlit as st
 
 from app import _data as data
 from app._sidebar import where
+from replay.io import EPISODES_TABLE
 from vge_analytics import dashboard as dash
 
 GROUPINGS: dict[str, tuple[str, ...]] = {
@@ -45,7 +46,7 @@ def filter_row(key: str) -> Selection:
     c1, c2, c3 = st.columns([3, 2, 2])
     runs = c1.multiselect("Runs", data.runs()["run_id"].to_list(), placeholder="all runs")
     categories = c2.multiselect(
-        "Category", data.column_values("episodes", "category"), placeholder="all"
+        "Category", data.column_values(EPISODES_TABLE, "category"), placeholder="all"
     )
     with c3:
         by = group_by_picker(f"{key}_by")

@@ -38,13 +38,13 @@ from pathlib import Path
 
 import replay
 from replay.io import episode_decoder
-from vge_analytics.synth import image_source
+from vge_analytics.synth import BENCH_DIR, RUNS_DIR, image_source
 
 CORES = os.cpu_count() or 1
 
 
 def _episode_files(data: Path) -> list[Path]:
-    return sorted(replay.episodes_file(d).local for d in (data / "runs").iterdir() if d.is_dir())
+    return sorted(replay.episodes_file(d).local for d in (data / RUNS_DIR).iterdir() if d.is_dir())
 
 
 def _read(path: Path) -> bytes:
@@ -142,8 +142,8 @@ if cluster is not None:
 def end_to_end(
     data: Path, out: Path, *, workers: int = 1, engine: str = "kernel", nodes: int = 0
 ) -> dict:
-    runs = [str(d) for d in sorted((data / "runs").iterdir()) if d.is_dir()]
-    arg = json.dumps([runs, str(data / "bench"), str(out), workers, nodes])
+    runs = [str(d) for d in sorted((data / RUNS_DIR).iterdir()) if d.is_dir()]
+    arg = json.dumps([runs, str(data / BENCH_DIR), str(out), workers, nodes])
     env = {
         **os.environ,
         "VGE_REPLAY_ENGINE": engine,
@@ -192,12 +192,11 @@ builds, which have their own row."""
 
 
 def stages(data: Path, out: Path) -> dict:
-    """CPU seconds per stage of a one-worker kernel replay of all runs, under Python's
-    profiler (which adds its own cost to every Python call: the stages are read as shares)."""
-    runs = [str(d) for d in sorted((data / "runs").iterdir()) if d.is_dir()]
+    """CPU seconds per stage of a one-worker kernel replay of all runs, under Python'sprofiler (which adds its own cost to every Python call: the stages are read as shares)."""
+    runs = [str(d) for d in sorted((data / RUNS_DIR).iterdir()) if d.is_dir()]
     env = {**os.environ, "VGE_REPLAY_ENGINE": "kernel", "POLARS_MAX_THREADS": "1"}
     done = subprocess.run(
-        [sys.executable, "-c", _STAGES, json.dumps([runs, str(data / "bench")]), str(out)],
+        [sys.executable, "-c", _STAGES, json.dumps([runs, str(data / BENCH_DIR)]), str(out)],
         check=True,
         capture_output=True,
         text=True,
@@ -213,8 +212,8 @@ def stages(data: Path, out: Path) -> dict:
 def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
     """Replay `n` episodes of the largest run; time `write_episode_mcap` alone, with the
     view images (the CLI's image source) fetched beforehand."""
-    bench = replay.Benchmark.open(data / "bench")
-    images = image_source(data / "bench")
+    bench = replay.Benchmark.open(data / BENCH_DIR)
+    images = image_source(data / BENCH_DIR)
     largest = max(_episode_files(data), key=lambda p: p.stat().st_size)
     total = image_total = 0.0
     count = with_images = 0
@@ -256,7 +255,7 @@ def engine_core(data: Path) -> dict[str, float]:
     from replay.io import reference_tables, worker_state
     from replay.kernel import EpisodeInput, replay_kernel
 
-    state = worker_state(str(data / "bench"))
+    state = worker_state(str(data / BENCH_DIR))
     largest = max(_episode_files(data), key=lambda p: p.stat().st_size)
     episodes = []
     for line in _read(largest).splitlines():

@@ -7,6 +7,7 @@ from app import _data as data
 from app import _pickers as pickers
 from app import _sidebar as sidebar
 from app import _tables as tables
+from replay.io import EPISODES_TABLE
 from vge_analytics import dashboard as dash
 
 st.title("Leaderboard")
@@ -23,10 +24,10 @@ runs = data.runs()
 c1, c2, c3, c4 = st.columns([3, 2, 2, 2])
 chosen_runs = c1.multiselect("Runs", runs["run_id"].to_list(), placeholder="all runs")
 categories = c2.multiselect(
-    "Category", data.column_values("episodes", "category"), placeholder="all"
+    "Category", data.column_values(EPISODES_TABLE, "category"), placeholder="all"
 )
 goal_counts = c3.multiselect(
-    "Goal count", data.column_values("episodes", "n_goals"), placeholder="all"
+    "Goal count", data.column_values(EPISODES_TABLE, "n_goals"), placeholder="all"
 )
 with c4:
     by = pickers.group_by_picker("leaderboard_by")

@@ -22,7 +22,10 @@ from gymnasium.error import ResetNeeded
 from .._errors import ActionError, ConfigError, VGEError
 from ..io import BenchImages, Benchmark, ImageSource
 from ..semantics import (
+    BUDGET_GLOBAL,
+    BUDGET_LOCAL,
     DASHBOARD,
+    SUCCESS,
     ActionRecord,
     Continuation,
     EpisodeSession,
@@ -38,8 +41,8 @@ from ._spaces import action_space, observation_space
 STEP_FIELDS: tuple[str, ...] = tuple(StepRow.__struct_fields__)
 """The keys a step's `info` may hold: the columns of the steps table (PROTOCOL §7.2)."""
 
-TERMINATED = "success"
-TRUNCATED = ("budget_global", "budget_local")
+TERMINATED = SUCCESS
+TRUNCATED = (BUDGET_GLOBAL, BUDGET_LOCAL)
 
 _RESET_OPTIONS = ("episode_id", "continuation")
 

@@ -9,7 +9,9 @@ Public here: what `replay` exports from this layer (the runner, the readers, the
 MCAP writer, the manifest) and what the tools built on the engine need beside it: the
 run-directory writer of `vge run`, `vge play` and `vge synth`, the executors and batch
 function of `vge sweep`, file names made from ids, the JSON Schemas, and for the benchmarks
-the episode decoder, a process's worker state and the reference's tables of a batch.
+the episode decoder, a process's worker state and the reference's tables of a batch. The
+on-disk layout (file, folder and table names, and the paths built from them, `_layout`) is
+public here for every reader of a benchmark, a run or OUT.
 """
 
 from typing import TYPE_CHECKING
@@ -41,6 +43,45 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         decode_view_image,
     )
     from ._lambdas import LambdaBatch, LambdaTask, replay_lambdas
+    from ._layout import (
+        EPISODES,
+        EPISODES_FILES,
+        EPISODES_GZ,
+        EPISODES_TABLE,
+        FAILURES,
+        GOALS_TABLE,
+        GRAINS,
+        IMAGE_EXTENSIONS,
+        IMAGES_DIR,
+        MANIFEST,
+        MCAP_DIR,
+        PARTITION_KEY,
+        PARTITIONED,
+        QUARANTINE,
+        RUN_JSON,
+        RUNS_FILE,
+        RUNS_TABLE,
+        SSM_DIR,
+        SSM_SUFFIX,
+        STEPS_TABLE,
+        TABLE_ROWS,
+        TABLES,
+        TASKS,
+        UCSM_DIR,
+        image_path,
+        image_paths,
+        listed_mcap,
+        listed_part,
+        manifest_path,
+        mcap_dir,
+        partition,
+        partition_dir,
+        quarantine_path,
+        run_json_path,
+        runs_path,
+        ssm_path,
+        tasks_path,
+    )
     from ._lines import MAX_RECORD_BYTES, iter_lines
     from ._load import (
         Benchmark,
@@ -63,7 +104,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         write_episode_mcap,
     )
     from ._quarantine import QUARANTINE_KINDS, QuarantineRecord
-    from ._rundir import EPISODES, RUN_JSON, RunDirectory, keep_aside
+    from ._rundir import RunDirectory, keep_aside
     from ._runner import replay_runs
     from ._schemas import schema_documents, write_schemas
     from ._worker import worker_state
@@ -108,15 +149,51 @@ __all__ = [
     "write_episode_mcap",
     # writing run directories
     "EPISODES",
+    "EPISODES_FILES",
+    "EPISODES_GZ",
+    "EPISODES_TABLE",
+    "FAILURES",
+    "GOALS_TABLE",
+    "GRAINS",
+    "IMAGES_DIR",
+    "IMAGE_EXTENSIONS",
+    "MANIFEST",
+    "MCAP_DIR",
+    "PARTITIONED",
+    "PARTITION_KEY",
+    "QUARANTINE",
+    "RUNS_FILE",
+    "RUNS_TABLE",
     "RUN_JSON",
+    "SSM_DIR",
+    "SSM_SUFFIX",
+    "STEPS_TABLE",
+    "TABLES",
+    "TABLE_ROWS",
+    "TASKS",
+    "UCSM_DIR",
     "RunDirectory",
     "append_record",
     "atomic_file",
     "fsync_dir",
+    "image_path",
+    "image_paths",
     "keep_aside",
     "make_folders",
     "run_header_bytes",
     "staged_path",
+    "listed_mcap",
+    "listed_part",
+    "manifest_path",
+    "mcap_dir",
+    "partition",
+    "partition_dir",
+    "quarantine_path",
+    "reference_tables",
+    "run_json_path",
+    "runs_path",
+    "ssm_path",
+    "tasks_path",
     "truncate",
     "write_all",
     "write_atomic",
@@ -126,7 +203,6 @@ __all__ = [
     "LambdaTask",
     "in_order",
     "make_executor",
-    "reference_tables",
     "replay_batch",
     "replay_lambdas",
     "safe_file_name",

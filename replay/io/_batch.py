@@ -25,7 +25,6 @@ from .._errors import TaskError, VGEError
 from ..kernel import BatchTables, EpisodeInput, replay_kernel
 from ..semantics import (
     NO_PRICES,
-    TABLE_ROWS,
     EpisodeResult,
     EpisodeRow,
     GoalRow,
@@ -41,6 +40,7 @@ from ._file_names import part_name
 from ._files import write_part
 from ._fs import location
 from ._images import ViewImage
+from ._layout import MCAP_DIR, SSM_DIR, SSM_SUFFIX, TABLE_ROWS, TASKS
 from ._load import episode_decoder
 from ._mcap import mcap_file_name, write_episode_mcap
 from ._quarantine import classify_decode_error, one_line
@@ -345,7 +345,7 @@ def _write_mcap(
     def image(view: str, m: Machine = machine) -> ViewImage | None:
         return None if source is None else state.image(source, m, view)
 
-    with (location(ctx.staging) / "mcap" / mcap_tmp).writer(sync=False) as fh:
+    with (location(ctx.staging) / MCAP_DIR / mcap_tmp).writer(sync=False) as fh:
         write_episode_mcap(fh, machine, result, ssm_bytes=state.ssm(machine), image=image)
     return mcap_tmp
 
@@ -376,9 +376,8 @@ def _prepare_line(
     task = entry.task
     device = task.device_id
     if device not in bench.ssm_paths:
-        reason = (
-            f"device {device!r} (tasks.jsonl line {entry.line}) has no SSM file ssm/{device}.json"
-        )
+        where = f"{SSM_DIR}/{device}{SSM_SUFFIX}"
+        reason = f"device {device!r} ({TASKS} line {entry.line}) has no SSM file {where}"
         outcomes.append(LineOutcome(number, eid, True, "unknown_device", reason))
         return
     try:
@@ -390,7 +389,7 @@ def _prepare_line(
     try:
         setup = state.setup(machine, task)
     except TaskError as exc:
-        reason = one_line(f"{exc} (tasks.jsonl line {entry.line})")
+        reason = one_line(f"{exc} ({TASKS} line {entry.line})")
         outcomes.append(LineOutcome(number, eid, True, "task_error", reason))
         return
     lam = episode_lambda(task, ctx.run_lambda, ctx.option_lambda)

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 
 from .._errors import InputError, RecordTooLarge
 from .._version import ENGINE_VERSION
-from ..semantics import TABLE_ROWS, arrow_schema
+from ..semantics import arrow_schema
 from ._batch import (
     SKIPPED,
     BatchCounts,
@@ -26,6 +26,17 @@ from ._file_names import part_name
 from ._files import STATE_DIR, commit_dir, remove_dir, write_part
 from ._fs import Location
 from ._images import ImageSource
+from ._layout import (
+    EPISODES_TABLE,
+    GOALS_TABLE,
+    MCAP_DIR,
+    STEPS_TABLE,
+    TABLE_ROWS,
+    listed_mcap,
+    listed_part,
+    mcap_dir,
+    partition_dir,
+)
 from ._load import Benchmark
 from ._manifest import (
     Divergence,
@@ -81,7 +92,7 @@ class RunJob:
         for name in TABLE_ROWS:
             (self.staging / name).mkdir()
         if options.mcap:
-            (self.staging / "mcap").mkdir()
+            (self.staging / MCAP_DIR).mkdir()
         h = run.header
         self.ctx = RunContext(
             run_id=h.run_id,
@@ -169,7 +180,7 @@ class RunJob:
                     "only the first occurrence is replayed",
                 )
                 if mcap_of.get(o.line) is not None:
-                    (self.staging / "mcap" / mcap_of[o.line]).unlink(missing_ok=True)
+                    (self.staging / MCAP_DIR / mcap_of[o.line]).unlink(missing_ok=True)
                 continue
             if o.decoded and o.episode_id is not None:
                 entry = self.bench.tasks.get(o.episode_id)
@@ -179,8 +190,8 @@ class RunJob:
                 self.replayed += 1
                 if o.mcap_tmp is not None:
                     self.counts.mcap_files += 1
-                    (self.staging / "mcap" / o.mcap_tmp).replace(
-                        self.staging / "mcap" / mcap_file_name(o.episode_id or "")
+                    (self.staging / MCAP_DIR / o.mcap_tmp).replace(
+                        self.staging / MCAP_DIR / mcap_file_name(o.episode_id or "")
                     )
             else:
                 self.quarantine(o.line, o.episode_id, o.kind, o.reason or "")
@@ -219,6 +230,10 @@ class RunJob:
         self._quarantine.close()
         self.staging.rmtree()
 
+    def _listed(self, table: str) -> list[str]:
+        """The run's parts of a table as the manifest lists them, sorted."""
+        return [listed_part(table, self.ctx.run_id, f) for f in sorted(self.parts[table])]
+
     def commit(self, inputs: RunInputs) -> RunEntry:
         """Commit the run's partitions and quarantine records into OUT; its manifest entry
         (also kept as `entry`)."""
@@ -235,11 +250,11 @@ class RunJob:
                 self.parts[name].append(part_name(0))
         trash = self.state_dir / "trash"
         for name in TABLE_ROWS:
-            commit_dir(self.staging / name, self.out / name / f"run_id={run_id}", trash)
+            commit_dir(self.staging / name, partition_dir(self.out, name, run_id), trash)
         if self.options.mcap:
-            commit_dir(self.staging / "mcap", self.out / "mcap" / run_id, trash)
+            commit_dir(self.staging / MCAP_DIR, mcap_dir(self.out, run_id), trash)
         else:
-            remove_dir(self.out / "mcap" / run_id, trash)
+            remove_dir(mcap_dir(self.out, run_id), trash)
         qdir = self.state_dir / "quarantine"
         qdir.mkdir()
         self._quarantine.seek(0)
@@ -276,9 +291,9 @@ class RunJob:
                 by_field={f: c.by_field.get(f, 0) for f in DIVERGENCE_FIELDS},
             ),
             outputs=RunOutputs(
-                steps=[f"steps/run_id={run_id}/{f}" for f in sorted(self.parts["steps"])],
-                episodes=[f"episodes/run_id={run_id}/{f}" for f in sorted(self.parts["episodes"])],
-                goals=[f"goals/run_id={run_id}/{f}" for f in sorted(self.parts["goals"])],
-                mcap=f"mcap/{run_id}" if self.options.mcap else None,
+                steps=self._listed(STEPS_TABLE),
+                episodes=self._listed(EPISODES_TABLE),
+                goals=self._listed(GOALS_TABLE),
+                mcap=listed_mcap(run_id) if self.options.mcap else None,
             ),
         )

@@ -26,6 +26,18 @@ from ..semantics import (
 )
 from ._decode import decode
 from ._fs import Location, location
+from ._layout import (
+    EPISODES,
+    EPISODES_FILES,
+    EPISODES_GZ,
+    SSM_DIR,
+    SSM_SUFFIX,
+    TASKS,
+    UCSM_DIR,
+    run_json_path,
+    ssm_path,
+    tasks_path,
+)
 from ._lines import MAX_RECORD_BYTES, iter_lines, read_whole
 
 _BYTE = re.compile(r"byte (\d+)")
@@ -70,7 +82,7 @@ def load_machine(path: str | Path | Location, device_id: str | None = None) -> M
 
 
 def read_run_header(run_dir: str | Path | Location) -> RunHeader:
-    path = location(run_dir) / "run.json"
+    path = run_json_path(location(run_dir))
     data = read_whole(path)
     try:
         header = decode(_run_decoder, data)
@@ -93,11 +105,11 @@ def run_header_bytes(header: RunHeader | Mapping[str, Any]) -> bytes:
 def episodes_file(run_dir: str | Path | Location) -> Location:
     """`episodes.jsonl` or `episodes.jsonl.gz` of a run directory."""
     run_dir = location(run_dir)
-    for name in ("episodes.jsonl", "episodes.jsonl.gz"):
+    for name in EPISODES_FILES:
         candidate = run_dir / name
         if candidate.exists():
             return candidate
-    raise InputError(str(run_dir / "episodes.jsonl"), "file not found (nor episodes.jsonl.gz)")
+    raise InputError(str(run_dir / EPISODES), f"file not found (nor {EPISODES_GZ})")
 
 
 @dataclass
@@ -121,29 +133,29 @@ class Benchmark:
         root = location(root)
         if not root.is_dir():
             raise InputError(str(root), "benchmark directory not found")
-        ssm_dir = root / "ssm"
+        ssm_dir = root / SSM_DIR
         if not ssm_dir.is_dir():
-            raise InputError(str(ssm_dir), "benchmark has no ssm/ directory")
+            raise InputError(str(ssm_dir), f"benchmark has no {SSM_DIR}/ directory")
         bench = cls(root=root)
         bench.ssm_paths = {
-            Path(n).stem: ssm_dir / n for n in ssm_dir.names() if n.endswith(".json")
+            Path(n).stem: ssm_dir / n for n in ssm_dir.names() if n.endswith(SSM_SUFFIX)
         }
-        tasks_path = root / "tasks.jsonl"
-        if not tasks_path.exists():
-            raise InputError(str(tasks_path), "file not found")
-        for number, line in iter_lines(tasks_path):
+        tasks = tasks_path(root)
+        if not tasks.exists():
+            raise InputError(str(tasks), "file not found")
+        for number, line in iter_lines(tasks):
             try:
                 task = decode(_task_decoder, line)
             except msgspec.DecodeError as exc:
                 bench.task_problems.append(
-                    Problem(f"{tasks_path}:{number}", "", decode_error_message(exc))
+                    Problem(f"{tasks}:{number}", "", decode_error_message(exc))
                 )
                 continue
             if task.episode_id in bench.tasks:
                 first = bench.tasks[task.episode_id].line
                 bench.task_problems.append(
                     Problem(
-                        f"{tasks_path}:{number}",
+                        f"{tasks}:{number}",
                         f"episode {task.episode_id!r}",
                         f"duplicate episode_id (first on line {first}); this line is ignored",
                     )
@@ -154,7 +166,7 @@ class Benchmark:
 
     @property
     def tasks_path(self) -> Location:
-        return self.root / "tasks.jsonl"
+        return tasks_path(self.root)
 
     def machine(self, device_id: str) -> Machine:
         """The compiled machine of a device; raises the (cached) load error."""
@@ -162,9 +174,7 @@ class Benchmark:
         if got is None:
             path = self.ssm_paths.get(device_id)
             if path is None:
-                got = InputError(
-                    str(self.root / "ssm" / f"{device_id}.json"), "unknown device: no such SSM file"
-                )
+                got = InputError(str(ssm_path(self.root, device_id)), "unknown device: no such SSM file")
             else:
                 try:
                     got = load_machine(path, device_id)
@@ -187,9 +197,9 @@ def validate_benchmark(root: str | Path | Location) -> list[Problem]:
     problems: list[Problem] = []
     for device_id, path in bench.ssm_paths.items():
         problems.extend(_ssm_problems(root, device_id, path))
-    ucsm_dir = root / "ucsm"
+    ucsm_dir = root / UCSM_DIR
     if ucsm_dir.is_dir():
-        for path in [ucsm_dir / n for n in ucsm_dir.names() if n.endswith(".json")]:
+        for path in [ucsm_dir / n for n in ucsm_dir.names() if n.endswith(SSM_SUFFIX)]:
             try:
                 ucsm = decode_state_machine(path)
             except InputError as exc:
@@ -311,7 +321,7 @@ def validate_run(
                     Problem(
                         where,
                         f"episode {log.episode_id!r}",
-                        "unknown episode id (not in tasks.jsonl)",
+                        f"unknown episode id (not in {TASKS})",
                     )
                 )
     except InputError as exc:

@@ -27,11 +27,8 @@ from .._errors import InputError
 from ..semantics import RunHeader
 from ._decode import decode
 from ._durable import append_record, truncate, write_atomic
+from ._layout import EPISODES, RUN_JSON
 from ._load import episode_decoder, read_run_header, run_header_bytes
-
-EPISODES = "episodes.jsonl"
-"""The episodes file a writer appends to (`vge synth` streams `episodes.jsonl.gz`)."""
-RUN_JSON = "run.json"
 
 
 class RunDirectory:

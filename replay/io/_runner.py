@@ -32,6 +32,7 @@ from ._files import STATE_DIR
 from ._fs import Location, location
 from ._images import ImageSource
 from ._job import RunJob
+from ._layout import manifest_path
 from ._lines import MAX_RECORD_BYTES
 from ._load import Benchmark
 from ._manifest import Hasher, Manifest, RunEntry, RunOptions, read_manifest
@@ -175,7 +176,7 @@ def replay_runs(
                 bar.stop()
             executor.close()
             (state_dir / "staging").rmtree()
-    manifest_file = out / "manifest.json"
+    manifest_file = manifest_path(out)
     return Manifest(
         path=manifest_file.local if manifest_file.local is not None else str(manifest_file),
         content=content,

@@ -24,11 +24,16 @@ from ..semantics import (
     DASHBOARD,
     ERROR_DETAILS,
     ERROR_TYPES,
+    FB_NULL,
     FEEDBACK_KINDS,
+    FRONT,
     NULL_TEXT,
     OPERATIONAL_TEXT,
     ORTHOGRAPHIC_VIEWS,
+    SCALE,
+    SWITCH_VIEW,
     TERMINATIONS,
+    TIMED_WAIT,
     UNLOCKED_TEXT,
     VIEW_ORDER,
     WAIT_NO_EFFECT_TEXT,
@@ -86,8 +91,10 @@ cdef enum:
     SC_PP = 3
 
 assert VIEW_ORDER.index(DASHBOARD) == V_DASHBOARD and len(VIEW_ORDER) == NV
-assert ACTION_NAMES.index("switch_view") == A_SWITCH and ACTION_NAMES.index("timed_wait") == A_WAIT
-assert FEEDBACK_KINDS[K_NULL] == "null_effect" and ERROR_TYPES[E_SWITCH_PN] == "switch_view_pn"
+assert ACTION_NAMES.index(SWITCH_VIEW) == A_SWITCH and ACTION_NAMES.index(TIMED_WAIT) == A_WAIT
+assert FEEDBACK_KINDS[K_NULL] == FB_NULL and ERROR_TYPES[E_SWITCH_PN] == "switch_view_pn"
+
+cdef double _SCALE = SCALE  # the coordinate scale (PROTOCOL §1.2), from the semantics
 
 VIEW_CODE = {v: i for i, v in enumerate(VIEW_ORDER)}
 ACTION_CODE = {a: i for i, a in enumerate(ACTION_NAMES)}
@@ -339,7 +346,7 @@ cdef class KMachine:
         dangerous = np.zeros(self.n_tr, np.uint8)
         for i, t in enumerate(transitions):
             arrays["action"][i] = ACTION_CODE[t.action] if t.action is not None else (
-                A_WAIT if t.component == "timed_wait" else -1
+                A_WAIT if t.component == TIMED_WAIT else -1
             )
             arrays["comp"][i] = self.comp_id.get(t.component, -1)
             arrays["index"][i] = t.index
@@ -348,9 +355,10 @@ cdef class KMachine:
             tr_ent.extend(t.entered)
             tr_ent_off[i + 1] = len(tr_ent)
             self.tr_params.append(t.params)
-            # The reference's own text for this transition (`apply_transition`).
+            # The reference's own text for this transition (`apply_transition`; any view
+            # will do).
             self.texts.append(
-                apply_transition(machine, SimState(t.source, "front", False), t)[1].text
+                apply_transition(machine, SimState(t.source, FRONT, False), t)[1].text
             )
         self.tr_action = self._ints(arrays["action"])
         self.tr_comp = self._ints(arrays["comp"])
@@ -827,7 +835,7 @@ cdef Outcome _step(
         return _invalid(D_MISSING_COORD)
     px = pa.x
     py = pa.y
-    if not (0.0 <= px <= 1000.0 and 0.0 <= py <= 1000.0):
+    if not (0.0 <= px <= _SCALE and 0.0 <= py <= _SCALE):
         return _invalid(D_OUT_OF_RANGE)
     if not unlocked[0] and km.has_dashboard and _in_region(km, view[0], px, py):
         unlocked[0] = True
@@ -895,7 +903,7 @@ cdef class Vocab:
             got = (len(self.states), len(self.comps), len(self.texts), km)
             self.states.extend(km.state_names)
             self.comps.extend(km.comp_names)
-            self.comps.append("timed_wait")
+            self.comps.append(TIMED_WAIT)
             self.texts.extend(km.texts)
             self.offsets[id(km)] = got
         return got

@@ -23,7 +23,7 @@ from ._records import Continuation, EpisodeLog, LogStep, Task
 from ._rows import CLASSIFICATION_FIELDS, EpisodeKey, EpisodeRow, GoalRow, StepRow
 from ._step import Outcome, reset, step
 from ._usage import NO_PRICES, Prices, origin_of, usage_cost
-from ._vocab import DASHBOARD, FEEDBACK_KINDS
+from ._vocab import DASHBOARD, FEEDBACK_KINDS, LOG_ENDED
 
 _NO_ACTION = ParsedAction(False, None, "no_action", "", "")
 _HITS_AT = CLASSIFICATION_FIELDS.index("hit_components")
@@ -372,7 +372,7 @@ class EpisodeSession:
         """The step, episode and goal rows. An episode not terminated by its steps ends as
         `ended` says (the log's `ended`, PROTOCOL §1.4), else as `log_ended`."""
         if self.termination is None:
-            self.termination = ended or "log_ended"
+            self.termination = ended or LOG_ENDED
         names = self.machine.states
         setup, task, goals, n_goals, c_opt = (
             self.setup, self.task, self.goals, self.n_goals, self.c_opt

@@ -12,7 +12,6 @@ import msgspec
 import pyarrow as pa
 
 from ._records import SCHEMA_VERSION
-from ._rows import EpisodeRow, GoalRow, StepRow
 
 _SCALARS = {
     msgspec.inspect.StrType: pa.string(),
@@ -67,10 +66,6 @@ def rows_to_table(rows: list, row_type: type) -> pa.Table:
         columns = [() for _ in schema]
     arrays = [pa.array(col, type=field.type) for col, field in zip(columns, schema, strict=True)]
     return pa.Table.from_arrays(arrays, schema=schema)
-
-
-TABLE_ROWS: dict[str, type] = {"steps": StepRow, "episodes": EpisodeRow, "goals": GoalRow}
-"""Output table name -> row class."""
 
 
 def table_rows(table: pa.Table, row_type: type) -> list:

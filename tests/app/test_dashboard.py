@@ -18,7 +18,7 @@ import vge_analytics as va
 from vge_analytics import OutputDirError, compare, error_distribution, sql, switch_classes
 from vge_analytics import dashboard as dash
 from vge_analytics.dashboard._budgets import _sweep_cache_file
-from vge_analytics.play._page import RESULT_HEADLINES
+from vge_analytics.play import result_headline
 from vge_analytics.store import resolve_input
 from vge_analytics.store._limits import SqlLimits
 
@@ -472,9 +472,15 @@ def test_step_text(tiny_out):
     assert table["field"].to_list() == list(dash.CLASSIFICATION_FIELDS)
     assert dash.termination_label("budget_local") == "local budget out"
     assert dash.termination_label("context_exceeded") == "context window full"
-    # Every termination has its words, here and on the Play page.
-    assert list(dash.TERMINATION_LABELS) == list(replay.TERMINATIONS)
-    assert list(RESULT_HEADLINES) == list(replay.TERMINATIONS)
+    # Every termination has its words (replay.semantics.TERMINATION_TEXTS), here and on the
+    # Play page, where the log ends when the player gives up.
+    labels = [dash.termination_label(t) for t in replay.TERMINATIONS]
+    assert labels == ["success", "global budget out", "local budget out", "log ended",
+                      "context window full"]  # fmt: skip
+    assert result_headline("budget_global") == "Ended: the episode's step budget is spent"
+    assert result_headline("context_exceeded") == "Ended: the model's context window is full"
+    assert result_headline("log_ended") == "Ended by the player"
+    assert result_headline("success") == "Success"
 
 
 def test_episode_labels(tiny_out):

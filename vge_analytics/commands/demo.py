@@ -17,7 +17,9 @@ _REPO_SAMPLE = Path(__file__).resolve().parents[2] / "logs"
 
 def _bundled_sample() -> Path:
     """The repository's `logs/` when the package runs from a checkout, else `./vge-sample`."""
-    if (_REPO_SAMPLE / "bench").is_dir() or (_REPO_SAMPLE.parent / "pyproject.toml").exists():
+    from ..synth import BENCH_DIR
+
+    if (_REPO_SAMPLE / BENCH_DIR).is_dir() or (_REPO_SAMPLE.parent / "pyproject.toml").exists():
         return _REPO_SAMPLE
     return Path.cwd() / "vge-sample"
 
@@ -36,15 +38,16 @@ def demo(
     from rich.console import Console
 
     from replay import replay_runs
+    from replay.io import quarantine_path, run_json_path
 
     from ..metrics import MetricSet
     from ..metrics import metrics as compute_metrics
     from ..store import DEFAULT_BY
-    from ..synth import image_source
+    from ..synth import BENCH_DIR, RUNS_DIR, image_source
 
     console = Console(highlight=False)
     sample_dir = sample or _bundled_sample()
-    bench = sample_dir / "bench"
+    bench = sample_dir / BENCH_DIR
     if not bench.is_dir():
         from ..synth import generate
 
@@ -52,7 +55,7 @@ def demo(
             f"Building the synthetic sample in {sample_dir} (vge synth --scale sample --seed 0) ..."
         )
         generate(sample_dir, scale="sample", seed=0)
-    runs = sorted(p for p in (sample_dir / "runs").iterdir() if (p / "run.json").is_file())
+    runs = sorted(p for p in (sample_dir / RUNS_DIR).iterdir() if run_json_path(p).is_file())
     console.print(f"Replaying {len(runs)} runs of {sample_dir} into {out} ...")
     manifest = replay_runs(
         runs, bench, out, workers=workers, force=force, image_source=image_source(bench)
@@ -72,7 +75,7 @@ def demo(
     )
     if quarantined:
         console.print(
-            f"[yellow]{quarantined} record(s) quarantined: see {out / 'quarantine.jsonl'}[/]"
+            f"[yellow]{quarantined} record(s) quarantined: see {quarantine_path(out)}[/]"
         )
         raise typer.Exit(2)
 

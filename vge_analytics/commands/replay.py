@@ -110,10 +110,10 @@ def replay_command(
     console.print(_summary(manifest))
     for run_id in manifest.skipped:
         console.print(f"{escape(run_id)}: up to date, skipped (--force redoes it)", soft_wrap=True)
-    listed = escape(str(replay.location(out) / "quarantine.jsonl"))
+    listed = escape(str(replay.io.quarantine_path(replay.location(out))))
     n = manifest.quarantined
     problem = f"{n:,} record(s) quarantined[/]: see {listed}" if n else None
-    finish(console, f"wrote {escape(str(out))} (manifest.json)", problem)
+    finish(console, f"wrote {escape(str(out))} ({replay.io.MANIFEST})", problem)
 
 
 def register(app: typer.Typer) -> None:

@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from replay.io import FAILURES
+
 from ._options import episode_ids, record_of
 from ._output import finish
 
@@ -243,7 +245,7 @@ def _report(summary: RunSummary, bench: Path, out: Path) -> None:
         out_console.print(f"[yellow]not playable[/]: {escape(reason)}", soft_wrap=True)
     wrote = f"wrote {escape(str(out))}; score it: vge replay {escape(str(out))} --bench {escape(str(bench))} --out OUT"
     failed = len(summary.failures)
-    listed = escape(str(out / "failures.jsonl"))
+    listed = escape(str(out / FAILURES))
     problem = f"{failed} episode(s) ended on an infrastructure failure[/] (see {listed}); --resume plays them again"
     finish(out_console, wrote, problem if failed else None)
 

@@ -25,7 +25,6 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     )
     from ._episode_viewer import (
         CLASSIFICATION_FIELDS,
-        TERMINATION_LABELS,
         episode_labels,
         step_caption,
         step_classification,
@@ -196,7 +195,6 @@ __all__ = [
     "switch_summary",
     "table_columns_frame",
     "termination_label",
-    "TERMINATION_LABELS",
     "view_boxes",
     "view_picture",
     "ViewPicture",

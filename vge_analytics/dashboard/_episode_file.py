@@ -18,6 +18,7 @@ from ..store import (
     run_entry,
 )
 from ..synth import image_source
+from ._pictures import benchmark
 
 
 def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
@@ -30,7 +31,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     entry = run_entry(out, run_id)
     inputs = entry["inputs"]
     bench_root = bench_dir(out, run_id)
-    bench = replay.Benchmark.open(bench_root)
+    bench = benchmark(bench_root)
     run_dir = resolve_input(out, inputs["run_dir"])
     header = replay.read_run_header(run_dir)
     log = _find_episode_log(replay.episodes_file(run_dir), episode_id)

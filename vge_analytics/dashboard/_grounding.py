@@ -8,6 +8,8 @@ from pathlib import Path
 
 import polars as pl
 
+from replay.io import STEPS_TABLE
+
 from ..store import (
     Filters,
     build_scope,
@@ -22,8 +24,8 @@ def interaction_views(out: str | Path, where: Filters = None) -> pl.DataFrame:
     """(device_id, category, view, interactions) for every device view clicked in, most
     clicked first: what the grounding scatter can show."""
     store = open_store(out)
-    check_columns(store, list(where or {}), ["steps"], "filter")
-    scope = build_scope(store, "steps", [], where)
+    check_columns(store, list(where or {}), [STEPS_TABLE], "filter")
+    scope = build_scope(store, STEPS_TABLE, [], where)
     sql = (
         "SELECT g.device_id, g.category, g.view_before AS view, count(*) AS interactions "
         f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.is_interaction "
@@ -54,8 +56,8 @@ def click_points(
     """Interactions on one device view: run_id, model, episode_id, step, x, y, outcome
     (`target hit`, `other component`, `miss`), error_type, distance, nearest_target."""
     store = open_store(out)
-    check_columns(store, list(where or {}), ["steps"], "filter")
-    scope = build_scope(store, "steps", [], where)
+    check_columns(store, list(where or {}), [STEPS_TABLE], "filter")
+    scope = build_scope(store, STEPS_TABLE, [], where)
     sql = (
         "SELECT g.run_id, g.model, g.episode_id, g.step, g.x, g.y, "
         "CASE WHEN g.hit_target THEN 'target hit' WHEN g.hit_component THEN 'other component' "

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import replay
+from replay.io import EPISODES_TABLE, MANIFEST, RUNS_TABLE, TABLES, manifest_path
 
 from .. import store
 from .._errors import OutputDirError
@@ -44,9 +45,9 @@ def check_out(out: str | Path) -> Path:
             else f"run `vge demo`, or `vge replay RUN... --bench BENCH --out {shown}`, first"
         )
         raise OutputDirError(f"No replay output at {shown}: {hint}")
-    missing = [t for t in ("steps", "episodes", "goals", "runs") if not (path / t).is_dir()]
-    if missing or not (path / "manifest.json").is_file():
-        what = ", ".join(f"{m}/" for m in missing) or "manifest.json"
+    missing = [t for t in TABLES if not (path / t).is_dir()]
+    if missing or not manifest_path(path).is_file():
+        what = ", ".join(f"{m}/" for m in missing) or MANIFEST
         raise OutputDirError(
             f"{shown} is not a replay output directory (no {what}): run `vge replay RUN... "
             f"--bench BENCH --out {shown}` first"
@@ -60,7 +61,7 @@ def out_version(out: str | Path) -> str:
     A replay rewrites the manifest (input hashes, counts, engine version), so any change of
     the tables changes this value.
     """
-    path = Path(out) / "manifest.json"
+    path = manifest_path(Path(out))
     try:
         data = path.read_bytes()
     except OSError:
@@ -100,7 +101,7 @@ def out_summary(out: str | Path) -> OutSummary:
 def column_values(out: str | Path, table: str, column: str) -> list:
     """Distinct non-null values of a scalar column of runs/episodes, sorted."""
     opened = store.open_store(out)
-    if table not in ("runs", "episodes"):
+    if table not in (RUNS_TABLE, EPISODES_TABLE):
         raise OutputDirError(f"no value list for table {table!r}")
     store.check_columns(opened, [column], [table], "filter")
     col = store.quote_ident(column)

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import replay
+from replay.io import STEPS_TABLE
 
 from .. import store
 from .._errors import OutputDirError, UnknownRunError
@@ -236,7 +237,7 @@ def open_source(
         chosen = [r for r in chosen if contents[r["run_id"]]]
         run_ids = [r["run_id"] for r in chosen]
     metrics = _metrics(out, run_ids, episodes, metrics_dir)
-    columns = store.table_columns(out)["steps"]
+    columns = store.table_columns(out)[STEPS_TABLE]
     return Source(
         out=shown,
         runs=[

@@ -145,7 +145,7 @@ def cut_episode(
         if whole.advance(step)[_ERROR_TYPE] is not None and first_error is None:
             first_error = k
     terminated = whole.done  # by the rules, before the log ran out
-    success = whole.termination == "success"
+    success = whole.termination == replay.semantics.SUCCESS
     n = len(log.steps)
     if at == FIRST_ERROR:
         prefix = first_error

@@ -28,6 +28,7 @@ from pathlib import Path
 import msgspec
 
 import replay
+from replay.io import run_json_path
 
 from .._errors import RequestRefusedError, RunDirError, RunStoppedError
 from ._agents import LiveAgent
@@ -215,7 +216,7 @@ def _continuing(options: RunOptions) -> tuple[RunOptions, Source]:
     if options.lam is not None and options.lam != lam:
         raise RunDirError(
             f"--lambda {options.lam:g}: a continuation plays under its source's lambda "
-            f"({lam:g}, {where / 'run.json'})"
+            f"({lam:g}, {run_json_path(where)})"
         )
     asked = msgspec.structs.replace(asked, source=where, from_run=run.header.run_id)
     options = msgspec.structs.replace(options, lam=lam, continuation=asked)

@@ -90,7 +90,7 @@ class Counters:
     def add(self, log: replay.EpisodeLog, success: bool) -> None:
         self.finished += 1
         self.succeeded += success
-        self.context_exceeded += log.ended == "context_exceeded"
+        self.context_exceeded += log.ended == replay.semantics.CONTEXT_EXCEEDED
         self.steps += len(log.steps)
         for s in log.steps:
             if s.prompt_tokens is not None or s.completion_tokens is not None:

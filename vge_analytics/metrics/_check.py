@@ -34,6 +34,7 @@ import duckdb
 import pyarrow as pa
 
 import replay
+from replay.io import TABLE_ROWS
 
 from ..store import NUMERIC_TYPES, locked_connection, register_all
 from ._file import Metric, Problem
@@ -55,8 +56,8 @@ def _schema_connection() -> duckdb.DuckDBPyConnection:
     """A cursor on a locked DuckDB (made once) with empty `steps`, `episodes`, `goals`."""
     with _lock:
         if not _connection:
-            for table in replay.TABLE_ROWS:  # steps, episodes, goals
-                _EMPTY[table] = replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
+            for table, row_type in TABLE_ROWS.items():  # steps, episodes, goals
+                _EMPTY[table] = replay.arrow_schema(row_type).empty_table()
             # Binding needs no worker threads; serializing the parse tree of a long
             # expression (a list of 100,000 constants) takes tens of MB. The depth limit is
             # given at start: so set, it holds for every cursor (SET would hold for one).

@@ -12,6 +12,8 @@ from collections.abc import Sequence
 
 import polars as pl
 
+from replay.io import EPISODES_TABLE, GOALS_TABLE, RUNS_TABLE, STEPS_TABLE
+
 from .._errors import UnknownColumnError
 from ..store import (
     Filters,
@@ -33,9 +35,9 @@ def _check_grains(
 ) -> None:
     """A steps- or goals-only column can group only the metrics computed from that table."""
     for col in columns:
-        if store.has_column("episodes", col) or store.has_column("runs", col):
+        if store.has_column(EPISODES_TABLE, col) or store.has_column(RUNS_TABLE, col):
             continue
-        tables = [t for t in ("steps", "goals") if store.has_column(t, col)]
+        tables = [t for t in (STEPS_TABLE, GOALS_TABLE) if store.has_column(t, col)]
         if not tables:
             continue  # unknown everywhere: the store's column check says so
         blocked = [m.name for m in metrics if m.grain not in tables]

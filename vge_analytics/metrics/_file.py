@@ -39,6 +39,8 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
+from replay.io import GRAINS
+
 Direction = Literal["higher", "lower"]
 Unit = Literal["percent", "ratio", "distance"]
 Level = Literal["episode-mean", "step-ratio", "run-level ratio", "goal-ratio"]
@@ -47,7 +49,6 @@ Grain = Literal["episodes", "steps", "goals"]
 DIRECTIONS: tuple[str, ...] = ("higher", "lower")
 UNITS: tuple[str, ...] = ("percent", "ratio", "distance")
 LEVELS: tuple[str, ...] = ("episode-mean", "step-ratio", "run-level ratio", "goal-ratio")
-GRAINS: tuple[str, ...] = ("episodes", "steps", "goals")
 SECTIONS: tuple[str, ...] = ("numerator", "denominator")
 
 REQUIRED_KEYS: tuple[str, ...] = (

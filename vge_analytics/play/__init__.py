@@ -60,6 +60,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         click_hint,
         goal_text,
         history,
+        result_headline,
         result_text,
     )
     from ._run import (
@@ -98,6 +99,7 @@ __all__ = [
     "goal_text",
     "history",
     "parse_params",
+    "result_headline",
     "result_text",
     "scale_coordinate",
 ]

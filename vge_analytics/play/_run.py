@@ -22,6 +22,7 @@ import replay
 from replay.env import DeviceEnv
 from replay.io import (
     EPISODES,
+    EPISODES_GZ,
     RUN_JSON,
     RunDirectory,
     append_record,
@@ -161,9 +162,9 @@ class HumanRun:
                         f"{header_path} has {key} {have[key]!r}, not {value!r}: a run keeps "
                         "the settings it was created with (give another --out)"
                     )
-            if (root / f"{EPISODES}.gz").exists():
+            if (root / EPISODES_GZ).exists():
                 raise PlayError(
-                    f"{root} holds {EPISODES}.gz: `vge play` appends to a plain "
+                    f"{root} holds {EPISODES_GZ}: `vge play` appends to a plain "
                     f"{EPISODES} (give another --out)"
                 )
         else:

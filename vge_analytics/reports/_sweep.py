@@ -45,6 +45,11 @@ import polars as pl
 import pyarrow as pa
 
 import replay
+from replay.io import (
+    EPISODES_TABLE,
+    RUNS_TABLE,
+    manifest_path,
+)
 
 from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
 from ..metrics import Metric, MetricSet, MetricsSource, metric_set
@@ -149,7 +154,7 @@ def _check_unchanged(out: Path | replay.Location, entry, run_id: str) -> None:
 def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> list[_RunJob]:
     manifest = replay.read_manifest(store.out)
     if manifest is None:
-        raise SweepInputError(f"{store.out}/manifest.json: not found; the sweep needs it")
+        raise SweepInputError(f"{manifest_path(store.out)}: not found; the sweep needs it")
     entries = {e.run_id: e for e in manifest.runs}
     known = store.run_ids()
     wanted = list(run_ids) if run_ids else known
@@ -157,7 +162,7 @@ def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> 
         if run not in known:
             raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
         if run not in entries:
-            raise SweepInputError(f"run {run}: not in {store.out}/manifest.json")
+            raise SweepInputError(f"run {run}: not in {manifest_path(store.out)}")
     eps = run_query(
         store,
         "SELECT run_id, episode_id FROM episodes WHERE run_id IN "
@@ -223,7 +228,7 @@ def _metrics_of(
     named in messages by OUT."""
     runs = episodes.select(["run_id", "model", "agent_kind", "lambda"])
     runs = runs.group_by(runs.column_names).aggregate([])  # a run at each lambda, once
-    tables = {"episodes": episodes, "runs": runs}
+    tables = {EPISODES_TABLE: episodes, RUNS_TABLE: runs}
     with contextlib.closing(memory_store(tables, label=store.out, limits=store.limits)) as held:
         return computed_metrics(held, by=SWEEP_BY, metrics=[m.name for m in chosen], metrics_dir=available)
 
@@ -253,9 +258,9 @@ def sweep(
     lams = parse_lambdas(lambdas)
     available = metric_set(metrics_dir)
     chosen = available.resolve(list(metrics) if metrics else list(DEFAULT_SWEEP_METRICS))
-    not_episode = [m.name for m in chosen if m.grain != "episodes"]
+    not_episode = [m.name for m in chosen if m.grain != EPISODES_TABLE]
     if not_episode:
-        usable = ", ".join(m.name for m in available if m.grain == "episodes")
+        usable = ", ".join(m.name for m in available if m.grain == EPISODES_TABLE)
         raise ConfigError(
             f"the sweep computes metrics from episode rows only; {', '.join(not_episode)} "
             f"need steps or goals (episode metrics: {usable})"

@@ -31,9 +31,10 @@ import duckdb
 import pyarrow as pa
 
 import replay
+from replay.io import MANIFEST, PARTITIONED, RUNS_TABLE, TABLES, manifest_path
 
 from .._errors import OutputDirError, UnknownRunError
-from ._datasets import PARTITIONED, TABLES, empty_table, table_sources
+from ._datasets import empty_table, table_sources
 from ._limits import SqlLimits
 from ._locked import locked_connection, register_all
 
@@ -58,14 +59,14 @@ _SCALAR_TYPES = ("BOOLEAN", *NUMERIC_TYPES, "VARCHAR", "DATE", "TIMESTAMP")
 def _signature(out: Path) -> tuple:
     """Cheap fingerprint of OUT: changes when a replay rewrites it."""
     parts = []
-    for name in ("manifest.json", "runs", *PARTITIONED):
+    for name in (MANIFEST, RUNS_TABLE, *PARTITIONED):
         p = out / name
         try:
             st = p.stat()
             parts.append((name, st.st_mtime_ns, st.st_size))
         except OSError:
             parts.append((name, None, None))
-        if p.is_dir() and name != "runs":
+        if p.is_dir() and name != RUNS_TABLE:
             with contextlib.suppress(OSError):
                 parts.append(tuple(sorted(c.name for c in p.iterdir())))
     return tuple(parts)
@@ -109,7 +110,7 @@ class Store:
     @property
     def meta_columns(self) -> list[str]:
         """Run facet columns (`meta_<key>`) of the runs table."""
-        return [c for c in self.columns["runs"] if c.startswith("meta_")]
+        return [c for c in self.columns[RUNS_TABLE] if c.startswith("meta_")]
 
     def run_ids(self) -> list[str]:
         rows = self.cursor().execute("SELECT DISTINCT run_id FROM runs ORDER BY run_id").fetchall()
@@ -159,7 +160,7 @@ def resolve_input(out: str | Path | replay.Location, recorded: str) -> Path | re
 
 def _read_manifest(out: Path | replay.Location) -> dict | None:
     """OUT's manifest; None when it has none."""
-    path = out / "manifest.json"
+    path = manifest_path(out)
     if not path.exists():
         return None
     try:
@@ -173,7 +174,7 @@ def _entry(runs: list, run_id: str, out: object) -> dict:
     for entry in runs:
         if entry.get("run_id") == run_id:
             return entry
-    raise UnknownRunError(f"run {run_id!r} is not in {out}/manifest.json")
+    raise UnknownRunError(f"run {run_id!r} is not in {out}/{MANIFEST}")
 
 
 def run_entry(out: str | Path | replay.Location, run_id: str) -> dict:
@@ -190,7 +191,7 @@ def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Locat
     bench = resolve_input(out, entry["inputs"]["bench"])
     if not bench.is_dir():
         raise OutputDirError(
-            f"benchmark {entry['inputs']['bench']} (recorded in {out}/manifest.json) not found: "
+            f"benchmark {entry['inputs']['bench']} (recorded in {out}/{MANIFEST}) not found: "
             "start the app from the directory `vge replay` ran in"
         )
     return bench
@@ -253,10 +254,10 @@ def _open(out: Path, limits: SqlLimits) -> Store:
 
 def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:
     try:
-        data = (out / "manifest.json").read_bytes()
+        data = manifest_path(out).read_bytes()
     except FileNotFoundError:
         raise OutputDirError(
-            f"{out}: not a replay output (no manifest.json); run `vge replay ... --out {out}` first"
+            f"{out}: not a replay output (no {MANIFEST}); run `vge replay ... --out {out}` first"
         ) from None
     except OSError as exc:
         raise OutputDirError(f"{out}: cannot read it ({exc})") from None
@@ -285,7 +286,7 @@ def _remote_signature(out: replay.Location) -> tuple:
     """Fingerprint of a remote OUT: its manifest, which the replay writes last, after every
     table file (the commit marker of object storage, docs/SCALE.md)."""
     try:
-        return ("manifest", (out / "manifest.json").read_bytes())
+        return ("manifest", manifest_path(out).read_bytes())
     except OSError:
         return ("manifest", None)
 
@@ -340,9 +341,7 @@ def table_columns(out: str | Path | Store) -> Mapping[str, list[str]]:
 
 __all__ = [
     "NUMERIC_TYPES",
-    "PARTITIONED",
     "resolve_input",
-    "TABLES",
     "Store",
     "clear_cache",
     "memory_store",

@@ -5,7 +5,17 @@ simulated agents (docs/SYNTHETIC.md).
 """
 
 from ._agent import Agent, AgentStep
-from ._build import SCALES, Scale, Summary, SynthError, generate, plan_devices
+from ._build import (
+    BENCH_DIR,
+    RUNS_DIR,
+    SCALES,
+    SUMMARY,
+    Scale,
+    Summary,
+    SynthError,
+    generate,
+    plan_devices,
+)
 from ._catalog import (
     PAPER_DEVICE_COUNTS,
     Catalog,
@@ -31,6 +41,9 @@ from ._tasks import TaskRecord, sample_tasks
 from ._views import cache_dir, image_source, synthetic_view, view_image
 
 __all__ = [
+    "BENCH_DIR",
+    "RUNS_DIR",
+    "SUMMARY",
     "PAPER_DEVICE_COUNTS",
     "PROFILES",
     "SCALES",

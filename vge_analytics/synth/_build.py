@@ -31,9 +31,9 @@ from pathlib import Path
 import msgspec
 
 import replay
-from replay.io import RunDirectory
+from replay.io import SSM_DIR, SSM_SUFFIX, UCSM_DIR, RunDirectory, ssm_path, tasks_path
 
-from ._catalog import PAPER_DEVICE_COUNTS, UCSM_DIR, available_categories, load_catalog
+from ._catalog import PAPER_DEVICE_COUNTS, UCSM_TEMPLATES, available_categories, load_catalog
 from ._instantiate import dashboard_probability, dump_ssm, instantiate_device
 from ._rng import rng_for
 from ._runs import LAMBDA, RunSpec, agent_rng, episode_line, in_run, run_specs
@@ -161,7 +161,7 @@ def build_device(job: DeviceJob, ctx: _Context) -> DeviceResult:
     text = dump_ssm(device.ssm)
     ssm = msgspec.json.decode(text.encode("utf-8"), type=replay.StateMachine)
     machine = replay.compile_machine(
-        ssm, device_id=job.device_id, source=f"ssm/{job.device_id}.json"
+        ssm, device_id=job.device_id, source=f"{SSM_DIR}/{job.device_id}{SSM_SUFFIX}"
     )
     tasks = sample_tasks(
         machine, job.category, job.n_single, job.n_multi, rng_for(ctx.seed, "tasks", job.device_id)
@@ -260,21 +260,22 @@ def generate(
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".synth-", dir=out))
     try:
-        bench = tmp / "bench"
-        (bench / "ssm").mkdir(parents=True)
-        (bench / "ucsm").mkdir()
+        bench = tmp / BENCH_DIR
+        (bench / SSM_DIR).mkdir(parents=True)
+        (bench / UCSM_DIR).mkdir()
         for cat in categories:
-            shutil.copyfile(UCSM_DIR / f"{cat}.json", bench / "ucsm" / f"{cat}.json")
+            name = f"{cat}{SSM_SUFFIX}"
+            shutil.copyfile(UCSM_TEMPLATES / name, bench / UCSM_DIR / name)
         stats: dict[str, int] = {}
         with contextlib.ExitStack() as stack:
             writers = {}
             for spec in runs:
-                run_dir = RunDirectory(tmp / "runs" / spec.run_id)
+                run_dir = RunDirectory(tmp / RUNS_DIR / spec.run_id)
                 writers[spec.run_id] = stack.enter_context(run_dir.stream(compress=True))
                 run_dir.write_header(spec.header(seed, scale))
-            tasks_fh = stack.enter_context(open(bench / "tasks.jsonl", "wb"))
+            tasks_fh = stack.enter_context(open(tasks_path(bench), "wb"))
             for k, res in enumerate(_results(jobs, ctx, workers), start=1):
-                (bench / "ssm" / f"{res.device_id}.json").write_text(res.ssm_text, encoding="utf-8")
+                ssm_path(bench, res.device_id).write_text(res.ssm_text, encoding="utf-8")
                 tasks_fh.writelines(res.task_lines)
                 for run_id, lines in res.run_lines.items():
                     writers[run_id].writelines(lines)
@@ -284,7 +285,7 @@ def generate(
                 if progress is not None:
                     progress(k, len(jobs))
         summary.statistics = stats
-        (tmp / "synth.json").write_text(
+        (tmp / SUMMARY).write_text(
             json.dumps(summary.to_json(), indent=2, sort_keys=False) + "\n", encoding="utf-8"
         )
         if images:
@@ -298,7 +299,13 @@ def generate(
     return summary
 
 
-_OURS = ("bench", "runs", "synth.json")
+BENCH_DIR = "bench"
+"""`OUT/bench`: the benchmark (PROTOCOL §1.1)."""
+RUNS_DIR = "runs"
+"""`OUT/runs/<run_id>`: one run directory per simulated run (PROTOCOL §1.4)."""
+SUMMARY = "synth.json"
+"""`OUT/synth.json`: what was generated."""
+_OURS = (BENCH_DIR, RUNS_DIR, SUMMARY)
 
 
 def _check_target(out: Path) -> None:
@@ -306,10 +313,10 @@ def _check_target(out: Path) -> None:
         return
     if not out.is_dir():
         raise SynthError(f"{out}: not a directory")
-    present = [name for name in ("bench", "runs") if (out / name).exists()]
-    if present and not (out / "synth.json").exists():
+    present = [name for name in (BENCH_DIR, RUNS_DIR) if (out / name).exists()]
+    if present and not (out / SUMMARY).exists():
         raise SynthError(
-            f"{out}: holds {', '.join(present)} not written by `vge synth` (no synth.json); "
+            f"{out}: holds {', '.join(present)} not written by `vge synth` (no {SUMMARY}); "
             "choose another --out"
         )
 

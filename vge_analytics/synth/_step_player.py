@@ -7,6 +7,7 @@ from __future__ import annotations
 import random
 
 import replay
+from replay.semantics import LEFT, RIGHT, SWITCH_VIEW, TOP
 
 from ._agent import Agent, AgentStep, Decision
 from ._catalog import Catalog
@@ -96,7 +97,7 @@ def _format(
         return None, record, parsed
     if rng.random() < profile.slip:
         kind = rng.choice(SLIP_KINDS)
-        alternative = replay.Action("switch_view", None, (rng.choice(("left", "right", "top")),))
+        alternative = replay.Action(SWITCH_VIEW, None, (rng.choice((LEFT, RIGHT, TOP)),))
         text = slip_text(kind, decision.thinking, action, alternative)
     else:
         text = f"Thinking: {decision.thinking}\n{action_text(action, rng, profile.decorated)}"

@@ -14,6 +14,7 @@ import random
 from dataclasses import dataclass
 
 import replay
+from replay.semantics import BACK, FRONT, FRONT_TOP, LEFT, RIGHT, TOP
 
 from ._catalog import Catalog, load_catalog
 
@@ -22,7 +23,7 @@ _DISTANCE_WEIGHT = {1: 1.0, 2: 0.45, 3: 0.15}
 _GOAL_COUNTS = ((2, 0.58), (3, 0.3), (4, 0.12))
 _CONNECTIVES = ("Then", "Next,", "Now", "After that,", "Once that's done,", "When that's done,")
 _LAST_CONNECTIVES = ("Finally,", "Lastly,", "To finish,")
-_OTHER_START_VIEWS = ("back", "left", "right", "top")
+_OTHER_START_VIEWS = (BACK, LEFT, RIGHT, TOP)
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,10 +124,10 @@ def sample_goals(
 def _initial_view(rng: random.Random) -> str:
     x = rng.random()
     if x < 0.78:
-        return "front"
+        return FRONT
     if x < 0.9:
         return rng.choice(_OTHER_START_VIEWS)
-    return "front_top"
+    return FRONT_TOP
 
 
 def _lower_first(text: str) -> str:
