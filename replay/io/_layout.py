@@ -6,10 +6,12 @@ and on a `Location` (a path or an object-store URI) alike."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-from ..semantics._rows import EpisodeRow, GoalRow, StepRow
-from ._fs import Location
+from ..semantics import EpisodeRow, GoalRow, StepRow
+
+if TYPE_CHECKING:  # a type only: the layout imports no I/O (short import chains)
+    from ._fs import Location
 
 # ------------------------------------------------------------------ benchmark (§1.1)
 
@@ -60,7 +62,7 @@ MCAP_DIR = "mcap"
 QUARANTINE = "quarantine.jsonl"
 MANIFEST = "manifest.json"
 
-_P = TypeVar("_P", Path, Location)
+_P = TypeVar("_P", Path, "Location")
 
 
 def ssm_path(bench: _P, device_id: str) -> _P:

@@ -15,8 +15,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Protocol
 
+from replay.io import GRAINS
+
 from ._scope import (
-    GRAINS,
     Filters,
     check_columns,
     grouped_aggregate,
