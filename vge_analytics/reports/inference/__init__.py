@@ -1,0 +1,100 @@
+"""Uncertainty that respects the benchmark's structure (docs/STATISTICS.md): clusters of
+episodes and the cluster bootstrap, clustered standard errors and design effects, tests of a
+paired difference and their corrections, all pairs of runs with their tied groups, power,
+and repeated runs (pass@k, pass^k)."""
+
+from ._clusters import (
+    CLUSTER_UNITS,
+    DEFAULT_CLUSTER,
+    bootstrap_totals,
+    cluster_codes,
+    cluster_sums,
+    cr1_variance,
+    linearized,
+    paired_difference,
+    percentile_interval,
+    pooled,
+)
+from ._letters import (
+    MAX_LETTERS,
+    TooManyGroupsError,
+    compact_letters,
+    letters_of,
+    tied_groups,
+)
+from ._paired import (
+    CLUSTER_COLUMNS,
+    Paired,
+    PairStatistics,
+    check_cluster,
+    check_resampling,
+    entity_terms,
+    finite,
+    pair,
+    pair_statistics,
+)
+from ._passk import (
+    pass_at_k,
+    pass_hat_k,
+)
+from ._power import (
+    anova_icc,
+    clusters_needed,
+    design_effect,
+    effective_size,
+    minimal_detectable,
+    z_sum,
+)
+from ._significance import (
+    CORRECTIONS,
+    DEFAULT_CORRECTION,
+    EXACT_CLUSTERS,
+    adjust_p,
+    check_correction,
+    clustered_mcnemar,
+    sign_flip_p,
+    test_name,
+)
+
+__all__ = [
+    "adjust_p",
+    "anova_icc",
+    "bootstrap_totals",
+    "check_cluster",
+    "check_correction",
+    "check_resampling",
+    "CLUSTER_COLUMNS",
+    "cluster_codes",
+    "cluster_sums",
+    "CLUSTER_UNITS",
+    "clustered_mcnemar",
+    "clusters_needed",
+    "compact_letters",
+    "CORRECTIONS",
+    "cr1_variance",
+    "DEFAULT_CLUSTER",
+    "DEFAULT_CORRECTION",
+    "design_effect",
+    "effective_size",
+    "entity_terms",
+    "EXACT_CLUSTERS",
+    "finite",
+    "letters_of",
+    "linearized",
+    "MAX_LETTERS",
+    "minimal_detectable",
+    "pair",
+    "pair_statistics",
+    "Paired",
+    "paired_difference",
+    "PairStatistics",
+    "pass_at_k",
+    "pass_hat_k",
+    "percentile_interval",
+    "pooled",
+    "sign_flip_p",
+    "test_name",
+    "tied_groups",
+    "TooManyGroupsError",
+    "z_sum",
+]
