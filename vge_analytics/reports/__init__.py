@@ -57,9 +57,27 @@ from ._taxonomy import (
     groups_of,
     switch_classes,
 )
+from .inference import (
+    CLUSTER_UNITS,
+    CORRECTIONS,
+    DEFAULT_ALPHA,
+    DEFAULT_CLUSTER,
+    DEFAULT_CORRECTION,
+    AllPairs,
+    adjust_p,
+    compare_all,
+)
 
 __all__ = [
+    "adjust_p",
+    "AllPairs",
     "check_format",
+    "CLUSTER_UNITS",
+    "compare_all",
+    "CORRECTIONS",
+    "DEFAULT_ALPHA",
+    "DEFAULT_CLUSTER",
+    "DEFAULT_CORRECTION",
     "compare",
     "Comparison",
     "competition_ranks",

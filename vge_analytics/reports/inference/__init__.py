@@ -3,6 +3,12 @@ episodes and the cluster bootstrap, clustered standard errors and design effects
 paired difference and their corrections, all pairs of runs with their tied groups, power,
 and repeated runs (pass@k, pass^k)."""
 
+from ._all_pairs import (
+    DEFAULT_ALPHA,
+    AllPairs,
+    compare_all,
+    entities_of,
+)
 from ._clusters import (
     CLUSTER_UNITS,
     DEFAULT_CLUSTER,
@@ -31,6 +37,7 @@ from ._paired import (
     entity_terms,
     finite,
     pair,
+    pair_frames,
     pair_statistics,
 )
 from ._passk import (
@@ -58,6 +65,10 @@ from ._significance import (
 
 __all__ = [
     "adjust_p",
+    "AllPairs",
+    "compare_all",
+    "DEFAULT_ALPHA",
+    "entities_of",
     "anova_icc",
     "bootstrap_totals",
     "check_cluster",
@@ -84,6 +95,7 @@ __all__ = [
     "MAX_LETTERS",
     "minimal_detectable",
     "pair",
+    "pair_frames",
     "pair_statistics",
     "Paired",
     "paired_difference",

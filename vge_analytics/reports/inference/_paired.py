@@ -106,10 +106,18 @@ class Paired:
 
 def pair(terms: pl.DataFrame, a: str, b: str, chosen: Sequence[Metric], cluster: str) -> Paired:
     """Entities `a` and `b` of an `entity_terms` frame, on the episodes both have."""
+    return pair_frames(
+        terms.filter(pl.col("entity") == a), terms.filter(pl.col("entity") == b), chosen, cluster
+    )
+
+
+def pair_frames(
+    left: pl.DataFrame, right: pl.DataFrame, chosen: Sequence[Metric], cluster: str
+) -> Paired:
+    """Two entities' rows of an `entity_terms` frame (A's, B's), on their common episodes."""
     cols = [f"{m.name}:{part}" for m in chosen for part in ("num", "den")]
-    left = terms.filter(pl.col("entity") == a).drop("entity")
-    right = terms.filter(pl.col("entity") == b).select("episode_id", *cols)
-    joined = left.join(right, on="episode_id", suffix="~b").sort("episode_id")
+    right = right.select("episode_id", *cols)
+    joined = left.drop("entity").join(right, on="episode_id", suffix="~b").sort("episode_id")
     order = [
         name
         for m in chosen
@@ -217,6 +225,7 @@ __all__ = [
     "entity_terms",
     "finite",
     "pair",
+    "pair_frames",
     "pair_statistics",
     "Paired",
     "PairStatistics",
