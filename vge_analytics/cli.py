@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "metrics",
     "errors",
     "compare",
+    "power",
     "diff",
     "rescore",
     "sweep",

@@ -63,9 +63,13 @@ from .inference import (
     DEFAULT_ALPHA,
     DEFAULT_CLUSTER,
     DEFAULT_CORRECTION,
+    DEFAULT_DELTA,
+    DEFAULT_POWER,
     AllPairs,
     adjust_p,
     compare_all,
+    plan,
+    power_of_pair,
 )
 
 __all__ = [
@@ -78,6 +82,8 @@ __all__ = [
     "DEFAULT_ALPHA",
     "DEFAULT_CLUSTER",
     "DEFAULT_CORRECTION",
+    "DEFAULT_DELTA",
+    "DEFAULT_POWER",
     "compare",
     "Comparison",
     "competition_ranks",
@@ -105,6 +111,8 @@ __all__ = [
     "mcnemar_exact",
     "NO_ERROR",
     "parse_lambdas",
+    "plan",
+    "power_of_pair",
     "render",
     "render_latex",
     "render_markdown",

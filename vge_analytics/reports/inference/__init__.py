@@ -44,6 +44,13 @@ from ._passk import (
     pass_at_k,
     pass_hat_k,
 )
+from ._planning import (
+    DEFAULT_DELTA,
+    DEFAULT_POWER,
+    measured_icc,
+    plan,
+    power_of_pair,
+)
 from ._power import (
     anova_icc,
     clusters_needed,
@@ -85,6 +92,8 @@ __all__ = [
     "cr1_variance",
     "DEFAULT_CLUSTER",
     "DEFAULT_CORRECTION",
+    "DEFAULT_DELTA",
+    "DEFAULT_POWER",
     "design_effect",
     "effective_size",
     "entity_terms",
@@ -93,6 +102,7 @@ __all__ = [
     "letters_of",
     "linearized",
     "MAX_LETTERS",
+    "measured_icc",
     "minimal_detectable",
     "pair",
     "pair_frames",
@@ -103,7 +113,9 @@ __all__ = [
     "pass_at_k",
     "pass_hat_k",
     "percentile_interval",
+    "plan",
     "pooled",
+    "power_of_pair",
     "sign_flip_p",
     "test_name",
     "tied_groups",
