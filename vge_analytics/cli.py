@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "errors",
     "compare",
     "power",
+    "passk",
     "diff",
     "rescore",
     "sweep",

@@ -66,10 +66,12 @@ from .inference import (
     DEFAULT_DELTA,
     DEFAULT_POWER,
     AllPairs,
+    Repeated,
     adjust_p,
     compare_all,
     plan,
     power_of_pair,
+    repeated,
 )
 
 __all__ = [
@@ -114,6 +116,8 @@ __all__ = [
     "plan",
     "power_of_pair",
     "render",
+    "Repeated",
+    "repeated",
     "render_latex",
     "render_markdown",
     "render_sections",

@@ -14,6 +14,7 @@ from ._clusters import (
     DEFAULT_CLUSTER,
     bootstrap_totals,
     cluster_codes,
+    cluster_draws,
     cluster_sums,
     cr1_variance,
     linearized,
@@ -59,6 +60,13 @@ from ._power import (
     minimal_detectable,
     z_sum,
 )
+from ._repeated import (
+    RUN_TOTALS,
+    SEED_KEY,
+    Repeated,
+    repeated,
+    run_groups,
+)
 from ._significance import (
     CORRECTIONS,
     DEFAULT_CORRECTION,
@@ -83,6 +91,7 @@ __all__ = [
     "check_resampling",
     "CLUSTER_COLUMNS",
     "cluster_codes",
+    "cluster_draws",
     "cluster_sums",
     "CLUSTER_UNITS",
     "clustered_mcnemar",
@@ -115,6 +124,11 @@ __all__ = [
     "percentile_interval",
     "plan",
     "pooled",
+    "Repeated",
+    "repeated",
+    "run_groups",
+    "RUN_TOTALS",
+    "SEED_KEY",
     "power_of_pair",
     "sign_flip_p",
     "test_name",

@@ -56,7 +56,7 @@ def paired_difference(totals: np.ndarray, scales: Sequence[float]) -> np.ndarray
     return np.stack(parts, axis=-1)
 
 
-def _draws(n_clusters: int, resamples: int, seed: int) -> Iterator[np.ndarray]:
+def cluster_draws(n_clusters: int, resamples: int, seed: int) -> Iterator[np.ndarray]:
     """Multinomial cluster counts, CHUNK resamples at a time: resample r draws G clusters
     with replacement and row r counts how often each was drawn."""
     rng = np.random.default_rng(seed)
@@ -80,7 +80,7 @@ def bootstrap_totals(sums: Sequence[np.ndarray], seed: int, resamples: int) -> l
     for size, members in sorted(by_size.items()):
         totals = {i: np.empty((resamples, sums[i].shape[1])) for i in members}
         done = 0
-        for counts in _draws(size, resamples, seed):
+        for counts in cluster_draws(size, resamples, seed):
             for i in members:  # one product per matrix: its result never depends on the others
                 totals[i][done : done + len(counts)] = counts @ sums[i]
             done += len(counts)
@@ -138,6 +138,7 @@ __all__ = [
     "bootstrap_totals",
     "CLUSTER_UNITS",
     "cluster_codes",
+    "cluster_draws",
     "cluster_sums",
     "cr1_variance",
     "DEFAULT_CLUSTER",
