@@ -34,6 +34,7 @@ PAGES: dict[str, str] = {
     "grounding": "views/grounding.py",
     "budgets": "views/budgets.py",
     "human_vs_vlm": "views/human_vs_vlm.py",
+    "significance": "views/significance.py",
     "side_by_side": "views/side_by_side.py",
     "rescore": "views/rescore.py",
     "episode_viewer": "views/episode_viewer.py",

@@ -39,6 +39,7 @@ def run() -> None:
             st.Page(
                 "views/human_vs_vlm.py", title="Human vs VLM", icon=":material/compare_arrows:"
             ),
+            st.Page("views/significance.py", title="Significance", icon=":material/rule:"),
             st.Page("views/side_by_side.py", title="Side by side", icon=":material/splitscreen:"),
             st.Page("views/rescore.py", title="Rescore", icon=":material/swap_vert:"),
             st.Page("views/episode_viewer.py", title="Episode viewer", icon=":material/movie:"),

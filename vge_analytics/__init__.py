@@ -24,8 +24,15 @@ Error taxonomy and navigation (PROTOCOL §5):
     error_distribution(out, by, where), error_groups(out, by, where),
     switch_classes(out, by, where)
 
-Comparisons and budgets:
-    compare(out, run_a, run_b, seed=0, resamples=2000) -> Comparison
+Comparisons and budgets (the statistics: docs/STATISTICS.md):
+    compare(out, run_a, run_b, seed=0, resamples=2000, cluster="device", correction="holm")
+                                                     -> Comparison (clustered intervals, SEs,
+                                                     design effects, corrected p-values)
+    compare_all(out, runs=None, by="run_id", metric="SR") -> AllPairs (every pair, the
+                                                     ranking and its tied groups)
+    metric_intervals(out, metric="SR", by=("run_id",)) per group: the clustered interval
+    power_of_pair(out, run_a, run_b, delta=5), plan(out, rate=0.5, delta=5, icc=None)
+    repeated(out, runs=None, group_by=None) -> Repeated (pass@k, pass^k of seeds)
     sweep(out, lambdas=(2, 3, 4, 5), runs=None, metrics=("SR", "SSR"))
 
 Trajectories side by side (`vge diff`):
@@ -77,11 +84,14 @@ from .reports import (
     ERROR_TYPES,
     FORMATS,
     SWITCH_CLASSES,
+    AllPairs,
     Comparison,
     Diff,
+    Repeated,
     Rescore,
     RunCompleteness,
     compare,
+    compare_all,
     competition_ranks,
     completeness,
     diff,
@@ -90,10 +100,14 @@ from .reports import (
     incomplete_runs,
     kendall_tau_b,
     mcnemar_exact,
+    metric_intervals,
     parse_lambdas,
+    plan,
+    power_of_pair,
     render,
     render_latex,
     render_markdown,
+    repeated,
     rescore,
     sweep,
     switch_classes,
@@ -127,6 +141,7 @@ __all__ = [
     "METRIC_NAMES",
     "METRICS_DIR_ENV",
     "SWITCH_CLASSES",
+    "AllPairs",
     "Comparison",
     "Metric",
     "MetricSet",
@@ -134,6 +149,7 @@ __all__ = [
     "RunCompleteness",
     "clear_cache",
     "compare",
+    "compare_all",
     "competition_ranks",
     "completeness",
     "Diff",
@@ -151,6 +167,9 @@ __all__ = [
     "kendall_tau_b",
     "load_metrics",
     "mcnemar_exact",
+    "metric_intervals",
+    "plan",
+    "power_of_pair",
     "metric_table",
     "metrics",
     "open_store",
@@ -161,6 +180,8 @@ __all__ = [
     "render",
     "render_latex",
     "render_markdown",
+    "repeated",
+    "Repeated",
     "rescore",
     "runs",
     "sql",

@@ -48,6 +48,18 @@ st.dataframe(
 )
 st.download_button("Download CSV", table.write_csv(), file_name="leaderboard.csv", mime="text/csv")
 
+st.subheader("Intervals")
+c1, c2 = st.columns([2, 6])
+interval_metric = c1.selectbox("Metric", names, key="leaderboard_interval_metric")
+intervals = ui.or_stop(data.metric_intervals, metric=interval_metric, by=list(by), where=where)
+c2.caption(
+    f"{interval_metric} per group with its 95% interval from resampling devices (all of a "
+    "drawn device's episodes: a device hard for one run is hard for its other episodes too), "
+    "the clustered standard error and the design effect (its variance over the one of "
+    "independent episodes)."
+)
+ui.number_table(dash.interval_rows(intervals, by, interval_metric), key="leaderboard_intervals")
+
 st.subheader("Per metric")
 long = dash.metrics_long(table, names, data.metric_set())
 st.altair_chart(charts.metric_bars(long, names, table["group"].to_list()))

@@ -21,6 +21,11 @@ from ._clusters import (
     paired_difference,
     percentile_interval,
     pooled,
+    ratio_contributions,
+)
+from ._intervals import (
+    INTERVAL_COLUMNS,
+    metric_intervals,
 )
 from ._letters import (
     MAX_LETTERS,
@@ -108,9 +113,11 @@ __all__ = [
     "entity_terms",
     "EXACT_CLUSTERS",
     "finite",
+    "INTERVAL_COLUMNS",
     "letters_of",
     "linearized",
     "MAX_LETTERS",
+    "metric_intervals",
     "measured_icc",
     "minimal_detectable",
     "pair",
@@ -130,6 +137,7 @@ __all__ = [
     "RUN_TOTALS",
     "SEED_KEY",
     "power_of_pair",
+    "ratio_contributions",
     "sign_flip_p",
     "test_name",
     "tied_groups",

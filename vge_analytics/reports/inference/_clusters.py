@@ -98,25 +98,27 @@ def percentile_interval(draws: np.ndarray) -> tuple[float | None, float | None]:
     return float(low), float(high)
 
 
+def ratio_contributions(num: np.ndarray, den: np.ndarray, scale: float) -> np.ndarray:
+    """Each row's contribution to a pooled ratio `scale * sum(num) / sum(den)`, linearised
+    (the delta method): `scale * (num_g - R den_g) / D` with `R = N / D` the totals' ratio.
+    Their sum is 0; their CR1 variance is the ratio's. NaN where the denominator is empty."""
+    total_den = float(den.sum())
+    if total_den <= 0:
+        return np.full(num.shape[0], np.nan)
+    ratio = float(num.sum()) / total_den
+    return scale * (num - ratio * den) / total_den
+
+
 def linearized(sums: np.ndarray, scales: Sequence[float]) -> np.ndarray:
-    """Each row's contribution to the paired difference, linearised (the delta method for
-    a ratio): for a metric with totals N/D per run, row g contributes
-    `scale * ((nB_g - R_B dB_g) / D_B - (nA_g - R_A dA_g) / D_A)` with `R = N / D`.
-    For SR (every denominator 1) it is `(d_g - mean(d)) / n` summed over the row's episodes,
-    d the per-episode difference. NaN columns where a run's metric is empty."""
-    totals = sums.sum(axis=0)
+    """Each row's contribution to the paired difference B - A of each metric, linearised:
+    `ratio_contributions` of B minus those of A. For SR (every denominator 1) it is
+    `(d_g - mean(d)) / n` summed over the row's episodes, d the per-episode difference."""
     cols = []
     for i, scale in enumerate(scales):
         j = 4 * i
-        parts = []
-        for num, den in ((j + B_NUM, j + B_DEN), (j + A_NUM, j + A_DEN)):
-            total_den = totals[den]
-            if total_den <= 0:
-                parts.append(np.full(sums.shape[0], np.nan))
-                continue
-            ratio = totals[num] / total_den
-            parts.append((sums[:, num] - ratio * sums[:, den]) / total_den)
-        cols.append(scale * (parts[0] - parts[1]))
+        b = ratio_contributions(sums[:, j + B_NUM], sums[:, j + B_DEN], scale)
+        a = ratio_contributions(sums[:, j + A_NUM], sums[:, j + A_DEN], scale)
+        cols.append(b - a)
     return np.column_stack(cols) if cols else np.empty((sums.shape[0], 0))
 
 
@@ -146,4 +148,5 @@ __all__ = [
     "paired_difference",
     "percentile_interval",
     "pooled",
+    "ratio_contributions",
 ]
