@@ -245,6 +245,31 @@ def _results(jobs: list[DeviceJob], ctx: _Context, workers: int) -> Iterator[Dev
         yield from pool.map(_build_star, [(job, ctx) for job in jobs], chunksize=2)
 
 
+def _chosen_runs(
+    sc: Scale, agent_seeds: int, device_spread: float, only_runs: Sequence[str] | None
+) -> tuple[tuple[RunSpec, ...], dict[str, object]]:
+    """(the runs to play, the options synth.json records: those not at their default)."""
+    if not math.isfinite(device_spread) or not 0.0 <= device_spread <= MAX_DEVICE_SPREAD:
+        raise SynthError(
+            f"--device-spread must be between 0 and {MAX_DEVICE_SPREAD:g}, not {device_spread:g}"
+        )
+    if agent_seeds > MAX_AGENT_SEEDS:
+        raise SynthError(f"--seeds must be at most {MAX_AGENT_SEEDS}, not {agent_seeds}")
+    specs = run_specs(human_fraction=sc.human_fraction, history_fraction=sc.history_fraction)
+    try:
+        runs = choose_runs(specs, only_runs, agent_seeds)
+    except ValueError as exc:
+        raise SynthError(str(exc)) from None
+    options: dict[str, object] = {}
+    if agent_seeds != 1:
+        options["agent_seeds"] = agent_seeds
+    if device_spread:
+        options["device_spread"] = float(device_spread)
+    if only_runs is not None:
+        options["only_runs"] = [s.run_id for s in runs if s.agent_seed == 0]
+    return runs, options
+
+
 def generate(
     out: Path,
     *,
@@ -268,34 +293,17 @@ def generate(
     The defaults give the output of earlier versions, byte for byte."""
     if scale not in SCALES:
         raise SynthError(f"unknown scale {scale!r} (choose from {', '.join(SCALES)})")
-    if not math.isfinite(device_spread) or not 0.0 <= device_spread <= MAX_DEVICE_SPREAD:
-        raise SynthError(
-            f"--device-spread must be between 0 and {MAX_DEVICE_SPREAD:g}, not {device_spread:g}"
-        )
-    if agent_seeds > MAX_AGENT_SEEDS:
-        raise SynthError(f"--seeds must be at most {MAX_AGENT_SEEDS}, not {agent_seeds}")
     sc = SCALES[scale]
     out = Path(out)
     _check_target(out)
     jobs = plan_devices(sc, seed)
     if not jobs:
         raise SynthError("no device categories available under vge_analytics/synth/data")
-    specs = run_specs(human_fraction=sc.human_fraction, history_fraction=sc.history_fraction)
-    try:
-        runs = choose_runs(specs, only_runs, agent_seeds)
-    except ValueError as exc:
-        raise SynthError(str(exc)) from None
+    runs, options = _chosen_runs(sc, agent_seeds, device_spread, only_runs)
     ctx = _Context(seed, dashboard_probability(), runs, float(device_spread))
     if workers is None:
         workers = os.cpu_count() or 1
     categories = sorted({j.category for j in jobs})
-    options: dict[str, object] = {}
-    if agent_seeds != 1:
-        options["agent_seeds"] = agent_seeds
-    if device_spread:
-        options["device_spread"] = float(device_spread)
-    if only_runs is not None:
-        options["only_runs"] = [s.run_id for s in runs if s.agent_seed == 0]
     summary = Summary(scale, seed, categories, options=options)
 
     out.mkdir(parents=True, exist_ok=True)
