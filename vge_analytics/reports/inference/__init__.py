@@ -45,6 +45,7 @@ from ._paired import (
     pair,
     pair_frames,
     pair_statistics,
+    runs_of,
 )
 from ._passk import (
     pass_at_k,
@@ -134,6 +135,7 @@ __all__ = [
     "Repeated",
     "repeated",
     "run_groups",
+    "runs_of",
     "RUN_TOTALS",
     "SEED_KEY",
     "power_of_pair",

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import polars as pl
 
-from ..._errors import AnalyticsError, UnknownColumnError, UnknownRunError
+from ..._errors import AnalyticsError
 from ...metrics import Metric, MetricsSource, metric_set
-from ...store import Store, open_store, runs
+from ...store import Store, open_store
 from .._ranking import competition_ranks
 from ._clusters import DEFAULT_CLUSTER, pooled
 from ._letters import TooManyGroupsError, letters_of
@@ -33,6 +33,7 @@ from ._paired import (
     finite,
     pair_frames,
     pair_statistics,
+    runs_of,
 )
 from ._significance import DEFAULT_CORRECTION, adjust_p, check_correction
 
@@ -102,20 +103,7 @@ class AllPairs:
 def entities_of(store: Store, chosen_runs: Sequence[str] | None, by: str) -> dict[str, list[str]]:
     """{entity: its runs}: each run alone (`by="run_id"`), else the runs sharing a value of
     the runs-table column `by` (a null value reads `∅`)."""
-    table = runs(store)
-    known = table["run_id"].to_list()
-    if chosen_runs is not None:
-        unknown = [r for r in chosen_runs if r not in known]
-        if unknown:
-            raise UnknownRunError(
-                f"unknown run {unknown[0]!r} in {store.out}; runs: {', '.join(known)}"
-            )
-        table = table.filter(pl.col("run_id").is_in(list(chosen_runs)))
-    if by not in table.columns or not store.is_scalar("runs", by):
-        raise UnknownColumnError(
-            f"--by {by!r} is not a column of the runs table; choose one of run_id, model, "
-            "agent_kind or a meta_ column"
-        )
+    table = runs_of(store, chosen_runs, [by], "--by")
     entities: dict[str, list[str]] = {}
     for run_id, value in zip(table["run_id"], table[by].cast(pl.String), strict=True):
         entities.setdefault("∅" if value is None else value, []).append(run_id)

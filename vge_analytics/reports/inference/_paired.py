@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from ..._errors import AnalyticsError
+from ..._errors import AnalyticsError, UnknownColumnError, UnknownRunError
 from ...metrics import Metric, MetricSet, episode_terms
-from ...store import Store, run_query
+from ...store import Store, run_query, runs
 from ._clusters import (
     A_DEN,
     A_NUM,
@@ -56,6 +56,31 @@ def check_resampling(seed: int, resamples: int) -> None:
         raise AnalyticsError(f"resamples must be at least 1, not {resamples}")
     if seed < 0:
         raise AnalyticsError(f"the seed must be 0 or more, not {seed}")
+
+
+def runs_of(
+    store: Store,
+    chosen: Sequence[str] | None = None,
+    columns: Sequence[str] = (),
+    option: str = "--by",
+) -> pl.DataFrame:
+    """The runs table (OUT's runs, or the `chosen` ones), after checking that each chosen run
+    is in OUT and each of `columns` is a scalar column of the runs table (named by `option`
+    in the error)."""
+    table = runs(store)
+    known = table["run_id"].to_list()
+    unknown = [r for r in chosen or () if r not in known]
+    if unknown:
+        raise UnknownRunError(
+            f"unknown run {unknown[0]!r} in {store.out}; runs: {', '.join(known)}"
+        )
+    for column in columns:
+        if column not in table.columns or not store.is_scalar("runs", column):
+            raise UnknownColumnError(
+                f"{option} {column!r} is not a column of the runs table (run_id, model, "
+                "agent_kind, lambda, meta_ columns)"
+            )
+    return table if chosen is None else table.filter(pl.col("run_id").is_in(list(chosen)))
 
 
 def entity_terms(
@@ -228,5 +253,6 @@ __all__ = [
     "pair_frames",
     "pair_statistics",
     "Paired",
+    "runs_of",
     "PairStatistics",
 ]

@@ -28,6 +28,7 @@ from ._paired import (
     finite,
     pair,
     pair_statistics,
+    runs_of,
 )
 from ._power import (
     anova_icc,
@@ -69,10 +70,7 @@ def power_of_pair(
     _check(delta, alpha, power)
     check_cluster(cluster)
     store = open_store(out)
-    known = store.run_ids()
-    for run in (run_a, run_b):
-        if run not in known:
-            raise AnalyticsError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
+    runs_of(store, [run_a, run_b])
     available = metric_set(metrics_dir)
     (chosen,) = available.resolve([metric])
     terms = entity_terms(store, {run_a: [run_a], run_b: [run_b]}, [chosen], available)

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from ..._errors import AnalyticsError, UnknownColumnError, UnknownRunError
-from ...store import Store, open_store, run_query, runs
+from ..._errors import AnalyticsError
+from ...store import Store, open_store, run_query
 from ._clusters import (
     DEFAULT_CLUSTER,
     bootstrap_totals,
@@ -32,7 +32,7 @@ from ._clusters import (
     cluster_sums,
     percentile_interval,
 )
-from ._paired import CLUSTER_COLUMNS, check_cluster, check_resampling
+from ._paired import CLUSTER_COLUMNS, check_cluster, check_resampling, runs_of
 from ._passk import pass_at_k, pass_hat_k
 
 SEED_KEY = "seed"
@@ -63,21 +63,7 @@ def run_groups(
     store: Store, chosen: Sequence[str] | None = None, group_by: Sequence[str] | None = None
 ) -> dict[str, list[str]]:
     """{group label (its first run id): its runs, sorted}, groups in label order."""
-    table = runs(store)
-    known = table["run_id"].to_list()
-    if chosen is not None:
-        unknown = [r for r in chosen if r not in known]
-        if unknown:
-            raise UnknownRunError(
-                f"unknown run {unknown[0]!r} in {store.out}; runs: {', '.join(known)}"
-            )
-        table = table.filter(pl.col("run_id").is_in(list(chosen)))
-    for column in group_by or ():
-        if column not in table.columns or not store.is_scalar("runs", column):
-            raise UnknownColumnError(
-                f"--group-by {column!r} is not a column of the runs table (model, agent_kind, "
-                "lambda, meta_ columns)"
-            )
+    table = runs_of(store, chosen, group_by or (), "--group-by")
     keyed: dict[str, list[str]] = {}
     for row in table.sort("run_id").iter_rows(named=True):
         key = json.dumps([row[c] for c in group_by], default=str) if group_by else _setting_key(row)
