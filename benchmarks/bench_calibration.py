@@ -3,7 +3,7 @@
 
 Usage:
 
-    .venv/bin/python benchmarks/bench_calibration.py [--pairs 200] [--spreads 0,1]
+    .venv/bin/python benchmarks/bench_calibration.py [--benchmarks 100] [--spreads 0,1]
         [--workers 1] [--resamples 2000] [--json]
 
 Each replicate r is a fresh synthetic benchmark (`vge synth --scale sample --seed r`: 52 new
@@ -12,9 +12,13 @@ sim-vlm-e,sim-vlm-f`, and `--device-spread S`), replayed. On it:
 
 - two pairs with no true difference: two seeds of one profile (sim-vlm-f and
   sim-vlm-f-seed1; sim-vlm-e and sim-vlm-e-seed1), the same agent on the same episodes;
-- one pair with a true shift: sim-vlm-e against sim-vlm-f. Its truth is the expected SR
-  difference over benchmarks and agents, estimated for replicate r by the mean of the other
-  replicates' differences (leave one out, so it does not share r's noise).
+- two pairs with a true shift: sim-vlm-e against sim-vlm-f, and their seeds 1 likewise. The
+  truth is the expected SR difference over benchmarks and agents, estimated for replicate r
+  by the mean of the other replicates' differences (leave one out, so it does not share r's
+  noise).
+
+So 100 benchmarks give 200 pairs of each kind (the two pairs of a benchmark share its
+devices: they are not independent of each other, the benchmarks are).
 
 Each pair is compared with `--cluster device` and `--cluster episode` (SR, the default
 resamples and test). Reported per spread and cluster: the false-positive rate at alpha 0.05
@@ -44,7 +48,7 @@ from vge_analytics.synth import generate
 
 WORK = Path(__file__).resolve().parent / "_work" / "calibration"
 NULL_PAIRS = (("sim-vlm-f", "sim-vlm-f-seed1"), ("sim-vlm-e", "sim-vlm-e-seed1"))
-SHIFT_PAIR = ("sim-vlm-e", "sim-vlm-f")
+SHIFT_PAIRS = (("sim-vlm-e", "sim-vlm-f"), ("sim-vlm-e-seed1", "sim-vlm-f-seed1"))
 CLUSTERS = ("device", "episode")
 ALPHA = 0.05
 
@@ -66,7 +70,7 @@ def replicate(r: int, spread: float, resamples: int) -> dict:
         replay.replay_runs(runs, root / "synth" / "bench", root / "out", progress=False, workers=1)
         result: dict = {"replicate": r, "spread": spread}
         for cluster in CLUSTERS:
-            for kind, pairs in (("null", NULL_PAIRS), ("shift", (SHIFT_PAIR,))):
+            for kind, pairs in (("null", NULL_PAIRS), ("shift", SHIFT_PAIRS)):
                 for a, b in pairs:
                     c = va.compare(
                         root / "out", a, b, metrics="SR", cluster=cluster, resamples=resamples
@@ -89,10 +93,10 @@ def _done(path: Path) -> dict[int, dict]:
     return {row["replicate"]: row for row in rows}
 
 
-def run(spread: float, pairs: int, workers: int, resamples: int) -> list[dict]:
+def run(spread: float, benchmarks: int, workers: int, resamples: int) -> list[dict]:
     path = WORK / f"spread-{spread:g}.jsonl"
     done = _done(path)
-    todo = [r for r in range(pairs) if r not in done]
+    todo = [r for r in range(benchmarks) if r not in done]
     with path.open("a") as out, ProcessPoolExecutor(max_workers=workers) as pool:
         futures = [pool.submit(replicate, r, spread, resamples) for r in todo]
         for future in futures:
@@ -100,8 +104,8 @@ def run(spread: float, pairs: int, workers: int, resamples: int) -> list[dict]:
             out.write(json.dumps(row) + "\n")
             out.flush()
             done[row["replicate"]] = row
-            print(f"spread {spread:g}: {len(done)}/{pairs}", flush=True)
-    return [done[r] for r in range(pairs)]
+            print(f"spread {spread:g}: {len(done)}/{benchmarks}", flush=True)
+    return [done[r] for r in range(benchmarks)]
 
 
 def _rate(flags: list[bool]) -> float:
@@ -111,13 +115,20 @@ def _rate(flags: list[bool]) -> float:
 def summarise(rows: list[dict], spread: float) -> list[dict]:
     """One line per cluster: false positives, coverage, design effect, width."""
     out = []
-    shift_key = lambda cl: f"{cl}:shift:{SHIFT_PAIR[0]}:{SHIFT_PAIR[1]}"  # noqa: E731
-    diffs = [row[shift_key("device")]["diff"] for row in rows]
-    total = sum(diffs)
+    # each replicate's mean shift, and the truth left out of each: the others' mean
+    means = [
+        statistics.mean(row[f"device:shift:{a}:{b}"]["diff"] for a, b in SHIFT_PAIRS)
+        for row in rows
+    ]
+    total = sum(means)
+    truths = [(total - m) / (len(means) - 1) for m in means]
     for cluster in CLUSTERS:
         nulls = [row[f"{cluster}:null:{a}:{b}"] for row in rows for a, b in NULL_PAIRS]
-        shifts = [row[shift_key(cluster)] for row in rows]
-        truths = [(total - d) / (len(diffs) - 1) for d in diffs]
+        shifts = [
+            (row[f"{cluster}:shift:{a}:{b}"], t)
+            for row, t in zip(rows, truths, strict=True)
+            for a, b in SHIFT_PAIRS
+        ]
         out.append(
             {
                 "spread": spread,
@@ -129,14 +140,12 @@ def summarise(rows: list[dict], spread: float) -> list[dict]:
                 "fpr_clustered_mcnemar": _rate([n["p_cluster"] < ALPHA for n in nulls]),
                 "coverage_null": _rate([n["ci_low"] <= 0 <= n["ci_high"] for n in nulls]),
                 "shift_pairs": len(shifts),
-                "truth": total / len(diffs),
-                "coverage_shift": _rate(
-                    [s["ci_low"] <= t <= s["ci_high"] for s, t in zip(shifts, truths, strict=True)]
-                ),
+                "truth": total / len(means),
+                "coverage_shift": _rate([s["ci_low"] <= t <= s["ci_high"] for s, t in shifts]),
                 "deff_null": statistics.mean(n["deff"] for n in nulls),
-                "deff_shift": statistics.mean(s["deff"] for s in shifts),
-                "width_shift": statistics.mean(s["ci_high"] - s["ci_low"] for s in shifts),
-                "power_shift": _rate([s["p_value"] < ALPHA for s in shifts]),
+                "deff_shift": statistics.mean(s["deff"] for s, _ in shifts),
+                "width_shift": statistics.mean(s["ci_high"] - s["ci_low"] for s, _ in shifts),
+                "power_shift": _rate([s["p_value"] < ALPHA for s, _ in shifts]),
             }
         )
     return out
@@ -144,7 +153,7 @@ def summarise(rows: list[dict], spread: float) -> list[dict]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--pairs", type=int, default=200, help="replicates (benchmarks)")
+    parser.add_argument("--benchmarks", type=int, default=100, help="replicates (2 pairs each)")
     parser.add_argument("--spreads", default="0,1", help="--device-spread values")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--resamples", type=int, default=2000)
@@ -153,7 +162,8 @@ def main() -> None:
     WORK.mkdir(parents=True, exist_ok=True)
     lines = []
     for spread in (float(s) for s in args.spreads.split(",")):
-        lines.extend(summarise(run(spread, args.pairs, args.workers, args.resamples), spread))
+        rows = run(spread, args.benchmarks, args.workers, args.resamples)
+        lines.extend(summarise(rows, spread))
     if args.json:
         print(json.dumps(lines, indent=2))
         return

@@ -76,7 +76,10 @@ def test_every_new_report_in_every_format(capsys, clustered_out: Path, fmt: str)
         (("power", "{out}", "A"), "power takes two runs"),
         (("power", "{out}"), "power needs RUN_A RUN_B, or --rate"),
         (("power", "{out}", "A", "B", "--rate", "0.5"), "--rate and --icc plan without runs"),
-        (("passk", "{out}", "--k", "0"), "k must be 1 or more, not 0"),
+        (("passk", "{out}", "--k", "0"), "k must be between 1 and 1000, not 0"),
+        (("passk", "{out}", "--k", "1000000000"), "k must be between 1 and 1000"),
+        (("compare", "{out}", "A", "B", "--resamples", "10000000000"), "resamples must be between"),
+        (("compare", "{out}", "--all", "--resamples", "0"), "resamples must be between 1 and"),
         (("passk", "{out}", "--group-by", "nope"), "--group-by 'nope' is not a column"),
     ],
 )

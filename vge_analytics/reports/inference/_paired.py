@@ -51,9 +51,14 @@ def check_cluster(cluster: str) -> str:
     return cluster
 
 
+MAX_RESAMPLES = 100_000
+"""The most resamples (and random sign patterns) a computation draws: the draws' totals are
+held in memory, resamples x columns doubles."""
+
+
 def check_resampling(seed: int, resamples: int) -> None:
-    if resamples < 1:
-        raise AnalyticsError(f"resamples must be at least 1, not {resamples}")
+    if not 1 <= resamples <= MAX_RESAMPLES:
+        raise AnalyticsError(f"resamples must be between 1 and {MAX_RESAMPLES:,}, not {resamples}")
     if seed < 0:
         raise AnalyticsError(f"the seed must be 0 or more, not {seed}")
 
@@ -249,6 +254,7 @@ __all__ = [
     "CLUSTER_COLUMNS",
     "entity_terms",
     "finite",
+    "MAX_RESAMPLES",
     "pair",
     "pair_frames",
     "pair_statistics",

@@ -36,6 +36,8 @@ from ._paired import CLUSTER_COLUMNS, check_cluster, check_resampling, runs_of
 from ._passk import pass_at_k, pass_hat_k
 
 SEED_KEY = "seed"
+MAX_K = 1000
+"""The largest k asked for (rows for k above a group's runs are notes, one per k)."""
 RUN_TOTALS: tuple[str, ...] = (
     "episodes_selected",
     "episodes",
@@ -276,8 +278,8 @@ def repeated(
     store = open_store(out)
     check_resampling(seed, resamples)
     check_cluster(cluster)
-    if k is not None and k < 1:
-        raise AnalyticsError(f"k must be 1 or more, not {k}")
+    if k is not None and not 1 <= k <= MAX_K:
+        raise AnalyticsError(f"k must be between 1 and {MAX_K}, not {k}")
     groups = run_groups(store, runs, group_by)
     eps = run_query(
         store,
@@ -318,4 +320,4 @@ def _outcomes(episodes: pl.DataFrame, groups: dict[str, list[str]]) -> pl.DataFr
     return pl.DataFrame(rows, schema=schema)
 
 
-__all__ = ["Repeated", "repeated", "run_groups", "RUN_TOTALS", "SEED_KEY"]
+__all__ = ["MAX_K", "Repeated", "repeated", "run_groups", "RUN_TOTALS", "SEED_KEY"]

@@ -64,7 +64,7 @@ def test_grouping_by_columns_and_choosing_runs(clustered_out: Path) -> None:
     assert two.passk["pass_hat_k"].to_list() == pytest.approx([800 / 12, 50.0])
     with pytest.raises(va.UnknownColumnError, match="--group-by 'nope'"):
         repeated(clustered_out, group_by=["nope"])
-    with pytest.raises(va.AnalyticsError, match="k must be 1 or more, not 0"):
+    with pytest.raises(va.AnalyticsError, match="k must be between 1 and 1000, not 0"):
         repeated(clustered_out, k=0)
 
 
