@@ -109,7 +109,7 @@ def entities_of(store: Store, chosen_runs: Sequence[str] | None, by: str) -> dic
         entities.setdefault("∅" if value is None else value, []).append(run_id)
     if len(entities) < 2:
         raise AnalyticsError(
-            f"--all needs two or more {by} values to compare, found {len(entities)}"
+            f"comparing every pair needs two or more {by} values, found {len(entities)}"
         )
     return dict(sorted(entities.items()))
 
