@@ -417,3 +417,51 @@ def cost_frontier(plane: pl.DataFrame):
         .encode(x=x, y=y)
     )
     return (line + points + labels).properties(height=320)
+
+
+def pair_heatmap(matrix: pl.DataFrame, order: Sequence[str], metric: str):
+    """Every pair's adjusted p-value as a square (columns: row, column, diff, p_adjusted,
+    significant, text): darker where the difference is surer; the cell text is the p-value."""
+    data = matrix.to_pandas()
+    base = alt.Chart(data).encode(
+        x=alt.X("column:N", sort=list(order), title=None),
+        y=alt.Y("row:N", sort=list(order), title=None),
+    )
+    cells = base.mark_rect().encode(
+        color=alt.Color(
+            "p_adjusted:Q",
+            title="adjusted p",
+            scale=alt.Scale(type="log", domain=[1e-4, 1], reverse=True, clamp=True),
+        ),
+        tooltip=[
+            "row",
+            "column",
+            alt.Tooltip("diff:Q", format=".2f", title=f"{metric}: column − row"),
+            alt.Tooltip("p_adjusted:Q", format=".4f"),
+            "significant",
+        ],
+    )
+    text = base.mark_text(fontSize=10).encode(
+        text="text:N",
+        color=alt.condition("datum.p_adjusted < 0.01", alt.value("white"), alt.value("black")),
+    )
+    return alt.layer(cells, text).properties(width=alt.Step(46), height=alt.Step(26))
+
+
+def passk_lines(curves: pl.DataFrame):
+    """pass@k and pass^k against k, one line per group (columns: group, k, measure, value,
+    low, high), the band its 95% interval; one panel per measure."""
+    base = alt.Chart(curves.to_pandas()).encode(
+        x=alt.X("k:Q", title="k (runs drawn)", axis=alt.Axis(tickMinStep=1)),
+        color=alt.Color("group:N", title=None),
+    )
+    band = base.mark_area(opacity=0.15).encode(y=alt.Y("low:Q", title="%"), y2="high:Q")
+    line = base.mark_line(point=True).encode(
+        y="value:Q",
+        tooltip=["group", "measure", "k", alt.Tooltip("value:Q", format=".2f")],
+    )
+    return (
+        alt.layer(band, line)
+        .properties(width=320, height=260)
+        .facet(column=alt.Column("measure:N", title=None))
+    )

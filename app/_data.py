@@ -108,6 +108,9 @@ def metric_set() -> va.MetricSet:
 
 metrics = cached(va.metrics, metrics=True)
 compare = cached(va.compare, metrics=True)
+compare_all = cached(va.compare_all, metrics=True)
+metric_intervals = cached(va.metric_intervals, metrics=True)
+repeated = cached(va.repeated)
 rescore = cached(va.rescore, metrics=True)
 computed_sweep = cached(dash.computed_sweep, metrics=True)
 error_distribution = cached(va.error_distribution)

@@ -26,6 +26,7 @@ PAGES: tuple[Page, ...] = (
     Page("grounding", "views/grounding.py", "Grounding", ":material/my_location:"),
     Page("budgets", "views/budgets.py", "Budgets", ":material/timeline:"),
     Page("human_vs_vlm", "views/human_vs_vlm.py", "Human vs VLM", ":material/compare_arrows:"),
+    Page("significance", "views/significance.py", "Significance", ":material/rule:"),
     Page("side_by_side", "views/side_by_side.py", "Side by side", ":material/splitscreen:"),
     Page("rescore", "views/rescore.py", "Rescore", ":material/swap_vert:"),
     Page("episode_viewer", "views/episode_viewer.py", "Episode viewer", ":material/movie:"),

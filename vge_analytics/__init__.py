@@ -24,8 +24,15 @@ Error taxonomy and navigation (PROTOCOL §5):
     error_distribution(out, by, where), error_groups(out, by, where),
     switch_classes(out, by, where)
 
-Comparisons and budgets:
-    compare(out, run_a, run_b, seed=0, resamples=2000) -> Comparison
+Comparisons and budgets (the statistics: docs/STATISTICS.md):
+    compare(out, run_a, run_b, seed=0, resamples=2000, cluster="device", correction="holm")
+                                                     -> Comparison (clustered intervals, SEs,
+                                                     design effects, corrected p-values)
+    compare_all(out, runs=None, by="run_id", metric="SR") -> AllPairs (every pair, the
+                                                     ranking and its tied groups)
+    metric_intervals(out, metric="SR", by=("run_id",)) per group: the clustered interval
+    power_of_pair(out, run_a, run_b, delta=5), plan(out, rate=0.5, delta=5, icc=None)
+    repeated(out, runs=None, group_by=None) -> Repeated (pass@k, pass^k of seeds)
     sweep(out, lambdas=(2, 3, 4, 5), runs=None, metrics=("SR", "SSR"))
 
 Trajectories side by side (`vge diff`):
@@ -83,11 +90,14 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         ERROR_TYPES,
         FORMATS,
         SWITCH_CLASSES,
+        AllPairs,
         Comparison,
         Diff,
+        Repeated,
         Rescore,
         RunCompleteness,
         compare,
+        compare_all,
         competition_ranks,
         completeness,
         diff,
@@ -96,10 +106,14 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         incomplete_runs,
         kendall_tau_b,
         mcnemar_exact,
+        metric_intervals,
         parse_lambdas,
+        plan,
+        power_of_pair,
         render,
         render_latex,
         render_markdown,
+        repeated,
         rescore,
         sweep,
         switch_classes,
@@ -133,6 +147,7 @@ __all__ = [
     "METRIC_NAMES",
     "METRICS_DIR_ENV",
     "SWITCH_CLASSES",
+    "AllPairs",
     "Comparison",
     "Metric",
     "MetricSet",
@@ -140,6 +155,7 @@ __all__ = [
     "RunCompleteness",
     "clear_cache",
     "compare",
+    "compare_all",
     "competition_ranks",
     "completeness",
     "Diff",
@@ -157,6 +173,9 @@ __all__ = [
     "kendall_tau_b",
     "load_metrics",
     "mcnemar_exact",
+    "metric_intervals",
+    "plan",
+    "power_of_pair",
     "metric_table",
     "metrics",
     "open_store",
@@ -167,6 +186,8 @@ __all__ = [
     "render",
     "render_latex",
     "render_markdown",
+    "repeated",
+    "Repeated",
     "rescore",
     "runs",
     "sql",

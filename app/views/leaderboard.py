@@ -4,6 +4,7 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _data as data
+from app import _lifecycle as page
 from app import _pickers as pickers
 from app import _sidebar as sidebar
 from app import _tables as tables
@@ -50,6 +51,18 @@ st.dataframe(
     key="leaderboard_table",
 )
 st.download_button("Download CSV", table.write_csv(), file_name="leaderboard.csv", mime="text/csv")
+
+st.subheader("Intervals")
+c1, c2 = st.columns([2, 6])
+interval_metric = c1.selectbox("Metric", names, key="leaderboard_interval_metric")
+intervals = page.or_stop(data.metric_intervals, metric=interval_metric, by=list(by), where=where)
+c2.caption(
+    f"{interval_metric} per group with its 95% interval from resampling devices (all of a "
+    "drawn device's episodes: a device hard for one run is hard for its other episodes too), "
+    "the clustered standard error and the design effect (its variance over the one of "
+    "independent episodes)."
+)
+tables.number_table(dash.interval_rows(intervals, by, interval_metric), key="leaderboard_intervals")
 
 st.subheader("Per metric")
 long = dash.metrics_long(table, names, data.metric_set())

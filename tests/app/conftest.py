@@ -71,6 +71,26 @@ def build_tiny(root: Path) -> Path:
     return out
 
 
+def build_seeded(root: Path) -> Path:
+    """The tiny benchmark with three seeds of two simulated runs (`vge synth --seeds 3
+    --runs sim-vlm-f,sim-human`) and two of sim-vlm-d, replayed into `root/out`."""
+    generate(root / "synth", scale="tiny", seed=0, workers=1, agent_seeds=3,
+             only_runs=["sim-vlm-f", "sim-human"])  # fmt: skip
+    generate(root / "more", scale="tiny", seed=0, workers=1, agent_seeds=2, only_runs=["sim-vlm-d"])
+    runs = sorted(
+        p for base in ("synth", "more") for p in (root / base / "runs").iterdir() if p.is_dir()
+    )
+    out = root / "out"
+    replay.replay_runs(runs, root / "synth" / "bench", out, progress=False)
+    return out
+
+
+@pytest.fixture(scope="session")
+def seeded_out(tmp_path_factory, cache_dir) -> Path:
+    """`build_seeded`: repeated runs for the Significance page (built once per session)."""
+    return build_seeded(tmp_path_factory.mktemp("seeded"))
+
+
 @pytest.fixture(scope="session", autouse=True)
 def cache_dir(tmp_path_factory) -> Path:
     """Rendered views and stored sweeps go to a temporary cache, not the user's."""

@@ -207,3 +207,21 @@ def incomplete_note(runs: Sequence[RunCompleteness]) -> str | None:
         f"Incomplete: {named}. Their run.json says `complete: false`: the metrics cover the "
         f"episodes written so far, not the run's selection; `vge run --resume` completes it."
     )
+
+
+# ------------------------------------------------------------------------------ intervals
+
+
+def interval_rows(intervals: pl.DataFrame, by: Sequence[str], metric: str) -> pl.DataFrame:
+    """`metric_intervals` for people: group label, the metric, its 95% clustered interval,
+    the clustered SE, the design effect, episodes and clusters."""
+    return intervals.select(
+        group_labels(intervals, by),
+        pl.col("value").alias(metric),
+        pl.col("ci_low").alias("CI low"),
+        pl.col("ci_high").alias("CI high"),
+        pl.col("se").alias("SE"),
+        pl.col("deff").alias("design effect"),
+        pl.col("n_episodes").alias("episodes"),
+        pl.col("n_clusters").alias("clusters"),
+    )
