@@ -134,6 +134,8 @@ ALLOWED: dict[tuple[str, str], str] = {
     (VOCAB_HOME, "steps"): "what the prompt calls Rotate's second parameter (its notches)",
     ("vge_analytics/dashboard/_leaderboard.py", "episodes"): "the cost table's count column, "
     "named as the runs table names its count",
+    ("vge_analytics/reports/inference/_repeated.py", "success"): "the episodes table's success "
+    "column, the values pivoted per run",
 }
 """Where a name may stand outside its home, and why. Keep it short."""
 

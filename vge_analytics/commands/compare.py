@@ -73,7 +73,7 @@ def compare(
     p-value per metric adjusted across the metrics, McNemar's exact and clustered tests on
     success, error-distribution difference in percentage points, flipped episodes.
     """
-    from ..reports import check_format, compare_all
+    from ..reports import check_format
     from ..reports import compare as compute_compare
     from ..store import query_time_limit
 
@@ -82,20 +82,9 @@ def compare(
         if every:
             if run_a is not None or run_b is not None:
                 raise ConfigError("--all compares every run: give no RUN_A RUN_B (--runs chooses)")
-            result = compare_all(
-                out,
-                runs=episode_ids(runs, "--runs"),
-                by=by,
-                metric=metric,
-                cluster=cluster,
-                correction=correction,
-                alpha=alpha,
-                seed=seed,
-                resamples=resamples,
-                metrics_dir=metrics_dir,
-            )
-            warn_incomplete(out, None if runs is None else episode_ids(runs, "--runs"))
-            emit_sections(result.sections(), fmt)
+            chosen = episode_ids(runs, "--runs")
+            options = dict(cluster=cluster, correction=correction, seed=seed, resamples=resamples)
+            _every_pair(out, chosen, by, metric, alpha, options, metrics_dir, fmt)
             return
         if run_a is None or run_b is None:
             raise ConfigError("compare needs RUN_A and RUN_B, or --all")
@@ -112,6 +101,26 @@ def compare(
         )
         warn_incomplete(out, [run_a, run_b])
         emit_sections(result.sections(), fmt)
+
+
+def _every_pair(
+    out: str,
+    runs: list[str] | None,
+    by: str,
+    metric: str,
+    alpha: float,
+    options: dict,
+    metrics_dir: str,
+    fmt: str,
+) -> None:
+    """`vge compare OUT --all`: every pair of runs (or of `by` groups), ranked."""
+    from ..reports import compare_all
+
+    result = compare_all(
+        out, runs=runs, by=by, metric=metric, alpha=alpha, metrics_dir=metrics_dir, **options
+    )
+    warn_incomplete(out, runs)
+    emit_sections(result.sections(), fmt)
 
 
 def register(app: typer.Typer) -> None:

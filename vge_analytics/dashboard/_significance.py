@@ -10,7 +10,7 @@ from ..reports import AllPairs, Repeated
 CLUSTER_WORDS: dict[str, str] = {
     "device": "devices",
     "category": "categories",
-    "episode": "episodes",
+    "episode": "single episodes",
 }
 """How the pages name the unit resampled (plural)."""
 CORRECTION_WORDS: dict[str, str] = {
@@ -87,7 +87,7 @@ def repeated_rows(result: Repeated) -> pl.DataFrame:
     """The groups of two or more runs, as the page shows them."""
     return result.groups.filter(pl.col("n_runs") >= 2).select(
         "group",
-        "runs",
+        pl.col("runs"),
         pl.col("n_runs").alias("seeds"),
         pl.col("n_episodes").alias("episodes"),
         pl.col("SR_mean").alias("SR mean"),

@@ -10,6 +10,8 @@ from collections.abc import Sequence
 import numpy as np
 import polars as pl
 
+from replay.io import EPISODES_TABLE
+
 from ...metrics import MetricsSource, episode_terms, metric_set
 from ...store import Filters, check_columns, episodes, open_store, runs
 from ._clusters import (
@@ -42,7 +44,7 @@ def _grouped_terms(
     """One row per (run, episode) with the group columns, the cluster columns, num and den."""
     terms = episode_terms(store, [metric], where, metrics_dir=available)
     wanted = ["run_id", "episode_id", "device_id", "category"]
-    on_episodes = [c for c in by if store.has_column("episodes", c) and c not in wanted]
+    on_episodes = [c for c in by if store.has_column(EPISODES_TABLE, c) and c not in wanted]
     rows = episodes(store, where, columns=[*wanted, *on_episodes])
     on_runs = [c for c in by if c not in wanted and c not in on_episodes]
     if on_runs:
@@ -68,7 +70,7 @@ def metric_intervals(
     check_resampling(seed, resamples)
     check_cluster(cluster)
     by = list(by)
-    check_columns(store, by, ["episodes"], "grouping")
+    check_columns(store, by, [EPISODES_TABLE], "grouping")
     available = metric_set(metrics_dir)
     (chosen,) = available.resolve([metric])
     frame = _grouped_terms(store, chosen.name, by, where, available)

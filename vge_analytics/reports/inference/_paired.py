@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
+from replay.io import RUNS_TABLE
+
 from ..._errors import AnalyticsError, UnknownColumnError, UnknownRunError
 from ...metrics import Metric, MetricSet, episode_terms
 from ...store import Store, run_query, runs
@@ -80,7 +82,7 @@ def runs_of(
             f"unknown run {unknown[0]!r} in {store.out}; runs: {', '.join(known)}"
         )
     for column in columns:
-        if column not in table.columns or not store.is_scalar("runs", column):
+        if column not in table.columns or not store.is_scalar(RUNS_TABLE, column):
             raise UnknownColumnError(
                 f"{option} {column!r} is not a column of the runs table (run_id, model, "
                 "agent_kind, lambda, meta_ columns)"
