@@ -23,7 +23,13 @@ from app import _data as data
 from app._data import metric_set, out_dir, script_option
 from vge_analytics import dashboard as dash
 from vge_analytics import play
-from vge_analytics.store import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits, default_max_queries
+from vge_analytics.store import (
+    APP_MAX_ROWS,
+    APP_TIMEOUT,
+    SqlLimits,
+    default_max_queries,
+    describe_filters,
+)
 
 R = TypeVar("R")
 
@@ -178,7 +184,21 @@ def where(**extra: Sequence[Any] | None) -> dict[str, list]:
     for column, values in extra.items():
         if values:
             filters[column] = list(values)
+    refuse_empty(filters)
     return filters
+
+
+def refuse_empty(filters: dict[str, list]) -> None:
+    """Say in one line, instead of an empty table, that the filters select no row (and
+    end the page there); warn about values no row holds."""
+    if not filters:
+        return
+    check = data.selection_check(filters)
+    line = check.line(f"The selection ({describe_filters(filters)})")
+    if line:
+        st.warning(line, icon=":material/filter_alt_off:")
+    if check.empty:
+        stop()
 
 
 # ---------------------------------------------------------------------------- grouping
@@ -370,8 +390,11 @@ def sweep_workers(size: int) -> int:
 
 
 def runs_matching_facets(runs: pl.DataFrame) -> list[str]:
-    """Run ids that pass the sidebar's facet filters."""
-    return dash.runs_matching(runs, facet_filters())
+    """Run ids that pass the sidebar's facet filters (the page ends with one line when
+    none does)."""
+    filters = facet_filters()
+    refuse_empty(filters)
+    return dash.runs_matching(runs, filters)
 
 
 def view_label(views: pl.DataFrame, view: str) -> str:

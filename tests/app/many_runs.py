@@ -5,8 +5,7 @@ runs) and `n - 9` variants of its runs, each a copy under a run id of its own th
 different subset of the source's episodes (so the variants' metrics differ), replayed into
 `root/out`. Two variants test the labels: `random-cut`, whose run.json says it is not
 complete (the pages label it `random-cut (incomplete)`), and one with a long run id
-(`LONG_RUN_ID`). Used by the chart tests (tests/app/test_browser_charts.py) and by
-`benchmarks/bench_app.py --runs N`.
+(`LONG_RUN_ID`). Used by the chart tests (tests/app/test_browser_charts.py).
 """
 
 from __future__ import annotations

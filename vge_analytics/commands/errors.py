@@ -9,6 +9,7 @@ from ..reports import ERROR_LABELS, check_format, error_distribution, groups_of,
 from ..store import parse_by, query_time_limit
 from ._options import by_option, format_option, out_argument, timeout_option, where_option
 from ._output import emit_sections
+from ._selection import check_where
 from .metrics import parse_where
 
 
@@ -40,6 +41,7 @@ def errors(
         check_format(fmt)
         by_cols = list(parse_by(by))
         filters = parse_where(where)
+        check_where(out, filters, where)
         types = error_distribution(out, by_cols, filters)
         groups = groups_of(types, by_cols)
         switches = switch_classes(out, by_cols, filters)

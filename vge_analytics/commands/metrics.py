@@ -23,6 +23,7 @@ from ._options import (
     where_option,
 )
 from ._output import emit
+from ._selection import check_where
 
 LIST_COLUMNS: tuple[str, ...] = (
     "metric",
@@ -109,6 +110,7 @@ def metrics(
         by_cols = parse_by(by)
         chosen = metric_names  # `main` and `continuation` stand for their metrics
         filters = parse_where(where)
+        check_where(out, filters, where)
         df = compute_metrics(out, by=by_cols, metrics=chosen, where=filters, metrics_dir=available)
         runs = warn_incomplete(out, filters.get("run_id"))
         if fmt in PEOPLE_FORMATS:

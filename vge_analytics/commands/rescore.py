@@ -19,6 +19,7 @@ from ._options import (
     where_option,
 )
 from ._output import emit, emit_sections
+from ._selection import check_where
 from .metrics import parse_where
 
 
@@ -60,6 +61,7 @@ def rescore(
     with query_time_limit(timeout):
         check_format(fmt)
         filters = parse_where(where)
+        check_where(out, filters, where)
         result = compute_rescore(
             out,
             metrics_dir,

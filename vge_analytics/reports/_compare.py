@@ -25,9 +25,9 @@ from math import comb
 import numpy as np
 import polars as pl
 
-from .._errors import AnalyticsError, UnknownRunError
+from .._errors import AnalyticsError
 from ..metrics import MetricsSource, episode_terms, metric_set
-from ..store import open_store, run_query
+from ..store import check_runs, open_store, run_query
 from ._completeness import completeness
 from ._taxonomy import ERROR_LABELS, error_distribution
 
@@ -131,10 +131,7 @@ def compare(
     store = open_store(out)
     if resamples < 1:
         raise AnalyticsError(f"resamples must be at least 1, not {resamples}")
-    known = store.run_ids()
-    for run in (run_a, run_b):
-        if run not in known:
-            raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
+    check_runs(store, [run_a, run_b])
     if run_a == run_b:
         raise AnalyticsError(f"compare needs two different runs, got {run_a!r} twice")
     available = metric_set(metrics_dir)

@@ -46,9 +46,9 @@ import pyarrow as pa
 
 import replay
 
-from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
+from .._errors import ConfigError, SweepInputError, SweepRefused
 from ..metrics import Metric, MetricsSource, compose, metric_set
-from ..store import Store, open_store, resolve_input, run_query
+from ..store import Store, check_runs, open_store, resolve_input, run_query
 
 DEFAULT_SWEEP_METRICS: tuple[str, ...] = ("SR", "SSR")
 
@@ -151,11 +151,9 @@ def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> 
     if manifest is None:
         raise SweepInputError(f"{store.out}/manifest.json: not found; the sweep needs it")
     entries = {e.run_id: e for e in manifest.runs}
-    known = store.run_ids()
+    known = check_runs(store, run_ids or [])
     wanted = list(run_ids) if run_ids else known
     for run in wanted:
-        if run not in known:
-            raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
         if run not in entries:
             raise SweepInputError(f"run {run}: not in {store.out}/manifest.json")
     eps = run_query(

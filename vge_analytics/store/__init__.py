@@ -37,6 +37,12 @@ from ._scope import (
     parse_by,
     run_keys_scope,
 )
+from ._selection import (
+    SelectionCheck,
+    check_runs,
+    check_selection,
+    describe_filters,
+)
 from ._sql import (
     Batches,
     query_time_limit,
@@ -73,9 +79,12 @@ __all__ = [
     "APP_MAX_ROWS",
     "APP_TIMEOUT",
     "default_max_queries",
+    "describe_filters",
     "Batches",
     "build_scope",
     "check_columns",
+    "check_runs",
+    "check_selection",
     "clear_cache",
     "CLI_MAX_ROWS",
     "CLI_TIMEOUT",
@@ -105,6 +114,7 @@ __all__ = [
     "run_isolated",
     "run_keys_scope",
     "run_query",
+    "SelectionCheck",
     "runs",
     "SLOT_WAIT",
     "sql",
