@@ -18,6 +18,8 @@ from ._scope import Filters, _normalise_filter, build_scope, check_columns, sour
 from ._sql import run_query
 from ._store import Store, open_store, quote_ident
 
+SHOWN = 5
+"""Values that match nothing named, per column (the others are counted)."""
 MAX_CANDIDATES = 2_000
 """Distinct values of a column read to look for the nearest (a column of steps may hold
 many): the first ones in sort order, enough for a typo of a run, model or category."""
@@ -75,16 +77,20 @@ def _grain(store: Store, columns: Sequence[str]) -> str | None:
     return None
 
 
-def _holds(store: Store, table: str, column: str, value: object) -> bool:
-    """Some row of `table` holds `value` in `column` (a value of another type: none)."""
-    col = quote_ident(column)
-    if value is None:
-        sql, params = f"SELECT 1 FROM {table} WHERE {col} IS NULL LIMIT 1", []
-    else:
-        sql_type = store.columns[table][column]
-        sql = f"SELECT 1 FROM {table} WHERE {col} = TRY_CAST(? AS {sql_type}) LIMIT 1"
-        params = [value]
-    return run_query(store, sql, params).height > 0
+def _present(store: Store, table: str, column: str, values: Sequence[object]) -> set[str]:
+    """Which of `values` (as text) some row of `table` holds in `column`: one scan, however
+    many values (a value that is not of the column's type is held by none)."""
+    sql_type = store.columns[table][column]
+    sql = (
+        "SELECT DISTINCT w FROM (SELECT unnest(CAST(? AS VARCHAR[])) AS w) "
+        f"WHERE TRY_CAST(w AS {sql_type}) IN (SELECT {quote_ident(column)} FROM {table})"
+    )
+    return set(run_query(store, sql, [[str(v) for v in values]])["w"].to_list())
+
+
+def _has_null(store: Store, table: str, column: str) -> bool:
+    sql = f"SELECT 1 FROM {table} WHERE {quote_ident(column)} IS NULL LIMIT 1"
+    return run_query(store, sql, []).height > 0
 
 
 def _values(store: Store, table: str, column: str) -> list[str]:
@@ -112,12 +118,19 @@ def check_selection(out, where: Filters) -> SelectionCheck:
     for column, value in filters.items():
         table = source_table(store, grain, column)
         values, allow_null = _normalise_filter(value)
-        wanted = values + ([None] if allow_null else [])
-        found = [v for v in wanted if _holds(store, table, column, v)]
-        for v in wanted:
-            if v not in found:
-                hint = nearest_hint(v, _values(store, table, column), "values")
-                misses.append(f"no {column} {'(none)' if v is None else repr(v)} ({hint[2:]})")
+        present = _present(store, table, column, values) if values else set()
+        found: list[object] = [v for v in values if str(v) in present]
+        if allow_null and _has_null(store, table, column):
+            found.append(None)
+        missing = [v for v in values if str(v) not in present]
+        missing += [None] if allow_null and None not in found else []
+        if missing:
+            known = _values(store, table, column)
+        for v in missing[:SHOWN]:
+            hint = nearest_hint(v, known, "values")
+            misses.append(f"no {column} {'(none)' if v is None else repr(v)} ({hint[2:]})")
+        if len(missing) > SHOWN:
+            misses.append(f"and {len(missing) - SHOWN:,} more {column} values that no row holds")
         matched[column] = found
     if any(not found for found in matched.values()):
         return SelectionCheck(tuple(misses), True)

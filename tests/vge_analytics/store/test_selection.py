@@ -54,3 +54,14 @@ def test_describe_filters() -> None:
     assert describe_filters({"model": ["a", "b"], "n_goals": 2, "meta_x": [None]}) == (
         "model = a or b, n_goals = 2, meta_x = (none)"
     )
+
+
+def test_many_values_are_checked_at_once_and_named_in_part(hand_out) -> None:
+    wanted = ["model-k", *(f"zz-{k:05d}" for k in range(20_000))]
+    check = check_selection(hand_out, {"model": wanted, "n_goals": [1, 2, 3, 99]})
+    assert not check.empty
+    assert check.misses == (
+        *(f"no model 'zz-{k:05d}' (values: model-k, model-o)" for k in range(5)),
+        "and 19,995 more model values that no row holds",
+        "no n_goals 99 (values: 1, 2, 3)",
+    )
