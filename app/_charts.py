@@ -189,8 +189,8 @@ def _bottom_legend(columns: int) -> alt.Legend:
     return alt.Legend(orient="bottom", columns=columns, titleOrient="left")
 
 
-PAGE_WIDTH = 1000
-"""Pixels a chart of the main column may take (a wide layout at a common window width)."""
+PAGE_WIDTH = 940
+"""Pixels of the main column a chart may take (the wide layout in a 1400 px window)."""
 
 
 def _label_pixels(names: Sequence[str]) -> int:

@@ -93,7 +93,7 @@ def test_metric_bars_name_every_group_in_rows_of_panels() -> None:
         }
     )
     spec = charts.metric_bars(long, ["SR", "SPL"], groups).to_dict()
-    assert spec["columns"] == 4  # 1000 px: a 312 px label column and four 170 px panels
+    assert spec["columns"] == 3  # 940 px: a 312 px label column and three 170 px panels
     inner = spec["spec"]["encoding"]
     assert inner["y"]["field"] == "group" and inner["y"]["axis"]["labelLimit"] == 0
     assert inner["color"]["scale"]["domain"] == groups
