@@ -12,8 +12,9 @@ import streamlit as st
 import vge_analytics as va
 from app import _data as data
 from app._data import metric_set, out_dir
-from app._lifecycle import show_error
+from app._lifecycle import show_error, stop
 from vge_analytics import dashboard as dash
+from vge_analytics.store import describe_filters
 
 
 def sidebar() -> bool:
@@ -75,12 +76,36 @@ def where(**extra: Sequence[Any] | None) -> dict[str, list]:
     for column, values in extra.items():
         if values:
             filters[column] = list(values)
+    refuse_empty(filters)
     return filters
 
 
+def refuse_empty(filters: dict[str, list]) -> None:
+    """Say in one line, instead of an empty table, that the filters select no row (and
+    end the page there); warn about values no row holds."""
+    if not filters:
+        return
+    check = data.selection_check(filters)
+    line = check.line(f"The selection ({describe_filters(filters)})")
+    if line:
+        st.warning(line, icon=":material/filter_alt_off:")
+    if check.empty:
+        stop()
+
+
 def runs_matching_facets(runs: pl.DataFrame) -> list[str]:
-    """Run ids that pass the sidebar's facet filters."""
-    return dash.runs_matching(runs, facet_filters())
+    """Run ids that pass the sidebar's facet filters (the page ends with one line when
+    none does)."""
+    filters = facet_filters()
+    refuse_empty(filters)
+    return dash.runs_matching(runs, filters)
 
 
-__all__ = ["facet_filters", "runs_matching_facets", "sidebar", "value_label", "where"]
+__all__ = [
+    "facet_filters",
+    "refuse_empty",
+    "runs_matching_facets",
+    "sidebar",
+    "value_label",
+    "where",
+]

@@ -26,8 +26,12 @@ st.altair_chart(charts.switch_stacked(classes, order))
 left, right = st.columns(2)
 left.altair_chart(charts.ratio_bars(ratios, "VSPS", order))
 right.altair_chart(charts.ratio_bars(ratios, "GVPE", order))
+summary = dash.switch_summary(classes, ratios)
 st.dataframe(
-    dash.switch_summary(classes, ratios),
+    summary,
     hide_index=True,
-    column_config=tables.metric_column_config(["VSPS", "GVPE"]),
+    column_config={  # shares with one decimal, as the charts' tooltips
+        **tables.number_config(summary, 1),
+        **tables.metric_column_config(["VSPS", "GVPE"]),
+    },
 )

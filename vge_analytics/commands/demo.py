@@ -6,6 +6,10 @@ a second call skips unchanged runs), prints the metrics table and says how to op
 
 from __future__ import annotations
 
+import os
+import shlex
+import shutil
+import sys
 from pathlib import Path
 
 import typer
@@ -22,6 +26,19 @@ def _bundled_sample() -> Path:
     if (_REPO_SAMPLE / BENCH_DIR).is_dir() or (_REPO_SAMPLE.parent / "pyproject.toml").exists():
         return _REPO_SAMPLE
     return Path.cwd() / "vge-sample"
+
+
+def command_name(argv0: str | None = None) -> str:
+    """How the user's shell runs this `vge`: `vge` when that name finds this very program
+    on PATH (an activated virtual environment, a user install), else the path it was
+    started by (`.venv/bin/vge` after the README's first line without activating)."""
+    started = sys.argv[0] if argv0 is None else argv0
+    if Path(started).name != "vge" or not Path(started).is_file():
+        return "vge"  # not the console script (python -m, a test)
+    found = shutil.which("vge")
+    if found and os.path.samefile(found, started):
+        return "vge"
+    return shlex.quote(started if os.sep in started else f".{os.sep}{started}")
 
 
 def demo(
@@ -67,11 +84,15 @@ def demo(
         title="Main results, the paper's metrics: \u2191 higher is better, \u2193 lower is better",
     )
     quarantined = manifest.quarantined
+    vge = command_name()
+    shown = shlex.quote(str(out))
     console.print(
         f"\nReplay output: {out}  (tables steps, episodes, goals, runs; see docs/REPLAY.md)\n"
-        f"Open the dashboard:  vge app {out}\n"
-        f'Query it:            vge sql {out} "SELECT model, avg(success::INT) FROM episodes GROUP BY model"',
+        f"Open the dashboard:  {vge} app {shown}\n"
+        f'Query it:            {vge} sql {shown} "SELECT model, avg(success::INT) FROM episodes '
+        'GROUP BY model"',
         soft_wrap=True,
+        markup=False,
     )
     if quarantined:
         console.print(

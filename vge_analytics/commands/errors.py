@@ -16,6 +16,7 @@ from ._options import (
     where_option,
 )
 from ._output import emit_sections
+from ._selection import check_where
 
 if TYPE_CHECKING:
     import polars as pl
@@ -53,6 +54,7 @@ def errors_command(
         reports.check_format(fmt)
         by_cols = list(store.parse_by(by))
         filters = parse_where(where)
+        check_where(out, filters, where)
         types = reports.error_distribution(out, by_cols, filters)
         groups = reports.groups_of(types, by_cols)
         switches = reports.switch_classes(out, by_cols, filters)

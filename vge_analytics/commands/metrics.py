@@ -21,6 +21,7 @@ from ._options import (
     where_option,
 )
 from ._output import emit, for_people
+from ._selection import check_where
 
 if TYPE_CHECKING:
     import polars as pl
@@ -100,6 +101,7 @@ def metrics_command(
         by_cols = store.parse_by(by)
         chosen = metric_names  # `main` and `continuation` stand for their metrics
         filters = parse_where(where)
+        check_where(out, filters, where)
         df = metrics(out, by=by_cols, metrics=chosen, where=filters, metrics_dir=available)
         runs = warn_incomplete(out, filters.get("run_id"))
         if fmt in PEOPLE_FORMATS:

@@ -18,6 +18,7 @@ from ._options import (
     where_option,
 )
 from ._output import emit, emit_sections
+from ._selection import check_where
 
 
 def rescore(
@@ -58,6 +59,7 @@ def rescore(
     with store.query_time_limit(timeout):
         reports.check_format(fmt)
         filters = parse_where(where)
+        check_where(out, filters, where)
         result = reports.rescore(
             out,
             metrics_dir,

@@ -31,6 +31,7 @@ from replay.io import STEPS_TABLE
 
 from .. import store
 from .._errors import OutputDirError, UnknownRunError
+from .._nearest import nearest_hint
 from ..metrics import metrics as computed_metrics
 
 BATCH_STEPS = 5000
@@ -197,10 +198,12 @@ def _by_episode(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
 
 
 def _listed(wanted: Sequence[str], known: Sequence[str], what: str, where: str) -> None:
+    """Refuse ids of `wanted` not in `known` (`what`: `run`), naming the nearest to the first."""
     unknown = sorted(set(wanted) - set(known))
     if unknown:
         shown = ", ".join(repr(u) for u in unknown[:5]) + (" ..." if len(unknown) > 5 else "")
-        raise UnknownRunError(f"unknown {what} {shown} in {where}")
+        hint = nearest_hint(unknown[0], sorted(set(known)), f"{what}s")
+        raise UnknownRunError(f"unknown {what}(s) {shown} in {where}{hint}")
 
 
 def open_source(
@@ -222,17 +225,18 @@ def open_source(
     table = store.runs(out)
     known = table["run_id"].to_list()
     if runs is not None:
-        _listed(runs, known, "run(s)", f"{shown}; runs: {', '.join(known)}")
+        _listed(runs, known, "run", shown)
     chosen = [r for r in table.to_dicts() if runs is None or r["run_id"] in set(runs)]
     run_ids = [r["run_id"] for r in chosen]
     wanted = set(episodes) if episodes is not None else None
+    every = {r: _contents(out, r) for r in run_ids}
     contents = {
-        r: [c for c in _contents(out, r) if wanted is None or c.episode_id in wanted]
-        for r in run_ids
+        r: [c for c in listed if wanted is None or c.episode_id in wanted]
+        for r, listed in every.items()
     }
     if episodes is not None:
-        found = [c.episode_id for listed in contents.values() for c in listed]
-        _listed(episodes, found, "episode(s)", f"the selected runs of {shown}")
+        found = [c.episode_id for listed in every.values() for c in listed]
+        _listed(episodes, found, "episode", f"the selected runs of {shown}")
         # the runs that hold none of the episodes named are left out
         chosen = [r for r in chosen if contents[r["run_id"]]]
         run_ids = [r["run_id"] for r in chosen]

@@ -31,6 +31,7 @@ import replay
 from replay.io import run_json_path
 
 from .._errors import RequestRefusedError, RunDirError, RunStoppedError
+from .._nearest import nearest_hint
 from ._agents import LiveAgent
 from ._continue import Source, SourceRun
 from ._header import Counters, RunOptions, check_resume, run_header
@@ -76,6 +77,7 @@ def _chosen(
             raise RunDirError(
                 f"--episodes: not in {where}: {', '.join(map(repr, unknown[:5]))}"
                 + (f" and {len(unknown) - 5} more" if len(unknown) > 5 else "")
+                + nearest_hint(unknown[0], list(available), "episodes")
             )
     if limit is not None:
         chosen = chosen[:limit]

@@ -31,9 +31,9 @@ from math import comb
 import numpy as np
 import polars as pl
 
-from .._errors import AnalyticsError, UnknownRunError
+from .._errors import AnalyticsError
 from ..metrics import Metric, MetricsSource, metric_set
-from ..store import Store, open_store, run_query
+from ..store import Store, check_runs, open_store, run_query
 from ._completeness import completeness
 from ._defaults import DEFAULT_RESAMPLES, DEFAULT_SEED
 from ._taxonomy import ERROR_LABELS, error_distribution
@@ -273,10 +273,7 @@ def error_difference(store: Store, run_a: str, run_b: str, common: list[str]) ->
 
 
 def _check_runs(store: Store, run_a: str, run_b: str) -> None:
-    known = store.run_ids()
-    for run in (run_a, run_b):
-        if run not in known:
-            raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
+    check_runs(store, [run_a, run_b])
     if run_a == run_b:
         raise AnalyticsError(f"compare needs two different runs, got {run_a!r} twice")
 

@@ -51,10 +51,10 @@ from replay.io import (
     manifest_path,
 )
 
-from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
+from .._errors import ConfigError, SweepInputError, SweepRefused
 from ..metrics import Metric, MetricSet, MetricsSource, metric_set
 from ..metrics import metrics as computed_metrics
-from ..store import Store, memory_store, open_store, resolve_input, run_query
+from ..store import Store, check_runs, memory_store, open_store, resolve_input, run_query
 from ._defaults import DEFAULT_SWEEP_METRICS
 
 
@@ -156,11 +156,9 @@ def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> 
     if manifest is None:
         raise SweepInputError(f"{manifest_path(store.out)}: not found; the sweep needs it")
     entries = {e.run_id: e for e in manifest.runs}
-    known = store.run_ids()
+    known = check_runs(store, run_ids or [])
     wanted = list(run_ids) if run_ids else known
     for run in wanted:
-        if run not in known:
-            raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
         if run not in entries:
             raise SweepInputError(f"run {run}: not in {manifest_path(store.out)}")
     eps = run_query(

@@ -48,6 +48,12 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         quote_ident,
         run_keys_scope,
     )
+    from ._selection import (
+        SelectionCheck,
+        check_runs,
+        check_selection,
+        describe_filters,
+    )
     from ._sql import (
         Batches,
         guarded_cursor,
@@ -85,9 +91,12 @@ __all__ = [
     "APP_MAX_ROWS",
     "APP_TIMEOUT",
     "default_max_queries",
+    "describe_filters",
     "Batches",
     "build_scope",
     "check_columns",
+    "check_runs",
+    "check_selection",
     "clear_cache",
     "CLI_MAX_ROWS",
     "CLI_TIMEOUT",
@@ -121,6 +130,7 @@ __all__ = [
     "run_isolated",
     "run_keys_scope",
     "run_query",
+    "SelectionCheck",
     "runs",
     "SLOT_WAIT",
     "sql",

@@ -17,9 +17,9 @@ import polars as pl
 
 from replay.io import RUNS_TABLE
 
-from ..._errors import AnalyticsError, UnknownColumnError, UnknownRunError
+from ..._errors import AnalyticsError, UnknownColumnError
 from ...metrics import Metric, MetricSet, episode_terms
-from ...store import Store, run_query, runs
+from ...store import Store, check_runs, run_query, runs
 from ._clusters import (
     A_DEN,
     A_NUM,
@@ -75,12 +75,7 @@ def runs_of(
     is in OUT and each of `columns` is a scalar column of the runs table (named by `option`
     in the error)."""
     table = runs(store)
-    known = table["run_id"].to_list()
-    unknown = [r for r in chosen or () if r not in known]
-    if unknown:
-        raise UnknownRunError(
-            f"unknown run {unknown[0]!r} in {store.out}; runs: {', '.join(known)}"
-        )
+    check_runs(store, chosen or ())
     for column in columns:
         if column not in table.columns or not store.is_scalar(RUNS_TABLE, column):
             raise UnknownColumnError(
