@@ -40,9 +40,10 @@ def nearest(value: object, known: Sequence[object]) -> list[str]:
 
 
 def nearest_hint(value: object, known: Sequence[object], what: str) -> str:
-    """What follows a one-line error about `value`, which is not one of `known` (`what`:
-    their plural, `runs`): `; nearest: a, b` when some are alike, else `; runs: x, y, z`
+    """What follows a one-line error about `value`, which is not one of `known` (`what`: what
+    one of them is, `run`): `; nearest: a, b` when some are alike, else `; runs: x, y, z`
     when they are few, else `; 57 runs, none alike`."""
+    what = f"{what}s"
     close = nearest(value, known)
     if close:
         return f"; nearest: {', '.join(close)}"

@@ -30,12 +30,12 @@ def test_nearest_best_first_ties_in_order_none_below_the_cutoff() -> None:
 
 
 def test_hints() -> None:
-    assert nearest_hint("sim-hman", ["sim-human", "sim-vlm-a"], "runs") == (
+    assert nearest_hint("sim-hman", ["sim-human", "sim-vlm-a"], "run") == (
         "; nearest: sim-human, sim-vlm-a"
     )
-    assert nearest_hint("Z", ["A", "B"], "runs") == "; runs: A, B"
-    assert nearest_hint("Z", [f"run-{k}" for k in range(11)], "runs") == "; 11 runs, none alike"
-    assert nearest_hint("Z", [], "runs") == "; no runs"
+    assert nearest_hint("Z", ["A", "B"], "run") == "; runs: A, B"
+    assert nearest_hint("Z", [f"run-{k}" for k in range(11)], "run") == "; 11 runs, none alike"
+    assert nearest_hint("Z", [], "run") == "; no runs"
 
 
 def test_huge_values_are_cut() -> None:

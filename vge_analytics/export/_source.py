@@ -202,7 +202,7 @@ def _listed(wanted: Sequence[str], known: Sequence[str], what: str, where: str) 
     unknown = sorted(set(wanted) - set(known))
     if unknown:
         shown = ", ".join(repr(u) for u in unknown[:5]) + (" ..." if len(unknown) > 5 else "")
-        hint = nearest_hint(unknown[0], sorted(set(known)), f"{what}s")
+        hint = nearest_hint(unknown[0], sorted(set(known)), what)
         raise UnknownRunError(f"unknown {what}(s) {shown} in {where}{hint}")
 
 

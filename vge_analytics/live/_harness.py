@@ -77,7 +77,7 @@ def _chosen(
             raise RunDirError(
                 f"--episodes: not in {where}: {', '.join(map(repr, unknown[:5]))}"
                 + (f" and {len(unknown) - 5} more" if len(unknown) > 5 else "")
-                + nearest_hint(unknown[0], list(available), "episodes")
+                + nearest_hint(unknown[0], list(available), "episode")
             )
     if limit is not None:
         chosen = chosen[:limit]

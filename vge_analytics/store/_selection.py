@@ -12,6 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from replay.io import EPISODES_TABLE, GRAINS
+
 from .._errors import UnknownRunError
 from .._nearest import nearest_hint
 from ._scope import (
@@ -60,7 +62,7 @@ def check_runs(store: Store, run_ids: Sequence[str]) -> list[str]:
     for run in run_ids:
         if run not in known:
             raise UnknownRunError(
-                f"unknown run {run!r} in {store.out}{nearest_hint(run, known, 'runs')}"
+                f"unknown run {run!r} in {store.out}{nearest_hint(run, known, 'run')}"
             )
     return known
 
@@ -78,7 +80,7 @@ def describe_filters(where: Filters) -> str:
 def _grain(store: Store, columns: Sequence[str]) -> str | None:
     """The table whose rows the filters select: episodes (with the columns of runs), else
     steps or goals when a column is theirs only; None when no table has them all."""
-    for grain in ("episodes", "steps", "goals"):
+    for grain in GRAINS:
         if all(source_table(store, grain, c) is not None for c in columns):
             return grain
     return None
@@ -119,7 +121,7 @@ def check_selection(out, where: Filters) -> SelectionCheck:
         return SelectionCheck((), False)
     store = open_store(out)
     grain = _grain(store, list(filters))
-    check_columns(store, list(filters), [grain or "episodes"], "filter")
+    check_columns(store, list(filters), [grain or EPISODES_TABLE], "filter")
     misses: list[str] = []
     matched: dict[str, list[object]] = {}
     for column, value in filters.items():
@@ -134,7 +136,7 @@ def check_selection(out, where: Filters) -> SelectionCheck:
         if missing:
             known = _values(store, table, column)
         for v in missing[:SHOWN]:
-            hint = nearest_hint(v, known, "values")
+            hint = nearest_hint(v, known, "value")
             misses.append(f"no {column} {'(none)' if v is None else repr(v)} ({hint[2:]})")
         if len(missing) > SHOWN:
             misses.append(f"and {len(missing) - SHOWN:,} more {column} values that no row holds")
