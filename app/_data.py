@@ -20,7 +20,7 @@ import streamlit as st
 import vge_analytics as va
 from vge_analytics import dashboard as dash
 from vge_analytics.metrics import default_folder
-from vge_analytics.store import CLI_TIMEOUT
+from vge_analytics.store import CLI_TIMEOUT, check_selection
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -108,6 +108,9 @@ def metric_set() -> va.MetricSet:
 
 metrics = cached(va.metrics, metrics=True)
 compare = cached(va.compare, metrics=True)
+compare_all = cached(va.compare_all, metrics=True)
+metric_intervals = cached(va.metric_intervals, metrics=True)
+repeated = cached(va.repeated)
 rescore = cached(va.rescore, metrics=True)
 computed_sweep = cached(dash.computed_sweep, metrics=True)
 error_distribution = cached(va.error_distribution)
@@ -134,3 +137,4 @@ sweep_size = cached(dash.sweep_size)
 sql_preview = cached(dash.sql_preview)
 completeness = cached(va.completeness)
 cost_table = cached(dash.cost_table)
+selection_check = cached(check_selection)

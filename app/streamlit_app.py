@@ -1,9 +1,9 @@
 """Entry file of the dashboard: routing only (`vge app [OUT]` runs it with `-- --out OUT`;
 `vge play BENCH` with `-- --bench BENCH --run RUN`, and then it shows the Play page alone).
 
-The sidebar shows which OUT is open and holds the run-facet filters every page applies.
-Every run ends with an invisible marker (`ui.end_of_page`): browser tests and the render-time
-benchmark wait for it.
+The pages are listed once, in `_pages.py`. The sidebar shows which OUT is open and holds the
+run-facet filters every page applies. Every run ends with an invisible marker
+(`_lifecycle.end_of_page`): browser tests and the render-time benchmark wait for it.
 """
 
 from __future__ import annotations
@@ -12,47 +12,29 @@ import contextlib
 
 import streamlit as st
 
-from app import _ui as ui
+from app import _lifecycle as page
+from app import _pages as pages
+from app import _settings as settings
+from app import _sidebar as sidebar
 from vge_analytics import AnalyticsError
 
 
 def run() -> None:
     st.set_page_config(page_title="VGE Analytics", page_icon=":material/analytics:", layout="wide")
-    if ui.play_target() is not None:  # opened by `vge play`: the Play page alone
-        play = st.Page("views/play.py", title="Play", icon=":material/touch_app:", default=True)
-        with contextlib.suppress(ui.PageStopped):
-            st.navigation([play]).run()
-        ui.end_of_page()
+    if settings.play_target() is not None:  # opened by `vge play`: the Play page alone
+        with contextlib.suppress(page.PageStopped):
+            pages.navigation((pages.PLAY,)).run()
+        page.end_of_page()
         return
-    page = st.navigation(
-        [
-            st.Page(
-                "views/leaderboard.py",
-                title="Leaderboard",
-                icon=":material/leaderboard:",
-                default=True,
-            ),
-            st.Page("views/errors.py", title="Errors", icon=":material/error:"),
-            st.Page("views/navigation.py", title="Navigation", icon=":material/explore:"),
-            st.Page("views/grounding.py", title="Grounding", icon=":material/my_location:"),
-            st.Page("views/budgets.py", title="Budgets", icon=":material/timeline:"),
-            st.Page(
-                "views/human_vs_vlm.py", title="Human vs VLM", icon=":material/compare_arrows:"
-            ),
-            st.Page("views/side_by_side.py", title="Side by side", icon=":material/splitscreen:"),
-            st.Page("views/rescore.py", title="Rescore", icon=":material/swap_vert:"),
-            st.Page("views/episode_viewer.py", title="Episode viewer", icon=":material/movie:"),
-            st.Page("views/sql.py", title="SQL", icon=":material/database:"),
-        ]
-    )
-    if ui.sidebar():
+    chosen = pages.navigation(pages.PAGES)
+    if sidebar.sidebar():
         try:
-            page.run()
-        except ui.PageStopped:  # a page said all it could (ui.stop)
+            chosen.run()
+        except page.PageStopped:  # a page said all it could (page.stop)
             pass
         except AnalyticsError as exc:  # a query past its time limit, a metric that fails
-            ui.show_error(exc)
-    ui.end_of_page()
+            page.show_error(exc)
+    page.end_of_page()
 
 
 if __name__ == "__main__":

@@ -4,14 +4,15 @@
         [--envs 2,4] [--size 64] [--images rendered|none]
 
 For `vge/DeviceRL-v0` (sampled actions, seeded) and `vge/Device-v0` (the same actions as
-structured ones): `gymnasium.make_vec` with `sync` vectorization of one environment, then
+structured ones), or their `vge/Rendered...` ids with `--images rendered`: `gymnasium.make_vec` with `sync` vectorization of one environment, then
 `sync` and `async` (Gymnasium's defaults: shared memory, the platform's start method) for
 each count of `--envs`. Environment steps per second (a vector step of N envs counts N), by
 the wall clock and per CPU second of this process and the async env's workers (steadier
 under load from other processes), for a first pass of the actions from a seeded reset, in
 which each environment decodes and resizes every view it meets (about 20 ms each), and for
 the same pass again, every view in the environment's cache. Views: `--images rendered`
-(through `vge_analytics.envs`; every view is rendered into the disk cache first), or `none`
+(`vge/RenderedDeviceRL-v0` and `vge/RenderedDevice-v0` of `vge_analytics.rendered_envs`;
+every view is rendered into the disk cache first), or `none`
 (the blank canvas: the episode logic and the image copy alone). Prints a markdown table.
 """
 
@@ -32,13 +33,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import replay  # noqa: E402
-import vge_analytics.envs  # noqa: E402
-from replay.env import RL_ENV_ID, no_images  # noqa: E402
-from vge_analytics import synth  # noqa: E402
+from replay.env import ENV_ID, RL_ENV_ID, no_images  # noqa: E402
+from vge_analytics import rendered_envs, synth  # noqa: E402
 
-gymnasium.register_envs(vge_analytics.envs)  # the ids, with the rendered views
-
-RL, TEXT = RL_ENV_ID, "vge/Device-v0"
+gymnasium.register_envs(rendered_envs)  # the ids with the rendered views
 
 
 def _cpu(envs: gymnasium.vector.VectorEnv) -> float:
@@ -53,13 +51,13 @@ def _cpu(envs: gymnasium.vector.VectorEnv) -> float:
     return seconds
 
 
-def _actions(env_id: str, n: int, steps: int, size: int, bench: str) -> list:
+def _actions(rl_id: str, text: bool, n: int, steps: int, size: int, bench: str) -> list:
     """`steps` vector actions of `n` environments: sampled RL actions, or their structured
     form for the text environment (the same steps)."""
-    rl = gymnasium.make(RL, bench=bench, image_width=size, image_height=size).unwrapped
+    rl = gymnasium.make(rl_id, bench=bench, image_width=size, image_height=size).unwrapped
     space = gymnasium.spaces.MultiDiscrete(np.tile(rl.action_space.nvec, (n, 1)), seed=0)
     drawn = [space.sample() for _ in range(steps)]
-    if env_id == RL:
+    if not text:
         return drawn
     return [tuple(rl.structured_action(a) for a in batch) for batch in drawn]
 
@@ -86,13 +84,21 @@ def prerender(bench: str) -> int:
     return views
 
 
+def _ids(images: str) -> tuple[str, str]:
+    """(RL id, text id) showing the views as `--images` says."""
+    if images == "rendered":
+        return rendered_envs.RENDERED_RL_ENV_ID, rendered_envs.RENDERED_ENV_ID
+    return RL_ENV_ID, ENV_ID
+
+
 def measure(env_id: str, mode: str, n: int, args: argparse.Namespace) -> list[float]:
     """Steps per second (wall, CPU) of a first pass, in which each environment decodes every
     view it meets, and of the same pass again (same seed, same actions: every view cached)."""
     options = {"bench": args.bench, "image_width": args.size, "image_height": args.size}
     if args.images == "none":
         options["image_source"] = no_images
-    actions = _actions(env_id, n, args.steps // n, args.size, args.bench)
+    rl_id, text_id = _ids(args.images)
+    actions = _actions(rl_id, env_id == text_id, n, args.steps // n, args.size, args.bench)
     envs = gymnasium.make_vec(env_id, num_envs=n, vectorization_mode=mode, **options)
     try:
         passes = [_pass(envs, actions), _pass(envs, actions)]
@@ -122,7 +128,7 @@ def main() -> None:
         "| environment | vectorization | envs | first pass: steps/s | per CPU s | cached: steps/s | per CPU s |"
     )
     print("|---|---|---:|---:|---:|---:|---:|")
-    for env_id in (RL, TEXT):
+    for env_id in _ids(args.images):
         for mode, n in [("sync", 1)] + [(m, n) for m in ("sync", "async") for n in counts]:
             rates = " | ".join(f"{r:,.0f}" for r in measure(env_id, mode, n, args))
             print(f"| `{env_id}` | {mode} | {n} | {rates} |", flush=True)

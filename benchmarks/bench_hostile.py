@@ -27,6 +27,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from replay.io import (  # noqa: E402
+    EPISODES,
+    EPISODES_GZ,
+    manifest_path,
+    mcap_dir,
+    quarantine_path,
+)
 from tests.bounded import Finished, run_bounded  # noqa: E402
 from tests.hostile import processes  # noqa: E402
 from tests.hostile import replay_inputs as gen  # noqa: E402
@@ -48,9 +55,9 @@ def row(case: str, command: str, done: Finished, note: str = "") -> str:
 
 
 def quarantined(out: Path) -> str:
-    lines = (out / "quarantine.jsonl").read_text().splitlines()
+    lines = quarantine_path(out).read_text().splitlines()
     kinds = [f"{r['kind']} (line {r['line']})" for r in map(json.loads, lines)]
-    manifest = json.loads((out / "manifest.json").read_text())
+    manifest = json.loads(manifest_path(out).read_text())
     return f"{manifest['totals']['replayed']:,} replayed; quarantined: {', '.join(kinds) or '-'}"
 
 
@@ -69,7 +76,7 @@ def _large_run(work: Path) -> tuple[Path, Path]:
 
 def large_records(work: Path) -> list[str]:
     bench, run = _large_run(work)
-    size = (run / "episodes.jsonl.gz").stat().st_size
+    size = (run / EPISODES_GZ).stat().st_size
     rows = []
     for workers in (1, 2):
         out = work / f"out-{workers}"
@@ -89,8 +96,8 @@ def _endless(work: Path, chunk: bytes, times: int, what: str) -> list[str]:
     """One good record, then `times` MiB of `chunk` (compressed once, as gzip members)."""
     bench = _press_bench(work, ["e0"])
     run = gen.write_run(work / "run", [gen.episode("e0")], gz=True)
-    gen.append_gzip(run / "episodes.jsonl.gz", chunk * (MiB // len(chunk)), times)
-    size = (run / "episodes.jsonl.gz").stat().st_size
+    gen.append_gzip(run / EPISODES_GZ, chunk * (MiB // len(chunk)), times)
+    size = (run / EPISODES_GZ).stat().st_size
     out = work / "out"
     done = vge("replay", run, "--bench", bench, "--out", out)
     return [row(f"{what} ({size / MiB:.1f} MB .gz)", "vge replay RUN", done, quarantined(out))]
@@ -107,8 +114,8 @@ def blank_run(work: Path) -> list[str]:
 def device(work: Path) -> list[str]:
     bench = _press_bench(work, ["e0"])
     run = gen.write_run(work / "run", [])
-    (run / "episodes.jsonl").unlink()
-    (run / "episodes.jsonl").symlink_to("/dev/zero")
+    (run / EPISODES).unlink()
+    (run / EPISODES).symlink_to("/dev/zero")
     done = vge("replay", run, "--bench", bench, "--out", work / "out")
     return [row("episodes.jsonl links to /dev/zero", "vge replay RUN", done, done.stderr.strip())]
 
@@ -153,7 +160,7 @@ def long_id(work: Path) -> list[str]:
     run = gen.write_run(work / "run", [gen.episode(i) for i in ids])
     out = work / "out"
     done = vge("replay", run, "--bench", bench, "--out", out, "--mcap")
-    longest = max(len(p.name.encode()) for p in (out / "mcap" / "run").iterdir())
+    longest = max(len(p.name.encode()) for p in mcap_dir(out, "run").iterdir())
     note = f"{quarantined(out)}; longest MCAP file name {longest} bytes"
     return [row("episode ids of 300 characters", "vge replay RUN --mcap", done, note)]
 

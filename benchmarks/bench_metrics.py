@@ -37,6 +37,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 import vge_analytics as va
+from replay.io import PARTITIONED, RUNS_TABLE, STEPS_TABLE, manifest_path, partition
 from vge_analytics.reports import groups_of
 
 WORK = Path(__file__).resolve().parent / "_work"
@@ -103,7 +104,7 @@ def _copy_table(src: Path, dst: Path, times: int, partitioned: bool) -> None:
             copy = table.set_column(table.schema.get_field_index("run_id"), "run_id", run_ids)
             if partitioned:
                 run = copy["run_id"][0].as_py()
-                target = dst / f"run_id={run}" / path.name
+                target = dst / partition(run) / path.name
             else:
                 target = dst / f"{path.stem}~{k}.parquet"
             target.parent.mkdir(parents=True, exist_ok=True)
@@ -114,13 +115,13 @@ def build_copies(out: Path, times: int) -> Path:
     """OUT repeated `times` times under new run ids (rebuilt when OUT's manifest changed)."""
     dst = WORK / f"metrics_x{times}"
     stamp = dst / "source.json"
-    source = {"out": str(out.resolve()), "manifest_mtime": (out / "manifest.json").stat().st_mtime}
+    source = {"out": str(out.resolve()), "manifest_mtime": manifest_path(out).stat().st_mtime}
     if stamp.exists() and json.loads(stamp.read_text()) == source:
         return dst
     shutil.rmtree(dst, ignore_errors=True)
-    for table in ("steps", "episodes", "goals"):
+    for table in PARTITIONED:
         _copy_table(out / table, dst / table, times, partitioned=True)
-    _copy_table(out / "runs", dst / "runs", times, partitioned=False)
+    _copy_table(out / RUNS_TABLE, dst / RUNS_TABLE, times, partitioned=False)
     stamp.write_text(json.dumps(source))
     return dst
 
@@ -132,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=7, help="warm repeats (7)")
     parser.add_argument("--json", action="store_true", help="print the numbers as JSON")
     args = parser.parse_args(argv)
-    if not (args.out / "steps").is_dir():
+    if not (args.out / STEPS_TABLE).is_dir():
         print(f"error: {args.out}: not a replay output directory", file=sys.stderr)
         return 1
     results = [measure(args.out, args.repeats)]

@@ -38,13 +38,13 @@ from pathlib import Path
 
 import replay
 from replay.io import episode_decoder
-from vge_analytics.commands.replay import image_source
+from vge_analytics.synth import BENCH_DIR, RUNS_DIR, image_source
 
 CORES = os.cpu_count() or 1
 
 
 def _episode_files(data: Path) -> list[Path]:
-    return sorted(replay.episodes_file(d).local for d in (data / "runs").iterdir() if d.is_dir())
+    return sorted(replay.episodes_file(d).local for d in (data / RUNS_DIR).iterdir() if d.is_dir())
 
 
 def _read(path: Path) -> bytes:
@@ -142,8 +142,8 @@ if cluster is not None:
 def end_to_end(
     data: Path, out: Path, *, workers: int = 1, engine: str = "kernel", nodes: int = 0
 ) -> dict:
-    runs = [str(d) for d in sorted((data / "runs").iterdir()) if d.is_dir()]
-    arg = json.dumps([runs, str(data / "bench"), str(out), workers, nodes])
+    runs = [str(d) for d in sorted((data / RUNS_DIR).iterdir()) if d.is_dir()]
+    arg = json.dumps([runs, str(data / BENCH_DIR), str(out), workers, nodes])
     env = {
         **os.environ,
         "VGE_REPLAY_ENGINE": engine,
@@ -159,63 +159,61 @@ def end_to_end(
 
 
 _STAGES = """
-import collections, functools, json, sys, time
+import cProfile, json, pstats, sys, time
+from pathlib import Path
 import replay
-from replay.io import _runjob, _worker
-from replay.kernel import _batch
-seconds = collections.Counter()
-
-def timed(owner, name, label):
-    real = getattr(owner, name)
-    @functools.wraps(real)
-    def wrapper(*args, **kwargs):
-        t = time.process_time()
-        try:
-            return real(*args, **kwargs)
-        finally:
-            seconds[label] += time.process_time() - t
-    setattr(owner, name, wrapper)
+runs, bench = json.loads(sys.argv[1])
+profile = cProfile.Profile(time.process_time)
+t = time.process_time()
+profile.enable()
+m = replay.replay_runs(runs, bench, sys.argv[2], force=True, progress=False)
+profile.disable()
+total = time.process_time() - t
+cumulative = {}  # (file, function) -> CPU seconds in it and what it called
+for (file, _, name), (_, _, _, seconds, _) in pstats.Stats(profile).stats.items():
+    key = "/".join(Path(file).parts[-2:]) + ":" + name
+    cumulative[key] = cumulative.get(key, 0.0) + seconds
+print(json.dumps({"total": total, "steps": m.content.totals.steps, "cumulative": cumulative}))
+"""
 
 STAGES = [
-    (_worker, "_prepare_line", "decode and check each line (msgspec), plan per task (cached)"),
-    (_worker.WorkerState, "setup", "  of which planning (once per task and process)"),
-    (_batch, "replay_batch", "kernel: parse, simulate, classify (C)"),
-    (_batch, "tables", "kernel: columns to Arrow tables"),
-    (_worker, "_counts", "batch tallies (Arrow compute)"),
-    (_worker, "write_part", "Parquet parts (written by the worker)"),
-    (_runjob.RunJob, "take", "main process: take reports, duplicates, quarantine"),
-    (_runjob.RunJob, "commit", "main process: commit (manifest, swap in)"),
+    ("io/_batch.py:_prepare_lines", "decode and check each line (msgspec), plan per task (cached)"),
+    ("io/_worker.py:setup", "  of which planning (once per task and process)"),
+    ("kernel/_batch.py:replay_kernel", "kernel: parse, simulate, classify (C)"),
+    ("kernel/_assemble.py:tables", "kernel: columns to Arrow tables"),
+    ("io/_batch.py:_counts", "batch tallies (Arrow compute)"),
+    ("io/_files.py:write_part", "Parquet parts (written by the worker)"),
+    ("io/_job.py:take", "main process: take reports, duplicates, quarantine"),
+    ("io/_job.py:commit", "main process: commit (manifest, swap in)"),
 ]
-for owner, name, label in STAGES:
-    timed(owner, name, label)
-runs, bench = json.loads(sys.argv[1])
-t = time.process_time()
-m = replay.replay_runs(runs, bench, sys.argv[2], force=True, progress=False)
-total = time.process_time() - t
-order = [(label, seconds[label]) for _, _, label in STAGES]
-print(json.dumps({"total": total, "steps": m.content.totals.steps, "stages": order}))
-"""
+"""(file:function as the profiler names it, label) of each stage, timed by the CPU seconds
+spent in the function and what it calls; the kernel's row leaves out the Arrow tables it
+builds, which have their own row."""
 
 
 def stages(data: Path, out: Path) -> dict:
-    """CPU seconds per stage of a one-worker kernel replay of all runs."""
-    runs = [str(d) for d in sorted((data / "runs").iterdir()) if d.is_dir()]
+    """CPU seconds per stage of a one-worker kernel replay of all runs, under Python'sprofiler (which adds its own cost to every Python call: the stages are read as shares)."""
+    runs = [str(d) for d in sorted((data / RUNS_DIR).iterdir()) if d.is_dir()]
     env = {**os.environ, "VGE_REPLAY_ENGINE": "kernel", "POLARS_MAX_THREADS": "1"}
     done = subprocess.run(
-        [sys.executable, "-c", _STAGES, json.dumps([runs, str(data / "bench")]), str(out)],
+        [sys.executable, "-c", _STAGES, json.dumps([runs, str(data / BENCH_DIR)]), str(out)],
         check=True,
         capture_output=True,
         text=True,
         env=env,
     )
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    seconds = {key: got["cumulative"].get(key, 0.0) for key, _ in STAGES}
+    seconds["kernel/_batch.py:replay_kernel"] -= seconds["kernel/_assemble.py:tables"]
+    order = [(label, seconds[key]) for key, label in STAGES]
+    return {"total": got["total"], "steps": got["steps"], "stages": order}
 
 
 def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
     """Replay `n` episodes of the largest run; time `write_episode_mcap` alone, with the
     view images (the CLI's image source) fetched beforehand."""
-    bench = replay.Benchmark.open(data / "bench")
-    images = image_source(data / "bench")
+    bench = replay.Benchmark.open(data / BENCH_DIR)
+    images = image_source(data / BENCH_DIR)
     largest = max(_episode_files(data), key=lambda p: p.stat().st_size)
     total = image_total = 0.0
     count = with_images = 0
@@ -231,7 +229,7 @@ def mcap_ms_per_episode(data: Path, n: int) -> dict[str, float]:
         views = {r.view_before for r in result.steps if r.view_before} | {
             result.episode.initial_view
         }
-        cache = {v: replay.as_view_image(images(machine, v)) for v in sorted(views)}
+        cache = {v: replay.io.as_view_image(images(machine, v)) for v in sorted(views)}
         image_total += time.perf_counter() - t0
         buf = io.BytesIO()
         t0 = time.perf_counter()
@@ -257,7 +255,7 @@ def engine_core(data: Path) -> dict[str, float]:
     from replay.io import reference_tables, worker_state
     from replay.kernel import EpisodeInput, replay_kernel
 
-    state = worker_state(str(data / "bench"))
+    state = worker_state(str(data / BENCH_DIR))
     largest = max(_episode_files(data), key=lambda p: p.stat().st_size)
     episodes = []
     for line in _read(largest).splitlines():

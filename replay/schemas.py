@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from .io._schemas import write_schemas
+from .io import write_schemas
 
 if __name__ == "__main__":
     target = sys.argv[1] if len(sys.argv) > 1 else "schemas"

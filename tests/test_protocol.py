@@ -17,6 +17,7 @@ import pytest
 import replay
 from replay.io._manifest import _RUN_COLUMNS
 from replay.io._mcap import SCHEMA_NAMES, TOPICS
+from replay.semantics import FEEDBACK_SEVERITY, PARAMETER_CODES
 from replay.semantics import _vocab as vocab
 from tests.test_self_contained import repository_files
 
@@ -34,9 +35,15 @@ def section(anchor: str) -> str:
     return TEXT[start : following.start() if following else len(TEXT)]
 
 
-def table(anchor: str) -> list[list[str]]:
-    """The body rows of the first table of a section, cells stripped."""
-    lines = [line for line in section(anchor).splitlines() if line.startswith("|")]
+def table(anchor: str, number: int = 0) -> list[list[str]]:
+    """The body rows of a section's table (the first unless `number` says), cells stripped."""
+    blocks: list[list[str]] = [[]]
+    for line in section(anchor).splitlines():
+        if line.startswith("|"):
+            blocks[-1].append(line)
+        elif blocks[-1]:
+            blocks.append([])
+    lines = blocks[number] if number < len(blocks) else []
     assert len(lines) > 2 and set(lines[1]) <= set("|-: "), f"no table in §{anchor}"
     return [[cell.strip() for cell in line.strip("|").split(" | ")] for line in lines[2:]]
 
@@ -77,8 +84,18 @@ def test_runs_table_columns() -> None:
     ]
 
 
-def test_feedback_kinds() -> None:
+def test_feedback_kinds_and_severities() -> None:
     assert names("s3-6") == list(vocab.FEEDBACK_KINDS)
+    assert dict(zip(names("s3-6"), names("s3-6", 1), strict=True)) == FEEDBACK_SEVERITY
+
+
+def test_parameter_codes() -> None:
+    # §2's second table: an interaction's codes, "0 first, 1 second, ..." in one cell.
+    codes = {row[0].strip("`").lower(): row[2] for row in table("s2", 1)}
+    assert codes == {
+        action: ", ".join(f"{i} {meaning}" for i, meaning in enumerate(meanings))
+        for action, meanings in PARAMETER_CODES.items()
+    }
 
 
 def test_parse_details() -> None:
@@ -105,8 +122,8 @@ def test_switch_classes_terminations_quarantine_kinds() -> None:
 
 
 def test_views_and_their_order() -> None:
-    views = code_words("s3-1")
-    assert set(vocab.STANDARD_VIEWS) | {vocab.DASHBOARD} <= views
+    listed = [w for w in CODE.findall(section("s3-1")) if w in vocab.VIEW_RANK]
+    assert tuple(dict.fromkeys(listed)) == vocab.VIEWS
     assert " ".join(vocab.VIEW_ORDER) in " ".join(section("s4-3").split())
 
 

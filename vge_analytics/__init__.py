@@ -24,8 +24,15 @@ Error taxonomy and navigation (PROTOCOL §5):
     error_distribution(out, by, where), error_groups(out, by, where),
     switch_classes(out, by, where)
 
-Comparisons and budgets:
-    compare(out, run_a, run_b, seed=0, resamples=2000) -> Comparison
+Comparisons and budgets (the statistics: docs/STATISTICS.md):
+    compare(out, run_a, run_b, seed=0, resamples=2000, cluster="device", correction="holm")
+                                                     -> Comparison (clustered intervals, SEs,
+                                                     design effects, corrected p-values)
+    compare_all(out, runs=None, by="run_id", metric="SR") -> AllPairs (every pair, the
+                                                     ranking and its tied groups)
+    metric_intervals(out, metric="SR", by=("run_id",)) per group: the clustered interval
+    power_of_pair(out, run_a, run_b, delta=5), plan(out, rate=0.5, delta=5, icc=None)
+    repeated(out, runs=None, group_by=None) -> Repeated (pass@k, pass^k of seeds)
     sweep(out, lambdas=(2, 3, 4, 5), runs=None, metrics=("SR", "SSR"))
 
 Trajectories side by side (`vge diff`):
@@ -40,9 +47,9 @@ Rows for a dashboard:
     episode_steps(out, run_id, episode_id), steps_with_error(out, error_type, where)
 
 Live runs (`vge run`): `vge_analytics.live` (agents, the OpenAI-compatible client, the
-prompt, the run writer; docs/LIVE.md). `vge_analytics.envs` registers the Gymnasium
+prompt, the run writer; docs/LIVE.md). `vge_analytics.rendered_envs` registers the Gymnasium
 environments with the rendered synthetic views:
-`gymnasium.make("vge_analytics.envs:vge/DeviceRL-v0", bench=...)`.
+`gymnasium.make("vge_analytics.rendered_envs:vge/RenderedDeviceRL-v0", bench=...)`.
 
 Read-only SQL (within a memory and a time limit, see `store`):
     sql(out, "SELECT ...", timeout=300, memory_limit=None)   views steps, episodes, goals, runs
@@ -54,66 +61,79 @@ of steps/goals where the result is computed from them); `by` lists grouping colu
 Errors are `replay.VGEError` subclasses with one-line messages.
 """
 
+from typing import TYPE_CHECKING
+
+from replay import lazy_names
+
 from . import _errors
 from ._errors import *  # noqa: F403 - every error class is public (_errors.__all__)
-from .metrics import (
-    CONTINUATION_METRICS,
-    MAIN_TABLE,
-    METRIC_NAMES,
-    METRICS_DIR_ENV,
-    Metric,
-    MetricSet,
-    episode_terms,
-    get_metric,
-    load_metrics,
-    metric_table,
-    metrics,
-    polars_metrics,
-    registry,
-)
-from .reports import (
-    ERROR_GROUPS,
-    ERROR_LABELS,
-    ERROR_TYPES,
-    FORMATS,
-    SWITCH_CLASSES,
-    Comparison,
-    Diff,
-    Rescore,
-    RunCompleteness,
-    compare,
-    competition_ranks,
-    completeness,
-    diff,
-    error_distribution,
-    error_groups,
-    incomplete_runs,
-    kendall_tau_b,
-    mcnemar_exact,
-    parse_lambdas,
-    render,
-    render_latex,
-    render_markdown,
-    rescore,
-    sweep,
-    switch_classes,
-)
-from .store import (
-    DEFAULT_BY,
-    clear_cache,
-    episode_steps,
-    episodes,
-    facets,
-    goals,
-    groupable_columns,
-    open_store,
-    query_time_limit,
-    runs,
-    sql,
-    steps,
-    steps_with_error,
-    table_columns,
-)
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from .metrics import (
+        CONTINUATION_METRICS,
+        MAIN_TABLE,
+        METRIC_NAMES,
+        METRICS_DIR_ENV,
+        Metric,
+        MetricSet,
+        episode_terms,
+        get_metric,
+        load_metrics,
+        metric_table,
+        metrics,
+        polars_metrics,
+        registry,
+    )
+    from .reports import (
+        ERROR_GROUPS,
+        ERROR_LABELS,
+        ERROR_TYPES,
+        FORMATS,
+        SWITCH_CLASSES,
+        AllPairs,
+        Comparison,
+        Diff,
+        Repeated,
+        Rescore,
+        RunCompleteness,
+        compare,
+        compare_all,
+        competition_ranks,
+        completeness,
+        diff,
+        error_distribution,
+        error_groups,
+        incomplete_runs,
+        kendall_tau_b,
+        mcnemar_exact,
+        metric_intervals,
+        parse_lambdas,
+        plan,
+        power_of_pair,
+        render,
+        render_latex,
+        render_markdown,
+        repeated,
+        rescore,
+        sweep,
+        switch_classes,
+    )
+    from .store import (
+        DEFAULT_BY,
+        clear_cache,
+        episode_steps,
+        episodes,
+        facets,
+        goals,
+        groupable_columns,
+        open_store,
+        query_time_limit,
+        runs,
+        sql,
+        steps,
+        steps_with_error,
+        table_columns,
+    )
 
 __all__ = [
     *_errors.__all__,
@@ -127,6 +147,7 @@ __all__ = [
     "METRIC_NAMES",
     "METRICS_DIR_ENV",
     "SWITCH_CLASSES",
+    "AllPairs",
     "Comparison",
     "Metric",
     "MetricSet",
@@ -134,6 +155,7 @@ __all__ = [
     "RunCompleteness",
     "clear_cache",
     "compare",
+    "compare_all",
     "competition_ranks",
     "completeness",
     "Diff",
@@ -151,6 +173,9 @@ __all__ = [
     "kendall_tau_b",
     "load_metrics",
     "mcnemar_exact",
+    "metric_intervals",
+    "plan",
+    "power_of_pair",
     "metric_table",
     "metrics",
     "open_store",
@@ -161,6 +186,8 @@ __all__ = [
     "render",
     "render_latex",
     "render_markdown",
+    "repeated",
+    "Repeated",
     "rescore",
     "runs",
     "sql",
@@ -170,3 +197,5 @@ __all__ = [
     "switch_classes",
     "table_columns",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

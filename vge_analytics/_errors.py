@@ -44,6 +44,11 @@ class UnknownRunError(ConfigError, AnalyticsError):
     """A run id that is not in OUT."""
 
 
+class EmptySelectionError(AnalyticsError):
+    """Filters (`--where`, a dashboard facet) that select no row: almost always a typo. The
+    message names the values no row holds and the nearest ones OUT does hold."""
+
+
 class CommonEpisodesError(AnalyticsError):
     """Two runs cannot be compared episode by episode (`vge diff`): they share no episode,
     or an episode asked for is not replayed in both."""
@@ -129,6 +134,7 @@ __all__ = [
     "AnalyticsError",
     "CommonEpisodesError",
     "ContextExceededError",
+    "EmptySelectionError",
     "InfrastructureError",
     "MetricFileError",
     "OutputDirError",

@@ -2,11 +2,14 @@
 
 Each command lives in `vge_analytics/commands/<name>.py` and exposes `register(app)`.
 Errors derived from `replay.VGEError` become one-line messages (exit 1) unless `--debug`.
+
+The command modules are imported here, and are light: each imports what its command uses
+when it runs, so `vge --help` and `vge COMMAND --help` start at once (docs/PERFORMANCE.md,
+"Start-up"; `tests/vge_analytics/commands/test_startup.py` holds it).
 """
 
 from __future__ import annotations
 
-import importlib
 import sys
 from pathlib import Path
 
@@ -14,24 +17,48 @@ import typer
 
 from replay import VGEError
 
-# Command modules, in the order `vge --help` lists them.
-COMMAND_MODULES = (
-    "demo",
-    "validate",
-    "replay",
-    "synth",
-    "run",
-    "metrics",
-    "errors",
-    "compare",
-    "diff",
-    "rescore",
-    "sweep",
-    "sql",
-    "export",
-    "app",
-    "play",
+from .commands import (
+    app as app_command,
 )
+from .commands import (
+    compare,
+    demo,
+    diff,
+    errors,
+    export,
+    metrics,
+    passk,
+    play,
+    power,
+    replay,
+    rescore,
+    run,
+    sql,
+    sweep,
+    synth,
+    validate,
+)
+
+COMMAND_MODULES = (
+    demo,
+    validate,
+    replay,
+    synth,
+    run,
+    metrics,
+    errors,
+    compare,
+    power,
+    passk,
+    diff,
+    rescore,
+    sweep,
+    sql,
+    export,
+    app_command,
+    play,
+)
+"""The command modules, in the order `vge --help` lists them."""
 
 app = typer.Typer(
     name="vge",
@@ -70,9 +97,9 @@ def _root(
 
 
 def _register_all() -> None:
-    for name in COMMAND_MODULES:
-        module = importlib.import_module(f"vge_analytics.commands.{name}")
-        module.register(app)
+    if not app.registered_commands:
+        for module in COMMAND_MODULES:
+            module.register(app)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -5,23 +5,27 @@ import functools
 import streamlit as st
 
 from app import _data as data
-from app import _ui as ui
+from app import _lifecycle as page
+from app import _links as links
+from app import _pickers as pickers
+from app import _sidebar as sidebar
+from app import _tables as tables
 from vge_analytics import dashboard as dash
 
 st.title("Episode viewer")
-run_ids = ui.runs_matching_facets(data.runs())
-ui.apply_viewer_query(run_ids)
-ui.keep_choice("viewer_run", run_ids)
+run_ids = sidebar.runs_matching_facets(data.runs())
+links.apply_viewer_query(run_ids)
+pickers.keep_choice("viewer_run", run_ids)
 c1, c2 = st.columns([2, 3])
 run = c1.selectbox("Run", run_ids, key="viewer_run")
 if run is None:
     st.info("No run matches the facet filter.")
-    ui.stop()
-episodes = data.episodes(where={"run_id": run}, columns=list(ui.EPISODE_COLUMNS))
+    page.stop()
+episodes = data.episodes(where={"run_id": run}, columns=list(tables.EPISODE_COLUMNS))
 if episodes.height == 0:
     st.info(f"Run {run} has no replayed episode.")
-    ui.stop()
-ui.keep_choice("viewer_episode", episodes["episode_id"].to_list())
+    page.stop()
+pickers.keep_choice("viewer_episode", episodes["episode_id"].to_list())
 episode = c2.selectbox(
     "Episode",
     episodes["episode_id"].to_list(),
@@ -41,11 +45,11 @@ m[4].metric("State-F1", f"{ep['state_f1']:.2f}")
 
 if steps.height == 0:
     st.info("This episode has no step.")
-    ui.stop()
-step = ui.step_slider(steps)
+    page.stop()
+step = pickers.step_slider(steps)
 st.caption(f"{steps.height} steps, numbered 0–{steps.height - 1}")
 row = steps.row(step, named=True)
-ui.set_viewer_query(run, episode, step)
+links.set_viewer_query(run, episode, step)
 
 left, right = st.columns([3, 2])
 with left:
@@ -59,7 +63,7 @@ with left:
 with right:
     st.markdown(dash.step_markdown(row, goals))
     classification = dash.step_classification(row)
-    st.dataframe(classification, hide_index=True, height=ui.table_height(classification))
+    st.dataframe(classification, hide_index=True, height=tables.table_height(classification))
     if row["thinking"]:
         with st.expander("Thinking", expanded=True):
             st.text(row["thinking"])
@@ -73,4 +77,4 @@ st.download_button(
     on_click="ignore",
 )
 with st.expander("All steps of the episode"):
-    st.dataframe(steps.select(ui.STEP_COLUMNS), hide_index=True)
+    st.dataframe(steps.select(tables.STEP_COLUMNS), hide_index=True)

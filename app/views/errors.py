@@ -4,7 +4,10 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _data as data
-from app import _ui as ui
+from app import _links as links
+from app import _pickers as pickers
+from app import _sidebar as sidebar
+from app import _tables as tables
 from vge_analytics import ERROR_LABELS, ERROR_TYPES
 from vge_analytics import dashboard as dash
 
@@ -14,16 +17,16 @@ st.caption(
     "blue, execution in red, navigation in green, as in the paper's error pie."
 )
 
-chosen_runs, categories, by, where = ui.filter_row("errors")
+chosen_runs, categories, by, where = pickers.filter_row("errors")
 
-dist = ui.labelled(data.error_distribution(by=list(by), where=where, labels=True), by)
+dist = tables.labelled(data.error_distribution(by=list(by), where=where, labels=True), by)
 groups = data.error_groups(by=list(by), where=where)
 order = dist["group"].unique(maintain_order=True).to_list()
 
 compare_tab, pie_tab, table_tab = st.tabs(["Compare groups", "Pie of one group", "Table"])
 with compare_tab:
     st.altair_chart(charts.error_stacked(dist, order))
-    st.altair_chart(charts.error_group_stacked(ui.labelled(groups, by), order))
+    st.altair_chart(charts.error_group_stacked(tables.labelled(groups, by), order))
 with pie_tab:
     one = st.selectbox("Group", order, key="errors_pie_group")
     part = dist.filter(dist["group"] == one)
@@ -34,7 +37,7 @@ with pie_tab:
         st.altair_chart(charts.error_donut(part))
 with table_tab:
     shares = dash.error_share_wide(dist)
-    ui.number_table(shares, digits=1)
+    tables.number_table(shares, digits=1)
 
 st.subheader("Drill down: steps with an error")
 d1, d2 = st.columns([2, 3])
@@ -50,9 +53,9 @@ drill_runs = d2.multiselect(
 )
 steps, total = data.error_step_sample(
     error_type,
-    where=ui.where(run_id=drill_runs, category=categories),
-    columns=ui.STEP_COLUMNS,
-    limit=ui.MAX_ROWS,
+    where=sidebar.where(run_id=drill_runs, category=categories),
+    columns=tables.STEP_COLUMNS,
+    limit=tables.MAX_ROWS,
 )
 shown = "" if total <= steps.height else f" (the first {steps.height} shown)"
 st.caption(f"{total} steps with {ERROR_LABELS[error_type]}{shown}; select one to open its episode.")
@@ -63,4 +66,4 @@ picked = st.dataframe(
     selection_mode="single-row",
     key="errors_drill_steps",
 )
-ui.open_step_link(steps, picked)
+links.open_step_link(steps, picked)

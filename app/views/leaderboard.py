@@ -4,7 +4,11 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _data as data
-from app import _ui as ui
+from app import _lifecycle as page
+from app import _pickers as pickers
+from app import _sidebar as sidebar
+from app import _tables as tables
+from replay.io import EPISODES_TABLE
 from vge_analytics import dashboard as dash
 
 st.title("Leaderboard")
@@ -21,16 +25,16 @@ runs = data.runs()
 c1, c2, c3, c4 = st.columns([3, 2, 2, 2])
 chosen_runs = c1.multiselect("Runs", runs["run_id"].to_list(), placeholder="all runs")
 categories = c2.multiselect(
-    "Category", data.column_values("episodes", "category"), placeholder="all"
+    "Category", data.column_values(EPISODES_TABLE, "category"), placeholder="all"
 )
 goal_counts = c3.multiselect(
-    "Goal count", data.column_values("episodes", "n_goals"), placeholder="all"
+    "Goal count", data.column_values(EPISODES_TABLE, "n_goals"), placeholder="all"
 )
 with c4:
-    by = ui.group_by_picker("leaderboard_by")
+    by = pickers.group_by_picker("leaderboard_by")
 
-where = ui.where(run_id=chosen_runs, category=categories, n_goals=goal_counts)
-names = ui.all_metrics()
+where = sidebar.where(run_id=chosen_runs, category=categories, n_goals=goal_counts)
+names = tables.all_metrics()
 done = data.completeness()
 incomplete = dash.incomplete_note(done)
 if incomplete:  # never shown as finished runs (PROTOCOL §10.3)
@@ -38,15 +42,27 @@ if incomplete:  # never shown as finished runs (PROTOCOL §10.3)
 metrics = data.metrics(by=list(by), where=where)
 metrics = dash.with_costs(metrics, data.cost_table(list(by), where), by)
 table = dash.incomplete_groups(
-    ui.labelled(metrics, by), by, [r.run_id for r in done if r.incomplete]
+    tables.labelled(metrics, by), by, [r.run_id for r in done if r.incomplete]
 )
 st.dataframe(
-    ui.best_styler(table, names),
+    tables.best_styler(table, names),
     hide_index=True,
-    column_config={**ui.metric_column_config(names), **ui.cost_column_config()},
+    column_config={**tables.metric_column_config(names), **tables.cost_column_config()},
     key="leaderboard_table",
 )
 st.download_button("Download CSV", table.write_csv(), file_name="leaderboard.csv", mime="text/csv")
+
+st.subheader("Intervals")
+c1, c2 = st.columns([2, 6])
+interval_metric = c1.selectbox("Metric", names, key="leaderboard_interval_metric")
+intervals = page.or_stop(data.metric_intervals, metric=interval_metric, by=list(by), where=where)
+c2.caption(
+    f"{interval_metric} per group with its 95% interval from resampling devices (all of a "
+    "drawn device's episodes: a device hard for one run is hard for its other episodes too), "
+    "the clustered standard error and the design effect (its variance over the one of "
+    "independent episodes)."
+)
+tables.number_table(dash.interval_rows(intervals, by, interval_metric), key="leaderboard_intervals")
 
 st.subheader("Per metric")
 long = dash.metrics_long(table, names, data.metric_set())

@@ -4,7 +4,8 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _data as data
-from app import _ui as ui
+from app import _pickers as pickers
+from app import _tables as tables
 from vge_analytics import dashboard as dash
 
 st.title("Navigation")
@@ -15,18 +16,22 @@ st.caption(
     "episodes; GVPE: all switches per completed goal (both ↓)."
 )
 
-chosen_runs, categories, by, where = ui.filter_row("navigation")
+chosen_runs, categories, by, where = pickers.filter_row("navigation")
 
-classes = ui.labelled(data.switch_classes(by=list(by), where=where), by)
-ratios = ui.labelled(data.metrics(by=list(by), metrics=["VSPS", "GVPE"], where=where), by)
+classes = tables.labelled(data.switch_classes(by=list(by), where=where), by)
+ratios = tables.labelled(data.metrics(by=list(by), metrics=["VSPS", "GVPE"], where=where), by)
 order = ratios["group"].to_list()
 
 st.altair_chart(charts.switch_stacked(classes, order))
 left, right = st.columns(2)
 left.altair_chart(charts.ratio_bars(ratios, "VSPS", order))
 right.altair_chart(charts.ratio_bars(ratios, "GVPE", order))
+summary = dash.switch_summary(classes, ratios)
 st.dataframe(
-    dash.switch_summary(classes, ratios),
+    summary,
     hide_index=True,
-    column_config=ui.metric_column_config(["VSPS", "GVPE"]),
+    column_config={  # shares with one decimal, as the charts' tooltips
+        **tables.number_config(summary, 1),
+        **tables.metric_column_config(["VSPS", "GVPE"]),
+    },
 )

@@ -4,22 +4,23 @@ import streamlit as st
 from streamlit_image_coordinates import streamlit_image_coordinates
 
 import replay
-from app import _ui as ui
+from app import _lifecycle as page
+from app import _settings as settings
 from vge_analytics import play
 
 st.title("Play")
-target = ui.play_target() or ui.PlayTarget("", "", None)  # the entry file routes here with one
+target = settings.play_target() or settings.PlayTarget("", "", None)  # the entry file routes here with one
 bench, run_dir = target.bench, target.run
 try:
-    desk = play.PlayState(ui.human_run(bench, run_dir), st.session_state)
+    desk = play.PlayState(settings.human_run(bench, run_dir), st.session_state)
     if desk.game() is not None:
         desk.click()  # the image's last click, if it is a new one
     game = desk.game()
     episode_id = desk.episode_id()
     statuses = {s.episode_id: s for s in desk.run.statuses()}
 except replay.VGEError as exc:
-    ui.show_error(exc)
-    ui.stop()
+    page.show_error(exc)
+    page.stop()
 
 with st.sidebar:
     played = sum(s.state == "finished" for s in statuses.values())
@@ -42,7 +43,7 @@ status = statuses[episode_id]
 if game is None and status.state == "finished":
     st.success(play.result_text(desk.run.result(episode_id)))
     st.caption("Each episode is played once per run: pick another one.")
-    ui.stop()
+    page.stop()
 if game is None and status.state == "unfinished":
     st.info(
         f"{status.steps} steps of this episode were played before, and it was not finished "
@@ -51,14 +52,14 @@ if game is None and status.state == "unfinished":
     b1, b2, _ = st.columns([1, 2, 3])
     b1.button("Resume", on_click=desk.resume, type="primary", icon=":material/play_arrow:")
     b2.button("Discard and start over", on_click=desk.discard, icon=":material/delete:")
-    ui.stop()
+    page.stop()
 if game is None:
-    ui.stop()
+    page.stop()
 if game.done:
     st.success(play.result_text(game.result))
     st.button("Next episode", on_click=desk.pick_next, type="primary", icon=":material/skip_next:")
     st.dataframe(play.history(game.records), hide_index=True)
-    ui.stop()
+    page.stop()
 
 obs = game.observation
 left, right = st.columns([3, 2])

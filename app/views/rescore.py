@@ -4,7 +4,10 @@ import streamlit as st
 
 from app import _charts as charts
 from app import _data as data
-from app import _ui as ui
+from app import _lifecycle as page
+from app import _pickers as pickers
+from app import _sidebar as sidebar
+from app import _tables as tables
 from vge_analytics import AnalyticsError
 from vge_analytics import dashboard as dash
 
@@ -23,22 +26,22 @@ if folder is None:
         "`vge app OUT --metrics-dir DIR` (or set VGE_METRICS_DIR) to see what the metric "
         "files of DIR change."
     )
-    ui.stop()
+    page.stop()
 
 c1, c2 = st.columns([2, 3])
 with c1:
-    by = ui.group_by_picker("rescore_by")
+    by = pickers.group_by_picker("rescore_by")
 try:
-    result = data.rescore(by=list(by), where=ui.where())
+    result = data.rescore(by=list(by), where=sidebar.where())
 except AnalyticsError as exc:
-    ui.show_error(exc)
-    ui.stop()
+    page.show_error(exc)
+    page.stop()
 if not result.changes:
     st.info(f"The metric files of `{folder}` change no metric (same SQL as the built-ins).")
-    ui.stop()
+    page.stop()
 
 rankings = dash.rescore_rankings(result)
-ui.number_table(rankings, key="rescore_rankings", every_row=True)
+tables.number_table(rankings, key="rescore_rankings", every_row=True)
 
 names = rankings["metric"].to_list()
 metric = c2.selectbox("Metric", names, key="rescore_metric")
@@ -48,7 +51,7 @@ if slopes.height:
 
 changes = dash.rescore_changes(result)
 shown = changes.filter(changes["metric"] == metric)
-ui.number_table(shown, key="rescore_changes")
+tables.number_table(shown, key="rescore_changes")
 st.download_button(
     "Download CSV (every metric)",
     result.rows.write_csv(),

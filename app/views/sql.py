@@ -3,12 +3,14 @@
 import streamlit as st
 
 from app import _data as data
-from app import _ui as ui
+from app import _lifecycle as page
+from app import _pickers as pickers
+from app import _settings as settings
 from vge_analytics import AnalyticsError
 from vge_analytics import dashboard as dash
 
-limits, max_rows = ui.sql_settings()
-max_queries = ui.sql_max_queries()
+limits, max_rows = settings.sql_settings()
+max_queries = settings.sql_max_queries()
 st.title("SQL")
 st.caption(
     "DuckDB SQL over the replay tables `steps`, `episodes`, `goals` and `runs` (one statement, "
@@ -23,9 +25,9 @@ st.selectbox(
     index=None,
     placeholder="Pick an example query",
     key="sql_example",
-    on_change=ui.load_example,
+    on_change=pickers.load_example,
 )
-ui.init_state("sql_query", next(iter(examples.values())))
+pickers.init_state("sql_query", next(iter(examples.values())))
 query = st.text_area("Query", height=160, key="sql_query")
 with st.expander("Columns of the tables"):
     st.dataframe(data.table_columns(), hide_index=True)
@@ -33,8 +35,8 @@ if query.strip():
     try:
         result = data.sql_preview(query, max_rows, limits, max_queries=max_queries)
     except AnalyticsError as exc:
-        ui.show_error(exc)
-        ui.stop()
+        page.show_error(exc)
+        page.stop()
     st.caption(dash.sql_caption(result, max_rows))
     st.dataframe(result.frame, hide_index=True)
     st.download_button(

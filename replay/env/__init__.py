@@ -2,9 +2,11 @@
 `vge/Device-v0` (text in and out, as a model sees the benchmark) and `vge/DeviceRL-v0`
 (numbers in and out, for reinforcement learning).
 
-Importing the package registers both ids with the benchmark's own pictures as their image
-source, unless they are registered already: a package built on this one may register them
-with an image source of its own (rendered views too), replacing these registrations.
+Importing the package registers both ids, with the benchmark's own pictures as their image
+source (`replay.BenchImages`; the `image_source` option replaces it). This package is the
+one place that registers them: a package built on this one registers ids of its own
+(`vge_analytics.rendered_envs`: the same environments with rendered views), so what
+`gymnasium.make` builds for an id never depends on the order of the imports.
 """
 
 import gymnasium
@@ -24,10 +26,10 @@ ENTRY_POINTS = {
     ENV_ID: "replay.env._env:DeviceEnv",
     RL_ENV_ID: "replay.env._rl:DeviceRLEnv",
 }
-"""The entry points this package registers (another package may register the ids first)."""
+"""The ids this package registers, and what builds them."""
 
 for _env_id, _entry_point in ENTRY_POINTS.items():
-    if _env_id not in gymnasium.registry:
+    if _env_id not in gymnasium.registry:  # imported again after a reload: registered once
         gymnasium.register(id=_env_id, entry_point=_entry_point)
 
 __all__ = [

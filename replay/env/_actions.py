@@ -25,22 +25,47 @@ import numpy as np
 from gymnasium import spaces
 
 from .._errors import ActionError
-from ..semantics._vocab import ACTION_NAMES, DISPLAY_NAMES, SCALE, TIMED_WAIT, VIEW_ORDER
+from ..semantics import (
+    ACTION_NAMES,
+    DISPLAY_NAMES,
+    GRASP,
+    GRASP_STATES,
+    PRESS,
+    PRESS_KINDS,
+    PULL,
+    PULL_DIRECTIONS,
+    PUSH,
+    PUSH_DIRECTIONS,
+    ROTATE,
+    ROTATE_DIRECTIONS,
+    ROTATE_NOTCHES,
+    SCALE,
+    SWITCH_VIEW,
+    TIMED_WAIT,
+    VIEW_ORDER,
+)
 
 ACTION_TYPES: tuple[str, ...] = tuple(DISPLAY_NAMES[name] for name in ACTION_NAMES)
 """`Press, Rotate, Push, Pull, Grasp, Switch_view, Timed_wait`: the first integer."""
 
-_DIRECTIONS = tuple(range(5))  # up, down, left, right, in/out (the prompt's Push and Pull)
+
+def _each(codes: tuple[str, ...]) -> tuple[tuple[int], ...]:
+    """One list per code of a parameter (PROTOCOL §2's codes)."""
+    return tuple((code,) for code in range(len(codes)))
+
+
 PARAMETERS: dict[str, tuple[tuple[int | str, ...], ...]] = {
-    "Press": ((0,), (1,), (2,)),  # short, long, double
-    # direction (0 clockwise, 1 counter-clockwise) and notches; a transition's `*` accepts
-    # any value, so no list needs one (an agent's `*` would match only a `*`, §1.2).
-    "Rotate": tuple((d, s) for d in (0, 1) for s in (1, 2, 3, 4)),
-    "Push": tuple((d,) for d in _DIRECTIONS),
-    "Pull": tuple((d,) for d in _DIRECTIONS),
-    "Grasp": ((0,), (1,)),  # take hold, let go
-    "Switch_view": tuple((v,) for v in VIEW_ORDER),
-    "Timed_wait": ((),),
+    DISPLAY_NAMES[PRESS]: _each(PRESS_KINDS),
+    # direction and notches; a transition's `*` accepts any value, so no list needs one (an
+    # agent's `*` would match only a `*`, §1.2).
+    DISPLAY_NAMES[ROTATE]: tuple(
+        (d, n) for d in range(len(ROTATE_DIRECTIONS)) for n in ROTATE_NOTCHES
+    ),
+    DISPLAY_NAMES[PUSH]: _each(PUSH_DIRECTIONS),
+    DISPLAY_NAMES[PULL]: _each(PULL_DIRECTIONS),
+    DISPLAY_NAMES[GRASP]: _each(GRASP_STATES),
+    DISPLAY_NAMES[SWITCH_VIEW]: tuple((v,) for v in VIEW_ORDER),
+    DISPLAY_NAMES[TIMED_WAIT]: ((),),
 }
 """The parameter lists of each action type (the fourth integer picks one)."""
 
@@ -56,7 +81,7 @@ def rl_action_space(grid: int) -> spaces.MultiDiscrete:
 
 
 def cell_centre(index: int, grid: int) -> float:
-    """The centre of cell `index` of `grid` on the 0..1000 scale."""
+    """The centre of cell `index` of `grid` on the 0..SCALE scale."""
     return (2 * index + 1) * SCALE / (2 * grid)
 
 

@@ -12,9 +12,8 @@ import math
 from dataclasses import dataclass
 
 from .._errors import ConfigError, VGEError
-from ..io._load import Benchmark
-from ..semantics._budget import Budget, episode_lambda
-from ..semantics._episode import setup_episode
+from ..io import Benchmark
+from ..semantics import Budget, episode_lambda, setup_episode
 
 
 @dataclass(frozen=True, slots=True)

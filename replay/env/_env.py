@@ -20,14 +20,20 @@ import numpy as np
 from gymnasium.error import ResetNeeded
 
 from .._errors import ActionError, ConfigError, VGEError
-from ..io._images import BenchImages, ImageSource
-from ..io._load import Benchmark
-from ..semantics._budget import episode_lambda
-from ..semantics._episode import EpisodeSession
-from ..semantics._machine import Machine
-from ..semantics._records import ActionRecord, Continuation, LogStep
-from ..semantics._rows import StepRow
-from ..semantics._vocab import DASHBOARD
+from ..io import BenchImages, Benchmark, ImageSource
+from ..semantics import (
+    BUDGET_GLOBAL,
+    BUDGET_LOCAL,
+    DASHBOARD,
+    SUCCESS,
+    ActionRecord,
+    Continuation,
+    EpisodeSession,
+    LogStep,
+    Machine,
+    StepRow,
+    episode_lambda,
+)
 from ._bounds import BenchBounds, bench_bounds
 from ._images import ViewImages
 from ._spaces import action_space, observation_space
@@ -35,8 +41,8 @@ from ._spaces import action_space, observation_space
 STEP_FIELDS: tuple[str, ...] = tuple(StepRow.__struct_fields__)
 """The keys a step's `info` may hold: the columns of the steps table (PROTOCOL §7.2)."""
 
-TERMINATED = "success"
-TRUNCATED = ("budget_global", "budget_local")
+TERMINATED = SUCCESS
+TRUNCATED = (BUDGET_GLOBAL, BUDGET_LOCAL)
 
 _RESET_OPTIONS = ("episode_id", "continuation")
 

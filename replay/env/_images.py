@@ -15,8 +15,8 @@ from collections import OrderedDict
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ..io._images import ImageSource, as_view_image
-from ..semantics._machine import Machine
+from ..io import ImageSource, as_view_image
+from ..semantics import Machine
 
 CANVAS = (236, 238, 242)
 """Colour of the stand-in for a view the benchmark has no image of."""

@@ -17,8 +17,8 @@ import numpy as np
 from gymnasium import spaces
 
 from .._errors import ConfigError
-from ..io._load import Benchmark
-from ..semantics._vocab import VIEW_ORDER, VIEW_RANK
+from ..io import Benchmark
+from ..semantics import VIEW_ORDER, VIEW_RANK
 from ._actions import DEFAULT_GRID, rl_action_space, structured_action
 from ._env import DeviceEnv
 from ._spaces import budget_space

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from gymnasium import spaces
 
-from ..semantics._vocab import FEEDBACK_KINDS, VIEW_ORDER
+from ..semantics import FEEDBACK_KINDS, VIEW_ORDER
 from ._textspaces import AnyText, ViewNames
 
 if TYPE_CHECKING:  # the spaces read the bounds; computing them is `_bounds`'s job

@@ -31,7 +31,7 @@ from gymnasium.vector.utils import (
     write_to_shared_memory,
 )
 
-from ..semantics._vocab import VIEW_ORDER, VIEW_RANK
+from ..semantics import VIEW_ORDER, VIEW_RANK
 
 T = TypeVar("T")
 

@@ -10,7 +10,7 @@ from typing import TypeVar
 
 import msgspec
 
-from ..kernel._json import nested_beyond
+from ..kernel import nested_beyond
 
 T = TypeVar("T")
 

@@ -1,11 +1,41 @@
-"""Files that a crash cannot leave half-written, for the run directories the live tools write
-(`vge run`, `vge play`): records appended whole and synced, files replaced by a rename."""
+"""Files that a crash cannot leave half-written and that no symbolic link can redirect: the
+one atomic writer of the project (the replay's outputs, the run directories `vge run` and
+`vge play` write, the exports, the caches), records appended whole and synced.
+
+A file is replaced whole, never through a link:
+
+- it is written under a temporary name of its own in the destination's folder, created with
+  `O_CREAT | O_EXCL | O_NOFOLLOW` (a name nobody else holds, and never a link someone left
+  there), with the permissions a new file gets (the umask's);
+- then renamed over the destination: a rename replaces a symbolic link at the destination
+  itself, it never writes through it (the link's target is left as it was);
+- with `sync` (the default) the file is flushed to disk before the rename and the folder
+  after it, so after a power loss the destination holds the old bytes or the new ones. The
+  exports pass `sync=False`: they write up to tens of thousands of files, which a rerun
+  writes again, and a sync each would cost more than the rest of the export.
+
+Folders a writer makes inside a destination it was given (`make_folders`) are made with
+`mkdir`; one found there already must be a folder, not a symbolic link to one, or the writer
+stops with one line naming it.
+"""
 
 from __future__ import annotations
 
 import os
+import secrets
+import shutil
+import stat
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import BinaryIO
+
+from .._errors import ConfigError
+
+_CREATE = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+_ATTEMPTS = 100
+"""Temporary names tried before giving up (each a random 64-bit suffix: one is enough)."""
 
 
 def write_all(fd: int, data: bytes) -> None:
@@ -19,8 +49,9 @@ def write_all(fd: int, data: bytes) -> None:
 
 def append_record(path: Path, data: bytes, *, create: bool = False) -> None:
     """Append `data` (whole lines) to `path` in one write and make it durable; after a crash
-    the file ends with whole lines, or with one cut short that its reader drops."""
-    flags = os.O_WRONLY | os.O_APPEND | (os.O_CREAT if create else 0)
+    the file ends with whole lines, or with one cut short that its reader drops. A symbolic
+    link at `path` is not followed (the append fails)."""
+    flags = os.O_WRONLY | os.O_APPEND | os.O_NOFOLLOW | (os.O_CREAT if create else 0)
     fd = os.open(path, flags, 0o644)
     try:
         write_all(fd, data)
@@ -28,20 +59,90 @@ def append_record(path: Path, data: bytes, *, create: bool = False) -> None:
         os.close(fd)
 
 
-def write_atomic(path: Path, data: bytes) -> None:
-    """Create or replace `path` whole or not at all: a temporary file in the same directory,
-    synced, renamed over it, the directory synced."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
+def _temporary(path: Path) -> tuple[int, Path]:
+    """A new file beside `path`, open for writing, under a name no one else holds."""
+    stem = path.name[:200]  # the suffix fits any name the file system takes
+    for _ in range(_ATTEMPTS):
+        tmp = path.with_name(f".{stem}.{secrets.token_hex(8)}.tmp")
         try:
-            write_all(fd, data)
-        finally:
-            os.close(fd)
-        os.replace(tmp, path)
+            return os.open(tmp, _CREATE, 0o666), tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"{path.parent}: no free temporary name for {path.name}")
+
+
+def _publish(tmp: Path, path: Path, sync: bool) -> None:
+    """Rename `tmp` over `path` (a link at `path` is replaced, not followed); with `sync`,
+    the folder's entry is made durable."""
+    os.replace(tmp, path)
+    if sync:
+        fsync_dir(path.parent)
+
+
+@contextmanager
+def atomic_file(path: Path, *, sync: bool = True) -> Iterator[BinaryIO]:
+    """A file to write `path` through: the block writes a temporary file beside it, which
+    replaces `path` when the block ends without an error (and is removed when it does not).
+    `sync`: flushed to disk before the rename, the folder after it."""
+    fd, tmp = _temporary(path)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            yield fh
+            if sync:
+                fh.flush()
+                os.fsync(fh.fileno())
+        _publish(tmp, path, sync)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
-    fsync_dir(path.parent)
+
+
+def write_atomic(path: Path, data: bytes, *, sync: bool = True) -> None:
+    """Create or replace `path` with `data`, whole or not at all, never through a link
+    (`atomic_file`)."""
+    with atomic_file(path, sync=sync) as fh:
+        fh.write(data)
+
+
+@contextmanager
+def staged_path(path: Path, *, sync: bool = True) -> Iterator[Path]:
+    """A path for a writer that opens its file by name (a library's): it lies in a private
+    folder made for it beside `path` (by `mkdtemp`: new, this user's alone), and replaces
+    `path` when the block ends without an error; the folder is removed either way."""
+    folder = Path(tempfile.mkdtemp(prefix=".staged.", dir=path.parent))
+    try:
+        staged = folder / path.name  # the same name: a library may read its kind from it
+        yield staged
+        if sync:
+            fd = os.open(staged, os.O_RDONLY | os.O_NOFOLLOW)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        _publish(staged, path, sync)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def make_folders(base: Path, *parts: str) -> Path:
+    """`base/parts...`, each part made with `mkdir` where missing; one that exists must be a
+    folder, not a symbolic link (a writer writes only into folders it can see are real).
+    `base` is the destination as the user named it. Raises `ConfigError` naming the link."""
+    folder = base
+    for part in parts:
+        folder = folder / part
+        try:
+            os.mkdir(folder)
+        except FileExistsError:
+            mode = os.lstat(folder).st_mode
+            if stat.S_ISLNK(mode):
+                raise ConfigError(
+                    f"{folder}: a symbolic link where a folder is written; nothing is written "
+                    "through a link: remove it, or write elsewhere"
+                ) from None
+            if not stat.S_ISDIR(mode):
+                raise ConfigError(f"{folder}: not a folder, where a folder is written") from None
+    return folder
 
 
 def truncate(path: Path, size: int) -> None:
@@ -61,4 +162,13 @@ def fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-__all__ = ["append_record", "fsync_dir", "truncate", "write_all", "write_atomic"]
+__all__ = [
+    "append_record",
+    "atomic_file",
+    "fsync_dir",
+    "make_folders",
+    "staged_path",
+    "truncate",
+    "write_all",
+    "write_atomic",
+]

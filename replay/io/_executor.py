@@ -1,6 +1,6 @@
 """Where batches run: in this process, in worker processes, or on a Ray cluster (`_ray`).
 
-An executor runs a batch function (`_worker.replay_batch`, or the sweep's) on picklable
+An executor runs a batch function (`_batch.replay_batch`, or the sweep's) on picklable
 tasks; `in_order` hands the results back in the order of the tasks with a bounded number in
 flight, so memory does not grow with the size of the logs. The files written do not depend
 on the executor: every executor calls the same function on the same tasks.
@@ -17,7 +17,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Generic, Protocol, TypeVar
 
 from .._errors import ConfigError, WorkerError
-from ._parent import end_with_parent
+from ._worker import end_with_parent
 
 T = TypeVar("T")
 Batch = Callable[[Any], Any]
@@ -88,7 +88,7 @@ class WorkerProcesses:
         self.pool = ProcessPoolExecutor(
             max_workers=workers - 1,
             mp_context=context,
-            initializer=end_with_parent,  # no worker outlives this process (`_parent`)
+            initializer=end_with_parent,  # no worker outlives this process (`_worker`)
             initargs=(os.getpid(),),
         )
         self._open: deque[_Share] = deque()  # submitted, result not taken yet

@@ -22,6 +22,7 @@ from typing import BinaryIO
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ._durable import atomic_file
 from ._fs import Location, remove_local
 
 STATE_DIR = ".replay"
@@ -59,13 +60,8 @@ def write_part(table: pa.Table, path: Location, row_group_rows: int) -> None:
         pq.write_table(table, sink, **options)
         path.write_bytes(memoryview(sink.getvalue()))
         return
-    tmp = path.local.with_name(path.local.name + ".tmp")
-    try:
-        pq.write_table(table, tmp, **options)
-        os.replace(tmp, path.local)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_file(path.local, sync=False) as fh:
+        pq.write_table(table, fh, **options)
 
 
 def commit_dir(staged: Location, final: Location, trash: Location) -> None:

@@ -33,6 +33,7 @@ from urllib.parse import quote, unquote, urlsplit
 import pyarrow.fs as pafs
 
 from .._errors import InputError
+from ._durable import atomic_file
 
 _URI = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 _URI_PATH_SAFE = "/=+@,:;!$&'()*~"
@@ -201,21 +202,13 @@ class Location:
     def writer(self, *, sync: bool = True) -> Iterator[BinaryIO]:
         """Write the whole file through a stream; readers see the old file or the new one.
 
-        Local: a temporary name beside it, flushed to disk (`sync`), renamed over it.
+        Local: `atomic_file` (a temporary file of its own beside it, flushed to disk with
+        `sync`, renamed over it; a link there is replaced, not followed).
         Elsewhere: the bytes are made in memory and uploaded in one write when the block
         ends without an error (an error uploads nothing)."""
         if self.local is not None:
-            tmp = self.local.with_name(self.local.name + ".tmp")
-            try:
-                with open(tmp, "wb") as fh:
-                    yield fh
-                    if sync:
-                        fh.flush()
-                        os.fsync(fh.fileno())
-                os.replace(tmp, self.local)
-            except BaseException:
-                tmp.unlink(missing_ok=True)
-                raise
+            with atomic_file(self.local, sync=sync) as fh:
+                yield fh
             return
         buffer = io.BytesIO()
         yield buffer

@@ -13,13 +13,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from ..semantics._machine import Machine
+from ..semantics import Machine
 from ._fs import Location, location
+from ._layout import image_paths
 
 MAX_IMAGE_BYTES = 64 << 20
 """A view image file larger than this is not read (it counts as absent)."""
 
-_EXTENSIONS = ("png", "jpg", "jpeg")
 _FORMATS = {"PNG": "png", "JPEG": "jpeg", "WEBP": "webp"}
 """Pillow's format names -> the names `foxglove.CompressedImage` uses."""
 
@@ -82,9 +82,8 @@ def bench_image(bench: str | Location, machine: Machine, view: str) -> ViewImage
     """The benchmark's own picture of `view` (PROTOCOL §1.1 order), or None."""
     view = view.lower()
     root = location(bench)
-    folder = root / "images" / machine.device_id
-    for ext in _EXTENSIONS:
-        found = _read(folder / f"{view}.{ext}")
+    for path in image_paths(root, machine.device_id, view):
+        found = _read(path)
         if found is not None:
             return found
     ref = machine.images.get(view)

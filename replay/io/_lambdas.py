@@ -18,8 +18,8 @@ import msgspec
 import numpy as np
 import pyarrow as pa
 
-from ..kernel._batch import EpisodeInput, replay_kernel
-from ..semantics._budget import episode_lambda
+from ..kernel import EpisodeInput, replay_kernel
+from ..semantics import LOG_ENDED, episode_lambda
 from ._decode import decode
 from ._load import episode_decoder
 from ._worker import worker_state
@@ -97,7 +97,7 @@ def _refusals(
         i
         for i in range(len(inputs))
         if any(
-            lam > recorded[i] and ended[j][i] == "log_ended" for j, lam in enumerate(task.lambdas)
+            lam > recorded[i] and ended[j][i] == LOG_ENDED for j, lam in enumerate(task.lambdas)
         )
     ]
     refusals: list[str | None] = [None] * len(inputs)
@@ -107,12 +107,12 @@ def _refusals(
         [inputs[i]._replace(lam=recorded[i]) for i in suspects], **head
     ).episodes.column("termination").to_pylist()
     for i, termination in zip(suspects, at_recorded, strict=True):
-        if termination == "log_ended":
+        if termination == LOG_ENDED:
             continue
         lam = next(
             lam
             for j, lam in enumerate(task.lambdas)
-            if lam > recorded[i] and ended[j][i] == "log_ended"
+            if lam > recorded[i] and ended[j][i] == LOG_ENDED
         )
         refusals[i] = (
             f"run {task.run_id}: lambda {lam:g} is above the recorded lambda {recorded[i]:g} "

@@ -9,10 +9,12 @@ import gzip
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
-from typing import BinaryIO
+from typing import TYPE_CHECKING, BinaryIO
 
 from .._errors import InputError, RecordTooLarge
-from ._fs import Location, location
+
+if TYPE_CHECKING:
+    from ._fs import Location
 
 MAX_RECORD_BYTES = 64 << 20
 """The default maximum size of a record (PROTOCOL §1.5): a line of an episodes file or of
@@ -51,6 +53,8 @@ def iter_lines(
     underlying stream each, so a failing read loses nothing already decompressed) and split
     in bulk, several times faster than line by line through `gzip`.
     """
+    from ._fs import location  # pyarrow's file systems: imported when a file is read
+
     path = location(path)
     lines = _Lines(str(path), max_record_bytes)
     try:

@@ -14,10 +14,30 @@ from typing import Any
 import msgspec
 
 from .._errors import InputError, Problem, SSMError, TaskError, VGEError, decode_error_message
-from ..semantics._machine import Machine, compile_machine, validate_machine
-from ..semantics._records import EpisodeLog, RunHeader, StateMachine, Task
+from ..semantics import (
+    EpisodeLog,
+    Machine,
+    RunHeader,
+    StateMachine,
+    Task,
+    compile_machine,
+    setup_episode,
+    validate_machine,
+)
 from ._decode import decode
 from ._fs import Location, location
+from ._layout import (
+    EPISODES,
+    EPISODES_FILES,
+    EPISODES_GZ,
+    SSM_DIR,
+    SSM_SUFFIX,
+    TASKS,
+    UCSM_DIR,
+    run_json_path,
+    ssm_path,
+    tasks_path,
+)
 from ._lines import MAX_RECORD_BYTES, iter_lines, read_whole
 
 _BYTE = re.compile(r"byte (\d+)")
@@ -62,7 +82,7 @@ def load_machine(path: str | Path | Location, device_id: str | None = None) -> M
 
 
 def read_run_header(run_dir: str | Path | Location) -> RunHeader:
-    path = location(run_dir) / "run.json"
+    path = run_json_path(location(run_dir))
     data = read_whole(path)
     try:
         header = decode(_run_decoder, data)
@@ -85,11 +105,11 @@ def run_header_bytes(header: RunHeader | Mapping[str, Any]) -> bytes:
 def episodes_file(run_dir: str | Path | Location) -> Location:
     """`episodes.jsonl` or `episodes.jsonl.gz` of a run directory."""
     run_dir = location(run_dir)
-    for name in ("episodes.jsonl", "episodes.jsonl.gz"):
+    for name in EPISODES_FILES:
         candidate = run_dir / name
         if candidate.exists():
             return candidate
-    raise InputError(str(run_dir / "episodes.jsonl"), "file not found (nor episodes.jsonl.gz)")
+    raise InputError(str(run_dir / EPISODES), f"file not found (nor {EPISODES_GZ})")
 
 
 @dataclass
@@ -113,29 +133,29 @@ class Benchmark:
         root = location(root)
         if not root.is_dir():
             raise InputError(str(root), "benchmark directory not found")
-        ssm_dir = root / "ssm"
+        ssm_dir = root / SSM_DIR
         if not ssm_dir.is_dir():
-            raise InputError(str(ssm_dir), "benchmark has no ssm/ directory")
+            raise InputError(str(ssm_dir), f"benchmark has no {SSM_DIR}/ directory")
         bench = cls(root=root)
         bench.ssm_paths = {
-            Path(n).stem: ssm_dir / n for n in ssm_dir.names() if n.endswith(".json")
+            Path(n).stem: ssm_dir / n for n in ssm_dir.names() if n.endswith(SSM_SUFFIX)
         }
-        tasks_path = root / "tasks.jsonl"
-        if not tasks_path.exists():
-            raise InputError(str(tasks_path), "file not found")
-        for number, line in iter_lines(tasks_path):
+        tasks = tasks_path(root)
+        if not tasks.exists():
+            raise InputError(str(tasks), "file not found")
+        for number, line in iter_lines(tasks):
             try:
                 task = decode(_task_decoder, line)
             except msgspec.DecodeError as exc:
                 bench.task_problems.append(
-                    Problem(f"{tasks_path}:{number}", "", decode_error_message(exc))
+                    Problem(f"{tasks}:{number}", "", decode_error_message(exc))
                 )
                 continue
             if task.episode_id in bench.tasks:
                 first = bench.tasks[task.episode_id].line
                 bench.task_problems.append(
                     Problem(
-                        f"{tasks_path}:{number}",
+                        f"{tasks}:{number}",
                         f"episode {task.episode_id!r}",
                         f"duplicate episode_id (first on line {first}); this line is ignored",
                     )
@@ -146,7 +166,7 @@ class Benchmark:
 
     @property
     def tasks_path(self) -> Location:
-        return self.root / "tasks.jsonl"
+        return tasks_path(self.root)
 
     def machine(self, device_id: str) -> Machine:
         """The compiled machine of a device; raises the (cached) load error."""
@@ -154,9 +174,7 @@ class Benchmark:
         if got is None:
             path = self.ssm_paths.get(device_id)
             if path is None:
-                got = InputError(
-                    str(self.root / "ssm" / f"{device_id}.json"), "unknown device: no such SSM file"
-                )
+                got = InputError(str(ssm_path(self.root, device_id)), "unknown device: no such SSM file")
             else:
                 try:
                     got = load_machine(path, device_id)
@@ -174,37 +192,14 @@ def _problem(exc: InputError) -> Problem:
 
 def validate_benchmark(root: str | Path | Location) -> list[Problem]:
     """Every problem of a benchmark: SSMs, UCSMs, tasks (PROTOCOL §1.1-1.3, 4)."""
-    from ..semantics._episode import setup_episode
-
     root = location(root)
     bench = Benchmark.open(root)
     problems: list[Problem] = []
     for device_id, path in bench.ssm_paths.items():
-        try:
-            ssm = decode_state_machine(path)
-        except InputError as exc:
-            problems.append(_problem(exc))
-            continue
-        problems.extend(validate_machine(ssm, str(path)))
-        if ssm.device_id is not None and ssm.device_id != device_id:
-            problems.append(
-                Problem(
-                    str(path),
-                    "device_id",
-                    f"device_id {ssm.device_id!r} differs from the file name; the file name is used",
-                    "warning",
-                )
-            )
-        for view, ref in (ssm.images or {}).items():
-            if not (root / ref.path).exists():
-                problems.append(
-                    Problem(
-                        str(path), f"images.{view}", f"image file {ref.path!r} not found", "warning"
-                    )
-                )
-    ucsm_dir = root / "ucsm"
+        problems.extend(_ssm_problems(root, device_id, path))
+    ucsm_dir = root / UCSM_DIR
     if ucsm_dir.is_dir():
-        for path in [ucsm_dir / n for n in ucsm_dir.names() if n.endswith(".json")]:
+        for path in [ucsm_dir / n for n in ucsm_dir.names() if n.endswith(SSM_SUFFIX)]:
             try:
                 ucsm = decode_state_machine(path)
             except InputError as exc:
@@ -213,49 +208,73 @@ def validate_benchmark(root: str | Path | Location) -> list[Problem]:
             problems.extend(validate_machine(ucsm, str(path), require_geometry=False))
     problems.extend(bench.task_problems)
     for episode_id, entry in bench.tasks.items():
-        where = f"{bench.tasks_path}:{entry.line}"
-        try:
-            machine = bench.machine(entry.task.device_id)
-        except InputError:
+        problems.extend(_task_problems(bench, episode_id, entry))
+    return problems
+
+
+def _ssm_problems(root: Location, device_id: str, path: Location) -> list[Problem]:
+    """An SSM file's problems: its machine's, a `device_id` other than the file's name, a
+    picture it names that is not there."""
+    try:
+        ssm = decode_state_machine(path)
+    except InputError as exc:
+        return [_problem(exc)]
+    problems = validate_machine(ssm, str(path))
+    if ssm.device_id is not None and ssm.device_id != device_id:
+        problems.append(
+            Problem(
+                str(path),
+                "device_id",
+                f"device_id {ssm.device_id!r} differs from the file name; the file name is used",
+                "warning",
+            )
+        )
+    for view, ref in (ssm.images or {}).items():
+        if not (root / ref.path).exists():
             problems.append(
                 Problem(
-                    where, f"episode {episode_id!r}", f"unknown device {entry.task.device_id!r}"
+                    str(path), f"images.{view}", f"image file {ref.path!r} not found", "warning"
                 )
             )
-            continue
-        except VGEError:
-            problems.append(
-                Problem(
-                    where,
-                    f"episode {episode_id!r}",
-                    f"device {entry.task.device_id!r} has an invalid SSM",
-                )
+    return problems
+
+
+def _task_problems(bench: Benchmark, episode_id: str, entry: TaskEntry) -> list[Problem]:
+    """A task's problems: its device, whether it can be played there, its instructions and
+    its stated C_opt against the planner's."""
+    where = f"{bench.tasks_path}:{entry.line}"
+    episode = f"episode {episode_id!r}"
+    task = entry.task
+    try:
+        machine = bench.machine(task.device_id)
+    except InputError:
+        return [Problem(where, episode, f"unknown device {task.device_id!r}")]
+    except VGEError:
+        return [Problem(where, episode, f"device {task.device_id!r} has an invalid SSM")]
+    try:
+        setup = setup_episode(machine, task)
+    except TaskError as exc:
+        return [Problem(where, episode, str(exc).split(": ", 1)[-1])]
+    problems = []
+    if len(task.instructions) not in (0, len(task.goals)):
+        problems.append(
+            Problem(
+                where,
+                episode,
+                f"{len(task.instructions)} instructions for {len(task.goals)} goals",
+                "warning",
             )
-            continue
-        try:
-            setup = setup_episode(machine, entry.task)
-        except TaskError as exc:
-            problems.append(Problem(where, f"episode {episode_id!r}", str(exc).split(": ", 1)[-1]))
-            continue
-        if len(entry.task.instructions) not in (0, len(entry.task.goals)):
-            problems.append(
-                Problem(
-                    where,
-                    f"episode {episode_id!r}",
-                    f"{len(entry.task.instructions)} instructions for {len(entry.task.goals)} goals",
-                    "warning",
-                )
+        )
+    stated = task.c_opt
+    if stated is not None and list(stated) != list(setup.plan.c_opt):
+        problems.append(
+            Problem(
+                where,
+                episode,
+                f"stated c_opt {list(stated)} differs from the computed {list(setup.plan.c_opt)}; the computed one is used",
+                "warning",
             )
-        stated = entry.task.c_opt
-        if stated is not None and list(stated) != list(setup.plan.c_opt):
-            problems.append(
-                Problem(
-                    where,
-                    f"episode {episode_id!r}",
-                    f"stated c_opt {list(stated)} differs from the computed {list(setup.plan.c_opt)}; the computed one is used",
-                    "warning",
-                )
-            )
+        )
     return problems
 
 
@@ -302,7 +321,7 @@ def validate_run(
                     Problem(
                         where,
                         f"episode {log.episode_id!r}",
-                        "unknown episode id (not in tasks.jsonl)",
+                        f"unknown episode id (not in {TASKS})",
                     )
                 )
     except InputError as exc:

@@ -20,8 +20,9 @@ import pyarrow as pa
 from msgspec import Meta
 
 from .._errors import InputError, decode_error_message
-from ..semantics._budget import run_lambda
+from ..semantics import run_lambda
 from ._fs import Location, location
+from ._layout import manifest_path
 from ._lines import MAX_RECORD_BYTES
 
 MANIFEST_FORMAT = "vge-replay-manifest"
@@ -148,7 +149,7 @@ def encode_manifest(manifest: ManifestFile) -> bytes:
 
 def read_manifest(out_dir: str | Path | Location) -> ManifestFile | None:
     """The manifest of an output directory (a path or a URI), or None if there is none yet."""
-    path = location(out_dir) / "manifest.json"
+    path = manifest_path(location(out_dir))
     try:
         data = path.read_bytes()
     except FileNotFoundError:

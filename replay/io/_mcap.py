@@ -35,16 +35,24 @@ from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from .._version import ENGINE_VERSION
-from ..semantics._machine import Machine, Rect
-from ..semantics._plan import target_rects
-from ..semantics._rows import StepRow
-from ..semantics._vocab import SCALE
+from ..semantics import (
+    ERROR,
+    FEEDBACK_SEVERITY,
+    INFO,
+    SCALE,
+    WARNING,
+    Machine,
+    Rect,
+    StepRow,
+    target_rects,
+)
+from ._file_names import safe_file_name
 from ._fs import Location, location
 from ._images import ViewImage
-from ._task import safe_file_name
+from ._layout import mcap_dir
 
 if TYPE_CHECKING:
-    from ..semantics._episode import EpisodeResult
+    from ..semantics import EpisodeResult
 
 MCAP_LIBRARY = f"vge-analytics replay {ENGINE_VERSION}"
 """The `library` field of every MCAP file: which engine wrote it."""
@@ -60,17 +68,9 @@ SCHEMA_NAMES = {
     "/step": "vge.StepRow",
 }
 
-# foxglove.Log levels by feedback kind (PROTOCOL §3).
-_INFO, _WARNING, _ERROR = Log.INFO, Log.WARNING, Log.ERROR
-FEEDBACK_LEVELS = {
-    "transition": _INFO,
-    "view_switched": _INFO,
-    "dashboard_unlocked": _INFO,
-    "wait_no_effect": _WARNING,
-    "null_effect": _WARNING,
-    "operational_error": _ERROR,
-    "invalid_action": _ERROR,
-}
+_LEVELS = {INFO: Log.INFO, WARNING: Log.WARNING, ERROR: Log.ERROR}
+FEEDBACK_LEVELS = {kind: _LEVELS[severity] for kind, severity in FEEDBACK_SEVERITY.items()}
+"""foxglove.Log level of each feedback kind: its severity (PROTOCOL §3.6, §7.8)."""
 
 _TARGET = Color(r=0.15, g=0.75, b=0.3, a=1.0)
 _HIT = Color(r=1.0, g=0.6, b=0.0, a=1.0)
@@ -87,7 +87,7 @@ def mcap_file_name(episode_id: str) -> str:
 
 def episode_mcap_path(out: str | Location, run_id: str, episode_id: str) -> Location:
     """Where `vge replay --mcap` writes an episode's MCAP file."""
-    return location(out) / "mcap" / run_id / mcap_file_name(episode_id)
+    return mcap_dir(location(out), run_id) / mcap_file_name(episode_id)
 
 
 def attached_ssm(machine: Machine) -> bytes:

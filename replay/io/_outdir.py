@@ -15,9 +15,18 @@ import pyarrow.parquet as pq
 
 from .._errors import ConfigError
 from .._version import ENGINE_VERSION
-from ..semantics._records import SCHEMA_VERSION
+from ..semantics import SCHEMA_VERSION
 from ._files import STATE_DIR, atomic_write, atomic_write_bytes
 from ._fs import Location, location
+from ._layout import (
+    RUNS_TABLE,
+    manifest_path,
+    quarantine_path,
+    run_json_path,
+    runs_path,
+    ssm_path,
+    tasks_path,
+)
 from ._manifest import (
     Hasher,
     ManifestFile,
@@ -32,14 +41,14 @@ from ._reading import RunInput
 
 
 def run_inputs(run: RunInput, bench_dir: str, hasher: Hasher, devices: Iterable[str]) -> RunInputs:
-    ssm_dir = location(bench_dir) / "ssm"
+    bench = location(bench_dir)
     return RunInputs(
         run_dir=run.run_dir,
-        run_json=hasher.ref(location(run.run_dir) / "run.json"),
+        run_json=hasher.ref(run_json_path(location(run.run_dir))),
         episodes=hasher.ref(run.episodes),
         bench=bench_dir,
-        tasks=hasher.ref(location(bench_dir) / "tasks.jsonl"),
-        ssm={d: hasher.ref(ssm_dir / f"{d}.json") for d in sorted(devices)},
+        tasks=hasher.ref(tasks_path(bench)),
+        ssm={d: hasher.ref(ssm_path(bench, d)) for d in sorted(devices)},
     )
 
 
@@ -99,17 +108,17 @@ def publish(out: Location, entries: dict[str, RunEntry]) -> ManifestFile:
                 with (qdir / name).open_read() as src:
                     shutil.copyfileobj(src, fh)
 
-    atomic_write(out / "quarantine.jsonl", write_quarantine)
-    (out / "runs").mkdir()
+    atomic_write(quarantine_path(out), write_quarantine)
+    (out / RUNS_TABLE).mkdir()
     table = runs_table(runs)
-    atomic_write(out / "runs" / "runs.parquet", lambda fh: pq.write_table(table, fh))
+    atomic_write(runs_path(out), lambda fh: pq.write_table(table, fh))
     manifest = ManifestFile(
         engine_version=ENGINE_VERSION,
         schema_version=SCHEMA_VERSION,
         totals=totals_of(runs),
         runs=runs,
     )
-    atomic_write_bytes(out / "manifest.json", encode_manifest(manifest))
+    atomic_write_bytes(manifest_path(out), encode_manifest(manifest))
     return manifest
 
 

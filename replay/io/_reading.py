@@ -9,12 +9,12 @@ from dataclasses import dataclass
 from queue import Full, Queue
 
 from .._errors import ConfigError, InputError
-from ..semantics._records import RunHeader
-from ..semantics._usage import Prices, run_prices
+from ..semantics import Prices, RunHeader, run_prices
+from ._file_names import NAME_BYTES
 from ._fs import Location, location
+from ._layout import run_json_path
 from ._lines import iter_lines
 from ._load import episodes_file, read_run_header
-from ._task import NAME_BYTES
 
 
 @dataclass(frozen=True)
@@ -57,11 +57,11 @@ def read_runs(run_dirs: Sequence[str | os.PathLike[str]]) -> list[RunInput]:
         if not location(run_dir).is_dir():
             raise InputError(run_dir, "run directory not found")
         header = read_run_header(run_dir)
-        check_run_id(header.run_id, location(run_dir) / "run.json")
+        check_run_id(header.run_id, run_json_path(location(run_dir)))
         try:
             prices = run_prices(header.meta)
         except ValueError as exc:
-            raise InputError(str(location(run_dir) / "run.json"), str(exc)) from None
+            raise InputError(str(run_json_path(location(run_dir))), str(exc)) from None
         other = runs.get(header.run_id)
         if other is not None:
             raise ConfigError(

@@ -24,14 +24,11 @@ from typing import Any, BinaryIO
 import msgspec
 
 from .._errors import InputError
-from ..semantics._records import RunHeader
+from ..semantics import RunHeader
 from ._decode import decode
 from ._durable import append_record, truncate, write_atomic
+from ._layout import EPISODES, RUN_JSON
 from ._load import episode_decoder, read_run_header, run_header_bytes
-
-EPISODES = "episodes.jsonl"
-"""The episodes file a writer appends to (`vge synth` streams `episodes.jsonl.gz`)."""
-RUN_JSON = "run.json"
 
 
 class RunDirectory:

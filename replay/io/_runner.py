@@ -1,17 +1,22 @@
 """`replay_runs`: run logs -> Parquet tables, quarantine, manifest, MCAP (PROTOCOL §7).
 
-The main process reads each episodes file and cuts it into batches of `BATCH_LINES` lines
-(or fewer: `BATCH_BYTES` bytes).
-A batch is replayed and written as one Parquet part per table by `_worker.replay_batch`,
-here or in worker processes (`_executor`), at most `AHEAD_PER_WORKER` batches per worker in
-flight, the next run's batches following the current one's without a pause. The main
-process takes the reports in line order (duplicates, quarantine, counts: `_runjob`) and
-commits each run when its last batch is in. Memory does not grow with the log size and
-the files do not depend on the number of workers.
+The words of the way through, each in its module:
+- the runner (here): the runs to replay (the up-to-date ones skipped), one job per run, the
+  progress bar, the manifest published after each run;
+- the job (`_job.RunJob`): one run in the main process; it reads its episodes file and cuts
+  it into batches, takes their reports in line order (duplicates, quarantine, counts) and
+  commits the run when its last batch is in;
+- the batch (`_batch`): a task of lines with the context of its run, replayed and written
+  as one Parquet part per table (and the MCAP files) by `replay_batch`, here or in worker
+  processes (`_executor`, `_worker`) or Ray tasks (`_ray`), at most `AHEAD_PER_WORKER`
+  batches per worker in flight, the next run's batches following the current one's without
+  a pause.
+Memory does not grow with the log size and the files do not depend on the number of workers.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -21,29 +26,23 @@ import msgspec
 
 from .._errors import ConfigError, InputError
 from . import _files
+from ._batch import BatchTask, replay_batch
 from ._executor import Executor, InProcess, in_order, make_executor
 from ._files import STATE_DIR
 from ._fs import Location, location
 from ._images import ImageSource
+from ._job import RunJob
+from ._layout import manifest_path
 from ._lines import MAX_RECORD_BYTES
 from ._load import Benchmark
 from ._manifest import Hasher, Manifest, RunEntry, RunOptions, read_manifest
 from ._outdir import OutputLock, publish, run_inputs, up_to_date
-from ._reading import LineReader, RunInput, read_runs
-from ._runjob import RunJob
-from ._task import BatchTask
-from ._worker import WorkerState, adopt, replay_batch
+from ._reading import RunInput, read_runs
+from ._worker import WorkerState, adopt
 
 if TYPE_CHECKING:
     from rich.progress import Progress, TaskID
 
-BATCH_LINES = 4096
-"""Episode lines per batch: the unit of work of a worker and of a Parquet part (fixed,
-whatever the workers)."""
-BATCH_BYTES = 32 << 20
-"""A batch ends early once its lines hold this many bytes, so the batches read ahead and in
-flight stay bounded in memory however long the lines are. Twice the largest batch of the
-full synthetic benchmark (15 MB): its batches, and the sample's, are cut by lines only."""
 AHEAD_PER_WORKER = 2
 """Batches in flight per worker process."""
 
@@ -147,38 +146,15 @@ def replay_runs(
     bench_given = str(bench_dir)
     bench = Benchmark.open(bench_given)
     runs = read_runs(run_dirs)
-    out = location(out_dir)
-    if out.is_file():
-        raise InputError(str(out), "output path exists and is not a directory")
-    out.mkdir()
+    out = _output_dir(out_dir)
     state_dir = out / STATE_DIR
     replayed: list[str] = []
-    skipped: list[str] = []
 
     with OutputLock(state_dir):
-        for leftover in ("staging", "trash"):
-            (state_dir / leftover).rmtree()
-        previous = read_manifest(out)
-        entries = {e.run_id: e for e in previous.runs} if previous else {}
+        entries = _previous_entries(out)
         hasher = Hasher()
-        todo: list[RunInput] = []
-        for run in runs:
-            prev = entries.get(run.header.run_id)
-            if prev is not None and not force:
-                current = up_to_date(prev, run, bench_given, options, hasher, out)
-                if current is not None:
-                    entries[run.header.run_id] = msgspec.structs.replace(prev, inputs=current)
-                    skipped.append(run.header.run_id)
-                    continue
-            todo.append(run)
+        todo, skipped = _runs_to_replay(runs, entries, force, bench_given, options, hasher, out)
         adopt(WorkerState(bench), bench_given)  # the main process replays with this one
-
-        def withdraw(run_id: str) -> None:
-            """Without renames a run's files are replaced one by one: take the run out of
-            the manifest (the commit marker) first, so no reader trusts a half-replaced run
-            and an interruption leaves it to be replayed."""
-            if out.local is None and entries.pop(run_id, None) is not None:
-                publish(out, entries)
 
         executor: Executor = make_executor(workers, ray) if todo else InProcess()
         bar = _make_progress(progress, cluster=ray is not None)
@@ -189,7 +165,7 @@ def replay_runs(
                     bar.console.print(f"{run_id}: up to date, skipped (use --force)")
             for job in _replay_all(
                 todo, bench, bench_given, out, options, image_source, hasher, executor, bar,
-                withdraw,
+                functools.partial(_withdraw, out, entries),
             ):  # fmt: skip
                 entries[job.ctx.run_id] = job.entry
                 replayed.append(job.ctx.run_id)
@@ -200,7 +176,7 @@ def replay_runs(
                 bar.stop()
             executor.close()
             (state_dir / "staging").rmtree()
-    manifest_file = out / "manifest.json"
+    manifest_file = manifest_path(out)
     return Manifest(
         path=manifest_file.local if manifest_file.local is not None else str(manifest_file),
         content=content,
@@ -211,11 +187,54 @@ def replay_runs(
     )
 
 
-class _Job(RunJob):
-    """A run job with its reader and, once committed, its manifest entry."""
+def _output_dir(given: str | os.PathLike[str]) -> Location:
+    out = location(given)
+    if out.is_file():
+        raise InputError(str(out), "output path exists and is not a directory")
+    out.mkdir()
+    return out
 
-    reader: LineReader
-    entry: RunEntry
+
+def _previous_entries(out: Location) -> dict[str, RunEntry]:
+    """The runs the manifest holds, by id, once what an interrupted replay left behind is
+    gone (held under the writer lock)."""
+    for leftover in ("staging", "trash"):
+        (out / STATE_DIR / leftover).rmtree()
+    previous = read_manifest(out)
+    return {e.run_id: e for e in previous.runs} if previous else {}
+
+
+def _withdraw(out: Location, entries: dict[str, RunEntry], run_id: str) -> None:
+    """Without renames a run's files are replaced one by one: take the run out of the
+    manifest (the commit marker) first, so no reader trusts a half-replaced run and an
+    interruption leaves it to be replayed."""
+    if out.local is None and entries.pop(run_id, None) is not None:
+        publish(out, entries)
+
+
+def _runs_to_replay(
+    runs: list[RunInput],
+    entries: dict[str, RunEntry],
+    force: bool,
+    bench_given: str,
+    options: RunOptions,
+    hasher: Hasher,
+    out: Location,
+) -> tuple[list[RunInput], list[str]]:
+    """The runs to replay, and the ids of those skipped as up to date (unless `force`),
+    whose `entries` get their inputs as given this time."""
+    todo: list[RunInput] = []
+    skipped: list[str] = []
+    for run in runs:
+        prev = entries.get(run.header.run_id)
+        if prev is not None and not force:
+            current = up_to_date(prev, run, bench_given, options, hasher, out)
+            if current is not None:
+                entries[run.header.run_id] = msgspec.structs.replace(prev, inputs=current)
+                skipped.append(run.header.run_id)
+                continue
+        todo.append(run)
+    return todo, skipped
 
 
 def _replay_all(
@@ -229,27 +248,23 @@ def _replay_all(
     executor: Executor,
     bar: Progress | None,
     withdraw: Callable[[str], None],
-) -> Iterator[_Job]:
+) -> Iterator[RunJob]:
     """Replay the runs, yielding each run's job once it is committed (in order);
     `withdraw(run_id)` is called just before a run's commit."""
-    open_jobs: list[_Job] = []
+    open_jobs: list[RunJob] = []
     bars: dict[str, TaskID] = {}
 
-    def items() -> Iterator[tuple[_Job, BatchTask | None]]:
+    def items() -> Iterator[tuple[RunJob, BatchTask | None]]:
         for run in runs:
             hasher(run.episodes)  # hash what is about to be read
-            job = _Job(
-                run, bench, bench_given, out, options, image_source,
-                _files.ROW_GROUP_ROWS,
-            )  # fmt: skip
-            job.reader = LineReader(
-                run.episodes, BATCH_LINES, BATCH_BYTES, options.max_record_bytes
+            job = RunJob(
+                run, bench, bench_given, out, options, image_source, _files.ROW_GROUP_ROWS
             )
             open_jobs.append(job)
             if bar is not None:
                 bars[job.ctx.run_id] = bar.add_task(job.ctx.run_id, total=None, rate="-", nodes=0)
-            for index, lines in enumerate(job.reader.batches()):
-                yield job, job.task(index, lines)
+            for task in job.batches():
+                yield job, task
             yield job, None  # the end of the run, in order after its batches
 
     try:
@@ -262,10 +277,10 @@ def _replay_all(
                     bar.advance(task_id, n)
                     bar.update(task_id, rate=_rate(bar, task_id), nodes=len(executor.nodes))
                 continue
-            job.finish_reading(job.reader.last_line, job.reader.error)
+            job.finish_reading()
             inputs = run_inputs(job.run, bench_given, hasher, job.devices)
             withdraw(job.ctx.run_id)
-            job.entry = job.commit(inputs)
+            job.commit(inputs)
             open_jobs.remove(job)
             if bar is not None:
                 task_id = bars[job.ctx.run_id]

@@ -10,8 +10,7 @@ from pathlib import Path
 
 import msgspec
 
-from ..semantics._records import INPUT_RECORDS
-from ..semantics._rows import OUTPUT_RECORDS
+from ..semantics import INPUT_RECORDS, OUTPUT_RECORDS
 from ._manifest import ManifestFile
 from ._quarantine import QuarantineRecord
 

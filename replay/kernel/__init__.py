@@ -1,10 +1,12 @@
 """The fast path: whole batches of episodes replayed to Arrow tables, proven identical to the reference.
 
-Public for the benchmarks that time it against the reference (`benchmarks/`); the runner
-reaches it through `replay.io`.
+`replay.io` replays each batch of `vge replay` with `replay_kernel` (and decodes inputs
+with `nested_beyond`'s depth check); the benchmarks time it against the reference
+(`benchmarks/`).
 """
 
-from ._batch import EpisodeInput, replay_kernel
+from ._batch import BatchTables, EpisodeInput, replay_kernel
+from ._json import nested_beyond
 from ._text import parse_fields
 
-__all__ = ["EpisodeInput", "parse_fields", "replay_kernel"]
+__all__ = ["BatchTables", "EpisodeInput", "nested_beyond", "parse_fields", "replay_kernel"]

@@ -9,6 +9,7 @@ reference's. Strings become codes into per-batch vocabularies (`Vocab`) or are c
 `TextVec` buffers; `_assemble.py` turns the buffers into Arrow tables.
 """
 
+cimport cython
 from cpython.unicode cimport PyUnicode_AsUTF8AndSize
 from libc.math cimport floor, pow
 from libc.stdlib cimport free, malloc, realloc
@@ -18,32 +19,34 @@ import math
 
 import numpy as np
 
-from ..semantics._episode import parse_log_step, timestamp_seconds
-from ..semantics._feedback import (
-    NULL_TEXT,
-    OPERATIONAL_TEXT,
-    UNLOCKED_TEXT,
-    WAIT_NO_EFFECT_TEXT,
-    invalid_text,
-    switched_text,
-)
-from ..semantics._parse import Action
-from ..semantics._plan import (
-    c_opt_dynamic,
-    distances,
-    target_components,
-)
-from ..semantics._step import SimState, _apply
-from ..semantics._vocab import (
+from ..semantics import (
     ACTION_NAMES,
     DASHBOARD,
-    ERROR_TYPES,
-    FEEDBACK_KINDS,
-    ORTHOGRAPHIC_VIEWS,
     ERROR_DETAILS,
+    ERROR_TYPES,
+    FB_NULL,
+    FEEDBACK_KINDS,
+    FRONT,
+    NULL_TEXT,
+    OPERATIONAL_TEXT,
+    ORTHOGRAPHIC_VIEWS,
+    SCALE,
+    SWITCH_VIEW,
     TERMINATIONS,
+    TIMED_WAIT,
+    UNLOCKED_TEXT,
     VIEW_ORDER,
+    WAIT_NO_EFFECT_TEXT,
+    SimState,
+    apply_transition,
+    c_opt_dynamic,
+    distances,
+    invalid_text,
     normalize_param,
+    parse_log_step,
+    switched_text,
+    target_components,
+    timestamp_seconds,
 )
 
 from ._text cimport (
@@ -88,8 +91,10 @@ cdef enum:
     SC_PP = 3
 
 assert VIEW_ORDER.index(DASHBOARD) == V_DASHBOARD and len(VIEW_ORDER) == NV
-assert ACTION_NAMES.index("switch_view") == A_SWITCH and ACTION_NAMES.index("timed_wait") == A_WAIT
-assert FEEDBACK_KINDS[K_NULL] == "null_effect" and ERROR_TYPES[E_SWITCH_PN] == "switch_view_pn"
+assert ACTION_NAMES.index(SWITCH_VIEW) == A_SWITCH and ACTION_NAMES.index(TIMED_WAIT) == A_WAIT
+assert FEEDBACK_KINDS[K_NULL] == FB_NULL and ERROR_TYPES[E_SWITCH_PN] == "switch_view_pn"
+
+cdef double _SCALE = SCALE  # the coordinate scale (PROTOCOL §1.2), from the semantics
 
 VIEW_CODE = {v: i for i, v in enumerate(VIEW_ORDER)}
 ACTION_CODE = {a: i for i, a in enumerate(ACTION_NAMES)}
@@ -285,13 +290,12 @@ cdef class KMachine:
     cdef dict dyn_memo
 
     def __init__(self, machine):
-        cdef int s, v, i
         self.machine = machine
         self.state_names = tuple(machine.states)
         self.n_states = len(self.state_names)
         self.comp_names = tuple(sorted({t.component for t in machine.transitions if t.action is not None}))
         self.n_comps = len(self.comp_names)
-        self.comp_id = comp_id = {c: i for i, c in enumerate(self.comp_names)}
+        self.comp_id = {c: i for i, c in enumerate(self.comp_names)}
         self.offered = 0
         for view in machine.views:
             self.offered |= 1 << <int>VIEW_CODE[view]
@@ -299,7 +303,13 @@ cdef class KMachine:
         self._keep = []
         self.goals = {}
         self.dyn_memo = {}
+        self._view_tables(machine)
+        tr_id = self._transition_tables(machine)
+        self._candidate_tables(machine, tr_id)
 
+    cdef int _view_tables(self, object machine) except -1:
+        """Per view: the dashboard regions, and the components' boxes (for the hits)."""
+        cdef int v
         reg_off = np.zeros(NV + 1, np.int32)
         reg = []
         cr_off = np.zeros(NV + 1, np.int32)
@@ -311,7 +321,7 @@ cdef class KMachine:
                 reg.append(r[:4])
             reg_off[v + 1] = len(reg)
             for comp, r in machine.component_rects.get(view, ()):
-                cr_comp.append(comp_id[comp])
+                cr_comp.append(self.comp_id[comp])
                 cr.append(r[:4])
             cr_off[v + 1] = len(cr)
         self.reg_off = self._ints(reg_off)
@@ -319,10 +329,15 @@ cdef class KMachine:
         self.cr_off = self._ints(cr_off)
         self.cr_comp = self._ints(np.array(cr_comp, np.int32))
         self.cr = self._doubles(cr, 4)
+        return 0
 
+    cdef dict _transition_tables(self, object machine):
+        """Per transition: action, component, list position, end state, the states it
+        enters, whether it is dangerous, its params and its feedback text; returns the
+        transitions' numbers by identity."""
+        cdef int i
         transitions = machine.transitions
         self.n_tr = len(transitions)
-        tr_id = {id(t): i for i, t in enumerate(transitions)}
         tr_ent_off = np.zeros(self.n_tr + 1, np.int32)
         tr_ent = []
         self.tr_params = []
@@ -331,17 +346,20 @@ cdef class KMachine:
         dangerous = np.zeros(self.n_tr, np.uint8)
         for i, t in enumerate(transitions):
             arrays["action"][i] = ACTION_CODE[t.action] if t.action is not None else (
-                A_WAIT if t.component == "timed_wait" else -1
+                A_WAIT if t.component == TIMED_WAIT else -1
             )
-            arrays["comp"][i] = comp_id.get(t.component, -1)
+            arrays["comp"][i] = self.comp_id.get(t.component, -1)
             arrays["index"][i] = t.index
             arrays["end"][i] = t.end
             dangerous[i] = t.dangerous
             tr_ent.extend(t.entered)
             tr_ent_off[i + 1] = len(tr_ent)
             self.tr_params.append(t.params)
-            # The reference's own text for this transition (`_step._apply`).
-            self.texts.append(_apply(machine, SimState(t.source, "front", False), t)[1].text)
+            # The reference's own text for this transition (`apply_transition`; any view
+            # will do).
+            self.texts.append(
+                apply_transition(machine, SimState(t.source, FRONT, False), t)[1].text
+            )
         self.tr_action = self._ints(arrays["action"])
         self.tr_comp = self._ints(arrays["comp"])
         self.tr_index = self._ints(arrays["index"])
@@ -349,7 +367,12 @@ cdef class KMachine:
         self.tr_ent_off = self._ints(tr_ent_off)
         self.tr_ent = self._ints(np.array(tr_ent, np.int32))
         self.tr_dangerous = self._bytes(dangerous)
+        return {id(t): i for i, t in enumerate(transitions)}
 
+    cdef int _candidate_tables(self, object machine, dict tr_id) except -1:
+        """Per (state, view): the agent transitions with boxes there and their boxes (what
+        a click may match); per state, its `timed_wait` transition."""
+        cdef int s, v
         sv_off = np.zeros(self.n_states * NV + 1, np.int32)
         cand_tr = []
         cand_roff = [0]
@@ -369,6 +392,7 @@ cdef class KMachine:
             [tr_id[id(w)] if w is not None else -1 for w in machine.wait], np.int32
         )
         self.wait_tr = self._ints(wait_tr)
+        return 0
 
     cdef int* _ints(self, object arr) except NULL:
         arr = np.ascontiguousarray(arr, np.int32)
@@ -722,6 +746,31 @@ cdef struct Outcome:
     bint unlocked_now
 
 
+cdef struct Scored:
+    # What one scored step did and how it is classified, passed between the stages of
+    # `Episode.steps` (the values of `Classifier.classify`, coded).
+    int goal_index      # the goal current at the start of the step, and its state
+    int goal
+    int s0              # state and view before the step
+    int v0
+    int kind            # the action's code, -1 when it did not parse
+    long long completed
+    long long d_before
+    long long d_after
+    bint progress
+    bint is_interaction
+    int n_hits          # components hit, in `Episode.hit_buf`
+    int nearest         # the nearest target component, -1 when none
+    double best_d
+    bint has_best
+    bint hit_target
+    long long weight
+    int error_type
+    int error_detail
+    int switch_class
+    bint repetitive
+
+
 cdef inline Outcome _invalid(int detail) noexcept:
     cdef Outcome o
     o.kind = K_INVALID
@@ -786,7 +835,7 @@ cdef Outcome _step(
         return _invalid(D_MISSING_COORD)
     px = pa.x
     py = pa.y
-    if not (0.0 <= px <= 1000.0 and 0.0 <= py <= 1000.0):
+    if not (0.0 <= px <= _SCALE and 0.0 <= py <= _SCALE):
         return _invalid(D_OUT_OF_RANGE)
     if not unlocked[0] and km.has_dashboard and _in_region(km, view[0], px, py):
         unlocked[0] = True
@@ -854,7 +903,7 @@ cdef class Vocab:
             got = (len(self.states), len(self.comps), len(self.texts), km)
             self.states.extend(km.state_names)
             self.comps.extend(km.comp_names)
-            self.comps.append("timed_wait")
+            self.comps.append(TIMED_WAIT)
             self.texts.extend(km.texts)
             self.offsets[id(km)] = got
         return got
@@ -892,6 +941,7 @@ def replay_batch(list episodes, Vocab vocab, dict param_cache):
     return out
 
 
+@cython.final
 cdef class Episode:
     """One episode being replayed: the simulator state, goals, budgets and the classifier's
     history (as `replay_episode` and `Classifier` keep them)."""
@@ -913,6 +963,8 @@ cdef class Episode:
     cdef set seen
     cdef tuple _params
     cdef Py_ssize_t _row
+    cdef KGoal _kg            # the current goal's tables, kept while the goal stays
+    cdef int _kg_goal
 
     def __init__(self, Out out, object ep, Vocab vocab, dict param_cache, Py_ssize_t e):
         cdef int g
@@ -962,6 +1014,8 @@ cdef class Episode:
         self.dyn = [None] * self.n_goals
         self.dyn[0] = km.c_opt_dyn(self.state, self.view, False, self.goal_ids.data[0])
         self.seen = set()
+        self._kg = None
+        self._kg_goal = -1
 
     cdef inline int _visit(self, int s) except -1:
         if not self.seen_state.data[s]:
@@ -1067,272 +1121,327 @@ cdef class Episode:
             self.has_latency = True
         return 0
 
+    # The loop over an episode's steps, one method per stage. Episode is final, so each
+    # call is a direct C call (inlined where the C compiler sees fit): splitting the loop
+    # costs nothing measurable (docs/PERFORMANCE.md, issue 24).
+
     cdef Py_ssize_t steps(self, Py_ssize_t row) except -1:
+        """Every logged step into its row, from `row` on; returns the next row. A step is
+        parsed and what the log recorded kept whatever happens; once the episode has
+        terminated a step is truncated (nothing scored), else simulated, scored, written,
+        checked for termination and compared with what the log recorded."""
         cdef Out out = self.out
-        cdef KMachine km = self.km
         cdef list steps = self.ep.log.steps
-        cdef Py_ssize_t k, i
+        cdef Py_ssize_t k
         cdef Parsed pa
         cdef Outcome oc
-        cdef int goal_index, goal, s0, v0, first, kind, c, comp, last_comp, n_hits
-        cdef int nearest, error_type, error_detail, switch_class, div_mask, sb = self.sb
-        cdef int cb = self.cb
-        cdef bint progress, is_interaction, hit_target, has_best, repetitive
-        cdef long long d_before, d_after, weight, completed
-        cdef double px, py, d, best_d
-        cdef KGoal kg = None
-        cdef int kg_goal = -1
-        cdef int* hit_buf = self.hit_buf.data
-        cdef int* goal_ids = self.goal_ids.data
+        cdef Scored sc
         for k in range(len(steps)):
             log_step = steps[k]
             self._row = row
             out.step_k[row] = k
             out.step_ep[row] = self.e
             self._parse(log_step, &pa)
-            params = self._params
             recorded_feedback = log_step.feedback
             recorded_state = log_step.state
             recorded_view = log_step.view
             out.rec_feedback.push_opt(recorded_feedback)
             out.rec_state.push_opt(recorded_state)
             out.rec_view.push_opt(recorded_view)
-            ts = log_step.timestamp
-            if ts is not None:
-                if type(ts) is not float:
-                    ts = timestamp_seconds(ts)
-                if ts is not None:
-                    out.timestamp[row] = ts
-                    out.timestamp_valid[row] = 1
+            self._timestamp(log_step.timestamp, row)
             self._usage(log_step, row)
             if self.termination >= 0:  # after termination: truncated, nothing scored
                 self.truncated_steps += 1
                 out.entered_off.push(<int>out.entered.size)
                 out.hits_off.push(<int>out.hits.size)
                 out.div_off.push(<int>out.div.size)
-                row += 1
-                continue
-
-            # ---- simulate (PROTOCOL §3)
-            s0 = self.state
-            v0 = self.view
-            goal_index = self.current
-            goal = goal_ids[goal_index]
-            oc = _step(km, &pa, params, &self.state, &self.view, &self.unlocked, self.tb)
-            if oc.tr >= 0:
-                first = self.current
-                for i in range(km.tr_ent_off[oc.tr], km.tr_ent_off[oc.tr + 1]):
-                    c = km.tr_ent[i]
-                    out.entered.push(sb + c)
-                    self._visit(c)
-                    # advance_goals: each goal entered in turn completes at k
-                    if self.current < self.n_goals and c == goal_ids[self.current]:
-                        self.completed_at.data[self.current] = k
-                        if self.current != first:
-                            self.started.data[self.current] = k
-                            self.dyn[self.current] = 0
-                        self.current += 1
-                if first < self.current < self.n_goals:
-                    self.started.data[self.current] = k + 1
-            out.entered_off.push(<int>out.entered.size)
-            completed = self.current - goal_index
-            self.taken += 1
-            self.steps_used.data[goal_index] += 1
-            if oc.switched:
-                self.n_switches += 1
-                self.switches.data[goal_index] += 1
-            self.budget_local -= 1
-            if completed:
-                # refreshed_budget, then C_opt_dyn of the new current goal
-                for c in range(goal_index + 1, min(self.current + 1, self.n_goals)):
-                    if self.lam * <long long>self.c_opt.data[c] > self.budget_local:
-                        self.budget_local = self.lam * <long long>self.c_opt.data[c]
-                if self.current < self.n_goals:
-                    self.dyn[self.current] = km.c_opt_dyn(
-                        self.state, self.view, self.unlocked, goal_ids[self.current]
-                    )
-
-            # ---- classify (PROTOCOL §5), as `Classifier.classify`
-            if goal != kg_goal:
-                kg = km.goal(goal)
-                kg_goal = goal
-            if not kg.built[s0]:
-                kg.build(s0)
-            kind = pa.kind if pa.ok else -1
-            d_before = kg.dist[s0]
-            d_after = kg.dist[self.state]
-            progress = completed > 0 or d_after < d_before
-            is_interaction = (
-                0 <= kind < A_SWITCH and pa.has_coord and (INTERACTABLE >> v0) & 1
-                and oc.kind != K_UNLOCKED
-            )
-            px = pa.x
-            py = pa.y
-            n_hits = 0
-            if kind >= 0 and pa.has_coord and kind != A_SWITCH:
-                last_comp = -1
-                for i in range(km.cr_off[v0], km.cr_off[v0 + 1]):
-                    if _inside(km.cr + 4 * i, px, py):
-                        comp = km.cr_comp[i]
-                        if comp != last_comp:
-                            hit_buf[n_hits] = comp
-                            n_hits += 1
-                            last_comp = comp
-            nearest = -1
-            best_d = 0.0
-            has_best = False
-            hit_target = False
-            weight = 0
-            if is_interaction:
-                for i in range(kg.tg_start[s0 * NV + v0], kg.tg_end[s0 * NV + v0]):
-                    d = _rect_distance(kg.rects + 4 * i, px, py)
-                    comp = kg.tg_comp.data[i]
-                    if d == 0.0:
-                        hit_target = True
-                    if not has_best or d < best_d or (d == best_d and comp < nearest):
-                        best_d = d
-                        nearest = comp
-                        has_best = True
-                if has_best:
-                    i = goal_index * km.n_comps + nearest
-                    weight = 1 + self.failures.data[i]
-                    if not progress:
-                        self.failures.data[i] = <int>weight
-
-            error_type = -1
-            error_detail = -1
-            switch_class = -1
-            if not pa.ok:
-                error_type = E_ACTION
-                error_detail = pa.detail
-            elif kind == A_SWITCH:
-                if not oc.switched:
-                    error_type = E_ACTION
-                    error_detail = oc.detail
-                elif kg.has_targets[s0]:
-                    switch_class = _switch_code(
-                        (kg.pos_views[s0] >> v0) & 1, (kg.pos_views[s0] >> self.view) & 1
-                    )
-                    if switch_class == SC_NN:
-                        error_type = E_SWITCH_NN
-                    elif switch_class == SC_PN:
-                        error_type = E_SWITCH_PN
-            elif kind == A_WAIT:
-                if oc.kind == K_WAIT_NO_EFFECT:
-                    error_type = E_WAITING
-                    error_detail = D_NO_EFFECT
-            elif oc.kind == K_INVALID:
-                if oc.detail == D_OUT_OF_RANGE:
-                    error_type = E_INVALID_COORD
-                    error_detail = D_OUT_OF_RANGE
-                else:
-                    error_type = E_ACTION
-                    error_detail = oc.detail
-            elif oc.kind != K_UNLOCKED and not progress:
-                if n_hits == 0:
-                    error_type = E_INVALID_COORD
-                elif not hit_target:
-                    error_type = E_COMPONENT
-                else:
-                    error_type, error_detail = _target_error(km, kg, s0, goal, v0, kind, px, py, params)
-
-            repetitive = False
-            if pa.ok and kind != A_SWITCH:
-                if not pa.has_coord:
-                    where = ()
-                elif n_hits:
-                    where = ("c",) + _sorted_hits(hit_buf, n_hits)
-                else:
-                    where = ("p", _grid(px), _grid(py))
-                key = (goal_index, s0, kind, where, params, v0)
-                if key in self.seen:
-                    repetitive = True
-                else:
-                    self.seen.add(key)
-
-            # ---- the row
-            out.scored[row] = 1
-            out.goal_index[row] = goal_index
-            out.goal_state[row] = sb + goal
-            out.view_before[row] = v0
-            out.view_after[row] = self.view
-            out.unlocked[row] = self.unlocked
-            out.unlocked_valid[row] = km.has_dashboard
-            out.kind[row] = oc.kind
-            out.text[row] = oc.text
-            out.state_before[row] = sb + s0
-            out.state_after[row] = sb + self.state
-            if oc.tr < 0:
-                out.tr_comp[row] = -1
-            elif km.tr_comp[oc.tr] >= 0:
-                out.tr_comp[row] = cb + km.tr_comp[oc.tr]
-            else:  # a timed_wait transition
-                out.tr_comp[row] = cb + km.n_comps
-            out.dangerous[row] = oc.dangerous
-            out.is_switch[row] = oc.switched
-            out.completed[row] = completed
-            out.is_interaction[row] = is_interaction
-            out.hit_component[row] = n_hits > 0
-            out.hit_target[row] = hit_target
-            if n_hits > 1:
-                for comp in _sorted_hits(hit_buf, n_hits):
-                    out.hits.push(cb + comp)
-            elif n_hits == 1:
-                out.hits.push(cb + hit_buf[0])
-            out.hits_off.push(<int>out.hits.size)
-            out.nearest[row] = -1 if nearest < 0 else cb + nearest
-            out.progress[row] = progress
-            out.dist_before[row] = d_before
-            out.dist_after[row] = d_after
-            out.error_type[row] = error_type
-            out.error_detail[row] = error_detail
-            out.switch_class[row] = switch_class
-            out.repetitive[row] = repetitive
-            if kind != A_SWITCH:
-                out.eer_valid_valid[row] = 1
-                if pa.ok:
-                    out.eer_valid[row] = (
-                        (oc.kind == K_TRANSITION or oc.unlocked_now) and not oc.dangerous
-                        and not repetitive
-                    )
-            if has_best:
-                out.distance[row] = best_d
-                out.distance_valid[row] = 1
-                out.weight[row] = weight
-            out.budget_global_left[row] = self.budget_global - self.taken
-            out.budget_local_left[row] = self.budget_local
-
-            # termination: success, then the global budget, then the local one
-            if self.current >= self.n_goals:
-                self.termination = 0
-            elif self.taken >= self.budget_global:
-                self.termination = 1
-            elif self.budget_local <= 0:
-                self.termination = 2
-
-            # divergence: the recorded values against the replay
-            if recorded_feedback is not None or recorded_state is not None or recorded_view is not None:
-                div_mask = 0
-                if recorded_feedback is not None:
-                    if recorded_feedback in _FEEDBACK_KIND_SET:
-                        if recorded_feedback != FEEDBACK_KINDS[oc.kind]:
-                            div_mask |= 1
-                    elif recorded_feedback != self.vocab.texts[oc.text]:
-                        div_mask |= 1
-                if recorded_state is not None and recorded_state != km.state_names[self.state]:
-                    div_mask |= 2
-                if recorded_view is not None and _lower_view(recorded_view) != self.view:
-                    div_mask |= 4
-                out.diverged_valid[row] = 1
-                if div_mask:
-                    out.diverged[row] = 1
-                    self.diverged_steps += 1
-                    for c in range(3):
-                        if (div_mask >> c) & 1:
-                            out.div.push(c)
-            out.div_off.push(<int>out.div.size)
+            else:
+                self._simulate(k, &pa, &oc, &sc)
+                self._score(&pa, &oc, &sc)
+                self._write(row, &pa, &oc, &sc)
+                self._terminate()
+                self._diverge(recorded_feedback, recorded_state, recorded_view, &oc, row)
             row += 1
         return row
+
+    cdef inline int _timestamp(self, object ts, Py_ssize_t row) except -1:
+        """The recorded time of the step, in seconds (`timestamp_seconds`), when it has one."""
+        if ts is not None:
+            if type(ts) is not float:
+                ts = timestamp_seconds(ts)
+            if ts is not None:
+                self.out.timestamp[row] = ts
+                self.out.timestamp_valid[row] = 1
+        return 0
+
+    cdef inline int _simulate(self, Py_ssize_t k, Parsed* pa, Outcome* oc, Scored* sc) except -1:
+        """The step on the device (PROTOCOL §3), then goals and budgets as
+        `EpisodeSession.advance` keeps them: each goal entered in turn completes at k
+        (`advance_goals`), the local budget is refreshed for the goals that became current
+        (`refreshed_budget`), and C_opt_dyn is taken for the new current goal."""
+        cdef KMachine km = self.km
+        cdef int* goal_ids = self.goal_ids.data
+        cdef int first, c, g, i
+        sc.s0 = self.state
+        sc.v0 = self.view
+        sc.goal_index = self.current
+        sc.goal = goal_ids[sc.goal_index]
+        oc[0] = _step(km, pa, self._params, &self.state, &self.view, &self.unlocked, self.tb)
+        if oc.tr >= 0:
+            first = self.current
+            for i in range(km.tr_ent_off[oc.tr], km.tr_ent_off[oc.tr + 1]):
+                c = km.tr_ent[i]
+                self.out.entered.push(self.sb + c)
+                self._visit(c)
+                if self.current < self.n_goals and c == goal_ids[self.current]:
+                    self.completed_at.data[self.current] = k
+                    if self.current != first:
+                        self.started.data[self.current] = k
+                        self.dyn[self.current] = 0
+                    self.current += 1
+            if first < self.current < self.n_goals:
+                self.started.data[self.current] = k + 1
+        self.out.entered_off.push(<int>self.out.entered.size)
+        sc.completed = self.current - sc.goal_index
+        self.taken += 1
+        self.steps_used.data[sc.goal_index] += 1
+        if oc.switched:
+            self.n_switches += 1
+            self.switches.data[sc.goal_index] += 1
+        self.budget_local -= 1
+        if sc.completed:
+            for g in range(sc.goal_index + 1, min(self.current + 1, self.n_goals)):
+                if self.lam * <long long>self.c_opt.data[g] > self.budget_local:
+                    self.budget_local = self.lam * <long long>self.c_opt.data[g]
+            if self.current < self.n_goals:
+                self.dyn[self.current] = km.c_opt_dyn(
+                    self.state, self.view, self.unlocked, goal_ids[self.current]
+                )
+        return 0
+
+    cdef inline int _score(self, Parsed* pa, Outcome* oc, Scored* sc) except -1:
+        """The step's classification (PROTOCOL §5), as `Classifier.classify`: progress,
+        the components hit, the nearest target, the error, repetition."""
+        if sc.goal != self._kg_goal:
+            self._kg = self.km.goal(sc.goal)
+            self._kg_goal = sc.goal
+        cdef KGoal kg = self._kg
+        if not kg.built[sc.s0]:
+            kg.build(sc.s0)
+        sc.kind = pa.kind if pa.ok else -1
+        sc.d_before = kg.dist[sc.s0]
+        sc.d_after = kg.dist[self.state]
+        sc.progress = sc.completed > 0 or sc.d_after < sc.d_before
+        sc.is_interaction = (
+            0 <= sc.kind < A_SWITCH and pa.has_coord and (INTERACTABLE >> sc.v0) & 1
+            and oc.kind != K_UNLOCKED
+        )
+        self._hits(pa, sc)
+        self._nearest_target(kg, pa, sc)
+        self._error(kg, pa, oc, sc)
+        self._repetition(pa, sc)
+        return 0
+
+    cdef inline int _hits(self, Parsed* pa, Scored* sc) except -1:
+        """The components whose boxes in the view hold the point, into `hit_buf`."""
+        cdef KMachine km = self.km
+        cdef int i, comp, last_comp = -1
+        sc.n_hits = 0
+        if sc.kind >= 0 and pa.has_coord and sc.kind != A_SWITCH:
+            for i in range(km.cr_off[sc.v0], km.cr_off[sc.v0 + 1]):
+                if _inside(km.cr + 4 * i, pa.x, pa.y):
+                    comp = km.cr_comp[i]
+                    if comp != last_comp:
+                        self.hit_buf.data[sc.n_hits] = comp
+                        sc.n_hits += 1
+                        last_comp = comp
+        return 0
+
+    cdef inline int _nearest_target(self, KGoal kg, Parsed* pa, Scored* sc) except -1:
+        """For an interaction: the nearest target box (ties to the component first by name),
+        whether one holds the point, and the weight of the attempt on that target."""
+        cdef int i, comp, at
+        cdef double d
+        sc.nearest = -1
+        sc.best_d = 0.0
+        sc.has_best = False
+        sc.hit_target = False
+        sc.weight = 0
+        if not sc.is_interaction:
+            return 0
+        at = sc.s0 * NV + sc.v0
+        for i in range(kg.tg_start[at], kg.tg_end[at]):
+            d = _rect_distance(kg.rects + 4 * i, pa.x, pa.y)
+            comp = kg.tg_comp.data[i]
+            if d == 0.0:
+                sc.hit_target = True
+            if not sc.has_best or d < sc.best_d or (d == sc.best_d and comp < sc.nearest):
+                sc.best_d = d
+                sc.nearest = comp
+                sc.has_best = True
+        if sc.has_best:
+            i = sc.goal_index * self.km.n_comps + sc.nearest
+            sc.weight = 1 + self.failures.data[i]
+            if not sc.progress:
+                self.failures.data[i] = <int>sc.weight
+        return 0
+
+    cdef inline int _error(self, KGoal kg, Parsed* pa, Outcome* oc, Scored* sc) except -1:
+        """The error type and detail of the step, and the class of a switch (PROTOCOL §5.2)."""
+        cdef int s0 = sc.s0
+        sc.error_type = -1
+        sc.error_detail = -1
+        sc.switch_class = -1
+        if not pa.ok:
+            sc.error_type = E_ACTION
+            sc.error_detail = pa.detail
+        elif sc.kind == A_SWITCH:
+            if not oc.switched:
+                sc.error_type = E_ACTION
+                sc.error_detail = oc.detail
+            elif kg.has_targets[s0]:
+                sc.switch_class = _switch_code(
+                    (kg.pos_views[s0] >> sc.v0) & 1, (kg.pos_views[s0] >> self.view) & 1
+                )
+                if sc.switch_class == SC_NN:
+                    sc.error_type = E_SWITCH_NN
+                elif sc.switch_class == SC_PN:
+                    sc.error_type = E_SWITCH_PN
+        elif sc.kind == A_WAIT:
+            if oc.kind == K_WAIT_NO_EFFECT:
+                sc.error_type = E_WAITING
+                sc.error_detail = D_NO_EFFECT
+        elif oc.kind == K_INVALID:
+            if oc.detail == D_OUT_OF_RANGE:
+                sc.error_type = E_INVALID_COORD
+                sc.error_detail = D_OUT_OF_RANGE
+            else:
+                sc.error_type = E_ACTION
+                sc.error_detail = oc.detail
+        elif oc.kind != K_UNLOCKED and not sc.progress:
+            if sc.n_hits == 0:
+                sc.error_type = E_INVALID_COORD
+            elif not sc.hit_target:
+                sc.error_type = E_COMPONENT
+            else:
+                sc.error_type, sc.error_detail = _target_error(
+                    self.km, kg, s0, sc.goal, sc.v0, sc.kind, pa.x, pa.y, self._params
+                )
+        return 0
+
+    cdef inline int _repetition(self, Parsed* pa, Scored* sc) except -1:
+        """Whether the step repeats an earlier one of the same goal (same state, action,
+        place, params and view), remembering it otherwise."""
+        sc.repetitive = False
+        if pa.ok and sc.kind != A_SWITCH:
+            if not pa.has_coord:
+                where = ()
+            elif sc.n_hits:
+                where = ("c",) + _sorted_hits(self.hit_buf.data, sc.n_hits)
+            else:
+                where = ("p", _grid(pa.x), _grid(pa.y))
+            key = (sc.goal_index, sc.s0, sc.kind, where, self._params, sc.v0)
+            if key in self.seen:
+                sc.repetitive = True
+            else:
+                self.seen.add(key)
+        return 0
+
+    cdef inline int _write(self, Py_ssize_t row, Parsed* pa, Outcome* oc, Scored* sc) except -1:
+        """The scored step's columns."""
+        cdef Out out = self.out
+        cdef KMachine km = self.km
+        cdef int sb = self.sb, cb = self.cb, comp
+        out.scored[row] = 1
+        out.goal_index[row] = sc.goal_index
+        out.goal_state[row] = sb + sc.goal
+        out.view_before[row] = sc.v0
+        out.view_after[row] = self.view
+        out.unlocked[row] = self.unlocked
+        out.unlocked_valid[row] = km.has_dashboard
+        out.kind[row] = oc.kind
+        out.text[row] = oc.text
+        out.state_before[row] = sb + sc.s0
+        out.state_after[row] = sb + self.state
+        if oc.tr < 0:
+            out.tr_comp[row] = -1
+        elif km.tr_comp[oc.tr] >= 0:
+            out.tr_comp[row] = cb + km.tr_comp[oc.tr]
+        else:  # a timed_wait transition
+            out.tr_comp[row] = cb + km.n_comps
+        out.dangerous[row] = oc.dangerous
+        out.is_switch[row] = oc.switched
+        out.completed[row] = sc.completed
+        out.is_interaction[row] = sc.is_interaction
+        out.hit_component[row] = sc.n_hits > 0
+        out.hit_target[row] = sc.hit_target
+        if sc.n_hits > 1:
+            for comp in _sorted_hits(self.hit_buf.data, sc.n_hits):
+                out.hits.push(cb + comp)
+        elif sc.n_hits == 1:
+            out.hits.push(cb + self.hit_buf.data[0])
+        out.hits_off.push(<int>out.hits.size)
+        out.nearest[row] = -1 if sc.nearest < 0 else cb + sc.nearest
+        out.progress[row] = sc.progress
+        out.dist_before[row] = sc.d_before
+        out.dist_after[row] = sc.d_after
+        out.error_type[row] = sc.error_type
+        out.error_detail[row] = sc.error_detail
+        out.switch_class[row] = sc.switch_class
+        out.repetitive[row] = sc.repetitive
+        if sc.kind != A_SWITCH:
+            out.eer_valid_valid[row] = 1
+            if pa.ok:
+                out.eer_valid[row] = (
+                    (oc.kind == K_TRANSITION or oc.unlocked_now) and not oc.dangerous
+                    and not sc.repetitive
+                )
+        if sc.has_best:
+            out.distance[row] = sc.best_d
+            out.distance_valid[row] = 1
+            out.weight[row] = sc.weight
+        out.budget_global_left[row] = self.budget_global - self.taken
+        out.budget_local_left[row] = self.budget_local
+        return 0
+
+    cdef inline int _terminate(self) noexcept:
+        """Termination after a scored step: success, then the global budget, then the local
+        one (`termination_after`)."""
+        if self.current >= self.n_goals:
+            self.termination = 0
+        elif self.taken >= self.budget_global:
+            self.termination = 1
+        elif self.budget_local <= 0:
+            self.termination = 2
+        return 0
+
+    cdef inline int _diverge(
+        self, object feedback, object state, object view, Outcome* oc, Py_ssize_t row
+    ) except -1:
+        """The recorded values against the replay (PROTOCOL §7.2): a recorded feedback kind
+        is compared with the kind, a text with the text."""
+        cdef Out out = self.out
+        cdef int div_mask = 0, c
+        if feedback is not None or state is not None or view is not None:
+            if feedback is not None:
+                if feedback in _FEEDBACK_KIND_SET:
+                    if feedback != FEEDBACK_KINDS[oc.kind]:
+                        div_mask |= 1
+                elif feedback != self.vocab.texts[oc.text]:
+                    div_mask |= 1
+            if state is not None and state != self.km.state_names[self.state]:
+                div_mask |= 2
+            if view is not None and _lower_view(view) != self.view:
+                div_mask |= 4
+            out.diverged_valid[row] = 1
+            if div_mask:
+                out.diverged[row] = 1
+                self.diverged_steps += 1
+                for c in range(3):
+                    if (div_mask >> c) & 1:
+                        out.div.push(c)
+        out.div_off.push(<int>out.div.size)
+        return 0
 
     cdef int finish(self, Py_ssize_t goal_row) except -1:
         """The episode row and the goal rows (the end of `replay_episode`)."""

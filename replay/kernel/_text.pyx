@@ -18,6 +18,8 @@ from cpython.unicode cimport Py_UNICODE_ISALNUM, Py_UNICODE_ISSPACE
 from libc.string cimport memchr
 from libc.math cimport isfinite
 
+from ..semantics import ACTION_NAMES
+
 # Python's str.isspace() and re's \s, restricted to ASCII.
 cdef inline bint _space(char c) noexcept:
     return c == 32 or (9 <= c <= 13) or (28 <= c <= 31)
@@ -368,16 +370,15 @@ cdef int _items(const char* s, Span raw, FastParse* out) noexcept:
     return 1
 
 
+# The action names of the grammar, in ACTION_NAMES order (their codes), as C strings: the
+# bytes objects stay alive in _NAME_BYTES for as long as the module.
+_NAME_BYTES = tuple(name.encode("ascii") for name in ACTION_NAMES)
+assert len(_NAME_BYTES) == 7
 cdef const char* _NAMES[7]
-_NAMES[0] = b"press"
-_NAMES[1] = b"rotate"
-_NAMES[2] = b"push"
-_NAMES[3] = b"pull"
-_NAMES[4] = b"grasp"
-_NAMES[5] = b"switch_view"
-_NAMES[6] = b"timed_wait"
 cdef Py_ssize_t _NAME_LEN[7]
-_NAME_LEN[:] = [5, 6, 4, 4, 5, 11, 10]
+for _i, _name in enumerate(_NAME_BYTES):
+    _NAMES[_i] = _name
+    _NAME_LEN[_i] = len(_name)
 
 
 cdef int _kind(const char* s, Span name) noexcept:

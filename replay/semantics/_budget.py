@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ._records import Task
-from ._vocab import DEFAULT_LAMBDA
+from ._vocab import BUDGET_GLOBAL, BUDGET_LOCAL, DEFAULT_LAMBDA, SUCCESS
 
 
 def episode_lambda(
@@ -62,11 +62,11 @@ def termination_after(
     """PROTOCOL §3.5: how the episode ends after a step, or None if it goes on. Success is
     checked first, then the global budget, then the local one."""
     if current >= n_goals:
-        return "success"
+        return SUCCESS
     if taken >= budget_global:
-        return "budget_global"
+        return BUDGET_GLOBAL
     if budget_local <= 0:
-        return "budget_local"
+        return BUDGET_LOCAL
     return None
 
 
@@ -104,13 +104,3 @@ class Budget:
         self.termination = termination_after(
             current, self.n_goals, self.taken, self.budget_global, local
         )
-
-
-__all__ = [
-    "Budget",
-    "episode_lambda",
-    "goals_reached",
-    "refreshed_budget",
-    "run_lambda",
-    "termination_after",
-]

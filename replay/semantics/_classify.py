@@ -34,6 +34,20 @@ Classification = tuple
 because the replay loop splices it straight into the step row."""
 
 
+_SWITCH_ERRORS = {"NN": "switch_view_nn", "PN": "switch_view_pn"}
+"""The error type of a successful switch, by its class (NP and PP are no error)."""
+
+
+def _where(coord: tuple[float, float] | None, hits: list[str]) -> tuple:
+    """Where a step acted, for its repetition key: nowhere, the components hit, or the cell
+    of a 10-point grid holding the point."""
+    if coord is None:
+        return ()
+    if hits:
+        return ("c",) + tuple(sorted(set(hits)))
+    return ("p", floor(coord[0] / 10 + 0.5), floor(coord[1] / 10 + 0.5))
+
+
 class Classifier:
     """Classifies the steps of one episode, in order."""
 
@@ -72,76 +86,22 @@ class Classifier:
             and (v0 in ORTHOGRAPHIC_VIEWS or v0 == DASHBOARD)
             and outcome.kind != FB_UNLOCKED
         )
-
-        hits: list[str] = []
-        if coord is not None and kind != SWITCH_VIEW:
-            px, py = coord
-            for comp, r in m.component_rects.get(v0, ()):
-                if r[0] <= px <= r[2] and r[1] <= py <= r[3] and (not hits or hits[-1] != comp):
-                    hits.append(comp)
-
-        hit_component = hit_target = None
-        distance = None
-        weight = None
-        nearest = None
+        hits = self._hits(v0, coord) if coord is not None and kind != SWITCH_VIEW else []
+        hit_component = hit_target = distance = weight = nearest = None
         if is_interaction:
-            px, py = coord  # type: ignore[misc]
             hit_component = bool(hits)
-            rects = target_rects(m, s0, goal, v0)
-            hit_target = False
-            best: tuple[float, str] | None = None
-            for comp, r in rects:
-                d = rect_distance(r, px, py)
-                if d == 0.0:
-                    hit_target = True
-                if best is None or (d, comp) < best:
-                    best = (d, comp)
-            if best is not None:
-                distance, nearest = best
+            hit_target, distance, nearest = self._nearest_target(s0, goal, v0, coord)
+            if nearest is not None:
                 fkey = (goal_index, nearest)
                 weight = 1 + self._failures.get(fkey, 0)
                 if not progress:
                     self._failures[fkey] = weight
-
-        error_type = error_detail = switch_class = None
-        if action is None:
-            error_type, error_detail = "action_error", parsed.detail
-        elif kind == SWITCH_VIEW:
-            if not outcome.switched:
-                error_type, error_detail = "action_error", outcome.detail
-            else:
-                switch_class = self._switch_class(s0, goal, v0, after.view)
-                if switch_class == "NN":
-                    error_type = "switch_view_nn"
-                elif switch_class == "PN":
-                    error_type = "switch_view_pn"
-        elif kind == TIMED_WAIT:
-            if outcome.kind == FB_WAIT_NO_EFFECT:
-                error_type, error_detail = "invalid_waiting", "no_effect"
-        elif outcome.kind == FB_INVALID:
-            if outcome.detail == "out_of_range":
-                error_type, error_detail = "invalid_coord", "out_of_range"
-            else:
-                error_type, error_detail = "action_error", outcome.detail
-        elif outcome.kind != FB_UNLOCKED and not progress:
-            error_type, error_detail = self._interaction_error(
-                s0, goal, v0, action, hits, hit_target
-            )
-
-        repetitive = False
-        if action is not None and kind != SWITCH_VIEW:
-            if coord is None:
-                where: tuple = ()
-            elif hits:
-                where = ("c",) + tuple(sorted(set(hits)))
-            else:
-                where = ("p", floor(coord[0] / 10 + 0.5), floor(coord[1] / 10 + 0.5))
-            key = (goal_index, s0, kind, where, action.params, v0)
-            if key in self._seen:
-                repetitive = True
-            else:
-                self._seen.add(key)
-
+        error_type, error_detail, switch_class = self._error(
+            s0, goal, before, after, parsed, outcome, progress, hits, hit_target
+        )
+        repetitive = action is not None and kind != SWITCH_VIEW and self._repeated(
+            (goal_index, s0, kind, _where(coord, hits), action.params, v0)
+        )
         if kind == SWITCH_VIEW:
             eer_valid = None
         elif action is None:
@@ -171,6 +131,73 @@ class Classifier:
             distance,
             weight,
         )
+
+    def _hits(self, view: str, coord: tuple[float, float]) -> list[str]:
+        """The components whose boxes in `view` hold the point, in box order, each run of
+        the same component once."""
+        px, py = coord
+        hits: list[str] = []
+        for comp, r in self.m.component_rects.get(view, ()):
+            if r[0] <= px <= r[2] and r[1] <= py <= r[3] and (not hits or hits[-1] != comp):
+                hits.append(comp)
+        return hits
+
+    def _nearest_target(
+        self, s: int, goal: int, view: str, coord: tuple[float, float]
+    ) -> tuple[bool, float | None, str | None]:
+        """(a target's box holds the point, the distance to the nearest target box, its
+        component): ties go to the component first by name."""
+        px, py = coord
+        hit_target = False
+        best: tuple[float, str] | None = None
+        for comp, r in target_rects(self.m, s, goal, view):
+            d = rect_distance(r, px, py)
+            if d == 0.0:
+                hit_target = True
+            if best is None or (d, comp) < best:
+                best = (d, comp)
+        return (hit_target, *best) if best is not None else (hit_target, None, None)
+
+    def _error(
+        self,
+        s0: int,
+        goal: int,
+        before: SimState,
+        after: SimState,
+        parsed: ParsedAction,
+        outcome: Outcome,
+        progress: bool,
+        hits: list[str],
+        hit_target: bool | None,
+    ) -> tuple[str | None, str | None, str | None]:
+        """(error type, its detail, the switch class) of a step (PROTOCOL §5.2)."""
+        action = parsed.action if parsed.ok else None
+        if action is None:
+            return "action_error", parsed.detail, None
+        kind = action.type
+        if kind == SWITCH_VIEW:
+            if not outcome.switched:
+                return "action_error", outcome.detail, None
+            switch_class = self._switch_class(s0, goal, before.view, after.view)
+            return _SWITCH_ERRORS.get(switch_class), None, switch_class
+        if kind == TIMED_WAIT:
+            if outcome.kind == FB_WAIT_NO_EFFECT:
+                return "invalid_waiting", "no_effect", None
+            return None, None, None
+        if outcome.kind == FB_INVALID:
+            if outcome.detail == "out_of_range":
+                return "invalid_coord", "out_of_range", None
+            return "action_error", outcome.detail, None
+        if outcome.kind != FB_UNLOCKED and not progress:
+            return (*self._interaction_error(s0, goal, before.view, action, hits, hit_target), None)
+        return None, None, None
+
+    def _repeated(self, key: tuple) -> bool:
+        """The key was seen before in this episode (and is remembered from now on)."""
+        if key in self._seen:
+            return True
+        self._seen.add(key)
+        return False
 
     def _switch_class(self, s: int, goal: int, start: str, end: str) -> str | None:
         targets = target_components(self.m, s, goal)

@@ -21,9 +21,9 @@ from ._parse import ParsedAction, action_from_record, parse_action
 from ._plan import Plan, c_opt_dynamic, plan_goals
 from ._records import Continuation, EpisodeLog, LogStep, Task
 from ._rows import CLASSIFICATION_FIELDS, EpisodeKey, EpisodeRow, GoalRow, StepRow
-from ._step import reset, step
+from ._step import Outcome, reset, step
 from ._usage import NO_PRICES, Prices, origin_of, usage_cost
-from ._vocab import DASHBOARD, FEEDBACK_KINDS
+from ._vocab import DASHBOARD, FEEDBACK_KINDS, LOG_ENDED
 
 _NO_ACTION = ParsedAction(False, None, "no_action", "", "")
 _HITS_AT = CLASSIFICATION_FIELDS.index("hit_components")
@@ -131,6 +131,37 @@ def advance_goals(
     if first < current < len(goals):
         started[current] = k + 1
     return current
+
+
+def _action_fields(parsed: ParsedAction) -> tuple[str | None, float | None, float | None, list]:
+    """(action_type, x, y, params) of a step's row: null and empty when nothing parsed."""
+    action = parsed.action
+    if action is None:
+        return None, None, None, []
+    coord = action.coord
+    x, y = coord if coord is not None else (None, None)
+    return action.type, x, y, list(action.params)
+
+
+def _divergence(
+    log_step: LogStep, outcome: Outcome, state_after: str, view_after: str
+) -> tuple[bool | None, list[str]]:
+    """Whether the values the log recorded differ from the replay's (null when it recorded
+    none), and which (PROTOCOL §7.2: a recorded feedback kind is compared with the kind, a
+    text with the text)."""
+    feedback, state, view = log_step.feedback, log_step.state, log_step.view
+    if feedback is None and state is None and view is None:
+        return None, []
+    fields = []
+    if feedback is not None:
+        mine = outcome.kind if feedback in FEEDBACK_KINDS else outcome.text
+        if feedback != mine:
+            fields.append("feedback")
+    if state is not None and state != state_after:
+        fields.append("state")
+    if view is not None and view.lower() != view_after:
+        fields.append("view")
+    return bool(fields), fields
 
 
 def _first_visit_order(states: list[int]) -> list[int]:
@@ -243,15 +274,7 @@ class EpisodeSession:
         names = machine.states
         k = len(self.rows)
         parsed = parse_log_step(log_step)
-        action = parsed.action
-        if action is not None:
-            coord = action.coord
-            x, y = coord if coord is not None else (None, None)
-            action_type = action.type
-            params = list(action.params)
-        else:
-            x = y = action_type = None
-            params = []
+        action_type, x, y, params = _action_fields(parsed)
         ts = log_step.timestamp
         if ts is not None:
             ts = timestamp_seconds(ts)
@@ -270,53 +293,18 @@ class EpisodeSession:
             self.rows.append(row)
             return row
 
-        goals = self.goals
         before = self.sim
         goal_index = self.current
-        goal = goals[goal_index]
+        goal = self.goals[goal_index]
         sim, outcome = step(machine, before, parsed)
         self.sim = sim
-
-        self.visited.extend(outcome.entered)
-        current = advance_goals(
-            outcome.entered, goals, goal_index, k, self._started, self._completed_at, self._dyn
-        )
-        self.current = current
-        completed = current - goal_index
-        self._steps_used[goal_index] += 1
-        switched = outcome.switched
-        if switched:
-            self.n_switches += 1
-            self._switches[goal_index] += 1
-        budget = self.budget
-        budget.spend(goal_index, current)
-        if completed and current < self.n_goals:
-            self._dyn[current] = c_opt_dynamic(
-                machine, sim.state, sim.view, sim.unlocked, goals[current]
-            )
-
+        completed = self._advance_goals(k, goal_index, outcome)
         cls = self._classify(goal_index, goal, before, parsed, outcome, sim, completed)
-
+        budget = self.budget
         self.termination = budget.termination
-
-        state_after = names[sim.state]
-        diverged_fields = []
-        recorded_feedback = log_step.feedback
-        recorded_state = log_step.state
-        recorded_view = log_step.view
-        diverged = None
-        if recorded_feedback is not None or recorded_state is not None or recorded_view is not None:
-            if recorded_feedback is not None:
-                mine = outcome.kind if recorded_feedback in FEEDBACK_KINDS else outcome.text
-                if recorded_feedback != mine:
-                    diverged_fields.append("feedback")
-            if recorded_state is not None and recorded_state != state_after:
-                diverged_fields.append("state")
-            if recorded_view is not None and recorded_view.lower() != sim.view:
-                diverged_fields.append("view")
-            diverged = bool(diverged_fields)
-            if diverged:
-                self.diverged_steps += 1
+        diverged, diverged_fields = _divergence(log_step, outcome, names[sim.state], sim.view)
+        if diverged:
+            self.diverged_steps += 1
 
         tr = outcome.transition
         # Field order: StepRow (see _rows.py); `cls` is the CLASSIFICATION_FIELDS block.
@@ -324,16 +312,37 @@ class EpisodeSession:
             *self._head, k, goal_index, names[goal], before.view, sim.view,
             sim.unlocked if self._has_dashboard else None, action_type, parsed.action_text,
             parsed.thinking or None, log_step.output, x, y, params, parsed.ok, parsed.detail,
-            outcome.kind, outcome.text, names[before.state], state_after,
+            outcome.kind, outcome.text, names[before.state], names[sim.state],
             [names[s] for s in outcome.entered], tr.component if tr is not None else None,
-            outcome.dangerous, switched, completed,
+            outcome.dangerous, outcome.switched, completed,
             *cls,
             budget.global_left, budget.local, False,
-            recorded_feedback, recorded_state, recorded_view, diverged, diverged_fields, ts,
+            log_step.feedback, log_step.state, log_step.view, diverged, diverged_fields, ts,
             *usage,
-        )
+        )  # fmt: skip
         self.rows.append(row)
         return row
+
+    def _advance_goals(self, k: int, goal_index: int, outcome: Outcome) -> int:
+        """What step k did to the goals, the budgets and the tallies; returns the goals it
+        completed."""
+        machine, goals, sim = self.machine, self.goals, self.sim
+        self.visited.extend(outcome.entered)
+        current = advance_goals(
+            outcome.entered, goals, goal_index, k, self._started, self._completed_at, self._dyn
+        )
+        self.current = current
+        completed = current - goal_index
+        self._steps_used[goal_index] += 1
+        if outcome.switched:
+            self.n_switches += 1
+            self._switches[goal_index] += 1
+        self.budget.spend(goal_index, current)
+        if completed and current < self.n_goals:
+            self._dyn[current] = c_opt_dynamic(
+                machine, sim.state, sim.view, sim.unlocked, goals[current]
+            )
+        return completed
 
     def _usage(self, log_step: LogStep, k: int) -> tuple:
         """The last columns of step k's row (tokens, latency, cost, origin), added to the
@@ -363,7 +372,7 @@ class EpisodeSession:
         """The step, episode and goal rows. An episode not terminated by its steps ends as
         `ended` says (the log's `ended`, PROTOCOL §1.4), else as `log_ended`."""
         if self.termination is None:
-            self.termination = ended or "log_ended"
+            self.termination = ended or LOG_ENDED
         names = self.machine.states
         setup, task, goals, n_goals, c_opt = (
             self.setup, self.task, self.goals, self.n_goals, self.c_opt
@@ -477,15 +486,3 @@ def replay_episode(
     for log_step in log.steps:
         advance(log_step)
     return session.finish(log.ended)
-
-
-__all__ = [
-    "EpisodeResult",
-    "EpisodeSession",
-    "EpisodeSetup",
-    "TaskError",
-    "parse_log_step",
-    "replay_episode",
-    "setup_episode",
-    "timestamp_seconds",
-]

@@ -7,13 +7,13 @@ simulator, planner and classifier only read these tables.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from .._errors import Problem, SSMError
 from ._records import StateMachine
 from ._vocab import (
     ATOMIC_ACTIONS,
-    AXONOMETRIC_VIEWS,
     DASHBOARD,
     IMMEDIATE,
     ORTHOGRAPHIC_VIEWS,
@@ -120,16 +120,9 @@ class Machine:
     def state_id(self, name: str) -> int:
         return self.state_index[name]
 
-    def interactable(self, view: str) -> bool:
-        return view in ORTHOGRAPHIC_VIEWS or view == DASHBOARD
-
     def in_dashboard_region(self, view: str, px: float, py: float) -> bool:
         return any(rect_contains(r, px, py) for r in self.dashboard_regions.get(view, ()))
 
-    def components(self) -> tuple[str, ...]:
-        """Real components of the device, sorted by name."""
-        names = {t.component for t in self.transitions if t.action is not None}
-        return tuple(sorted(names))
 
 
 def _is_error_state(name: str, state) -> bool:
@@ -149,13 +142,25 @@ def validate_machine(
     def err(where: str, message: str, severity: str = "error") -> None:
         problems.append(Problem(path, where, message, severity))
 
-    states = ssm.states
-    if not states:
+    if not ssm.states:
         err("states", "the machine has no states")
         return problems
-    if ssm.initial_state not in states:
+    if ssm.initial_state not in ssm.states:
         err("initial_state", f"unknown initial_state {ssm.initial_state!r}")
+    offered = _check_views(ssm, err)
+    for sname, state in ssm.states.items():
+        for comp, transitions in state.on.items():
+            _check_component(ssm, sname, comp, transitions, offered, require_geometry, err)
+    _check_chains(ssm, err)
+    return problems
 
+
+_Report = Callable[..., None]
+"""`err(where, message, severity="error")`: records one problem."""
+
+
+def _check_views(ssm: StateMachine, err: _Report) -> set[str]:
+    """The views the machine declares and its dashboard regions; returns the views offered."""
     views = list(ssm.views) if ssm.views is not None else list(STANDARD_VIEWS)
     for v in views:
         if v.lower() not in STANDARD_VIEWS and v.lower() != DASHBOARD:
@@ -174,50 +179,63 @@ def validate_machine(
         elif view not in offered:
             err(where, f"dashboard region on view {region.view!r} that the device does not offer")
         _check_coordinate(region.coordinate, where, err)
+    return offered
 
-    for sname, state in states.items():
-        for comp, transitions in state.on.items():
-            where_c = f"state {sname!r}, component {comp!r}"
-            if not transitions:
-                err(where_c, "empty transition list", "warning")
-            if comp in PSEUDO_COMPONENTS and len(transitions) > 1:
-                err(where_c, f"more than one {comp} transition; only the first is taken", "warning")
-            seen_triggers: dict[tuple, int] = {}
-            for k, tr in enumerate(transitions):
-                where = f"state {sname!r}, component {comp!r}, transition {k}"
-                if tr.next_state not in states:
-                    err(where, f"dangling next_state {tr.next_state!r}")
-                if comp in PSEUDO_COMPONENTS:
-                    if tr.bbox:
-                        err(where, f"{comp} transitions have no bbox; it is ignored", "warning")
-                    continue
-                action = tr.atomic_action.lower() if tr.atomic_action else None
-                if action is None:
-                    if require_geometry:
-                        err(where, "missing atomic_action")
-                elif action not in ATOMIC_ACTIONS:
-                    err(where, f"unknown atomic action {tr.atomic_action!r}")
-                if require_geometry and not tr.bbox:
-                    err(where, "no bbox: the component cannot be clicked in any view", "warning")
-                for b, box in enumerate(tr.bbox):
-                    where_b = f"{where}, bbox {b}"
-                    view = box.view.lower()
-                    if view not in offered:
-                        err(where_b, f"bbox on unknown view {box.view!r}")
-                    _check_coordinate(box.coordinate, where_b, err)
-                if action is not None:
-                    trigger = (action, tuple(normalize_param(p) for p in (tr.parameter or ())))
-                    if trigger in seen_triggers:
-                        err(
-                            where,
-                            f"same action and params as transition {seen_triggers[trigger]}; "
-                            "only the first can ever fire",
-                            "warning",
-                        )
-                    else:
-                        seen_triggers[trigger] = k
 
-    # Cycles made only of immediate transitions (the simulator would never stop).
+def _check_component(
+    ssm: StateMachine,
+    sname: str,
+    comp: str,
+    transitions: list,
+    offered: set[str],
+    require_geometry: bool,
+    err: _Report,
+) -> None:
+    """The transitions of one component in one state: targets, actions, boxes, and two
+    with the same trigger (only the first can fire)."""
+    where_c = f"state {sname!r}, component {comp!r}"
+    if not transitions:
+        err(where_c, "empty transition list", "warning")
+    if comp in PSEUDO_COMPONENTS and len(transitions) > 1:
+        err(where_c, f"more than one {comp} transition; only the first is taken", "warning")
+    seen_triggers: dict[tuple, int] = {}
+    for k, tr in enumerate(transitions):
+        where = f"state {sname!r}, component {comp!r}, transition {k}"
+        if tr.next_state not in ssm.states:
+            err(where, f"dangling next_state {tr.next_state!r}")
+        if comp in PSEUDO_COMPONENTS:
+            if tr.bbox:
+                err(where, f"{comp} transitions have no bbox; it is ignored", "warning")
+            continue
+        action = tr.atomic_action.lower() if tr.atomic_action else None
+        if action is None:
+            if require_geometry:
+                err(where, "missing atomic_action")
+        elif action not in ATOMIC_ACTIONS:
+            err(where, f"unknown atomic action {tr.atomic_action!r}")
+        if require_geometry and not tr.bbox:
+            err(where, "no bbox: the component cannot be clicked in any view", "warning")
+        for b, box in enumerate(tr.bbox):
+            where_b = f"{where}, bbox {b}"
+            if box.view.lower() not in offered:
+                err(where_b, f"bbox on unknown view {box.view!r}")
+            _check_coordinate(box.coordinate, where_b, err)
+        if action is not None:
+            trigger = (action, tuple(normalize_param(p) for p in (tr.parameter or ())))
+            if trigger in seen_triggers:
+                err(
+                    where,
+                    f"same action and params as transition {seen_triggers[trigger]}; "
+                    "only the first can ever fire",
+                    "warning",
+                )
+            else:
+                seen_triggers[trigger] = k
+
+
+def _check_chains(ssm: StateMachine, err: _Report) -> None:
+    """Cycles made only of immediate transitions (the simulator would never stop), and
+    chains too long to compile (PROTOCOL §1.5)."""
     cycles = _immediate_cycles(ssm)
     for cycle in cycles:
         err(
@@ -232,7 +250,6 @@ def validate_machine(
                 f"immediate chains too long: compiling would hold {held:,} entered states "
                 f"(at most {MAX_CHAIN_STATES:,}, PROTOCOL §1.5)",
             )
-    return problems
 
 
 MAX_CHAIN_STATES = 1 << 24
@@ -331,16 +348,59 @@ def compile_machine(
 
     names = tuple(ssm.states)
     index = {n: i for i, n in enumerate(names)}
-    n = len(names)
     error_states = frozenset(i for i, nm in enumerate(names) if _is_error_state(nm, ssm.states[nm]))
+    chains, ends = _immediate_chains(ssm, names, index)
+    views, regions = _offered_views(ssm)
+    transitions, by_state, wait = _compile_transitions(ssm, index, chains, ends, error_states)
+    by_state_view, component_rects, state_component_rects = _rect_tables(transitions)
+    images = {}
+    if ssm.images:
+        for view, ref in ssm.images.items():
+            images[view.lower()] = (ref.path, ref.width, ref.height)
 
+    return Machine(
+        device_id=device_id or ssm.device_id or ssm.name,
+        category=ssm.category or ssm.name,
+        name=ssm.name,
+        source=source,
+        states=names,
+        state_index=index,
+        descriptions=tuple(ssm.states[nm].description for nm in names),
+        initial=index[ssm.initial_state],
+        error_states=error_states,
+        views=views,
+        immediate_chain=tuple(chains),
+        chain_end=tuple(ends),
+        transitions=tuple(transitions),
+        by_state=tuple(tuple(x) for x in by_state),
+        wait=tuple(wait),
+        by_state_view={k: tuple(v) for k, v in by_state_view.items()},
+        component_rects={
+            v: tuple(sorted(d, key=lambda cr: (cr[0], cr[1]))) for v, d in component_rects.items()
+        },
+        state_component_rects={
+            k: {c: tuple(rs) for c, rs in sorted(d.items())}
+            for k, d in state_component_rects.items()
+        },
+        dashboard_regions={v: tuple(r) for v, r in regions.items()},
+        images=images,
+        ssm=ssm,
+    )
+
+
+def _immediate_chains(
+    ssm: StateMachine, names: tuple[str, ...], index: dict[str, int]
+) -> tuple[list[tuple[int, ...]], list[int]]:
+    """Per state, the states its `immediate` chain enters after it, and the stable state at
+    its end (PROTOCOL §3.4). A state's chain is its successor's with the successor in front:
+    built back from each stable end, every state once (a long chain is not walked again for
+    each state in it)."""
+    n = len(names)
     immediate_next: list[int | None] = [None] * n
     for i, nm in enumerate(names):
         imm = ssm.states[nm].on.get(IMMEDIATE)
         if imm:
             immediate_next[i] = index[imm[0].next_state]
-    # A state's chain is its successor's with the successor in front: built back from each
-    # stable end, every state once (a long chain is not walked again for each state in it).
     chains: list[tuple[int, ...]] = [()] * n
     built = [False] * n
     for i in range(n):
@@ -354,7 +414,12 @@ def compile_machine(
             chains[state] = (succ, *chains[succ])
             built[state] = True
     ends = [chain[-1] if chain else i for i, chain in enumerate(chains)]
+    return chains, ends
 
+
+def _offered_views(ssm: StateMachine) -> tuple[tuple[str, ...], dict[str, list[Rect]]]:
+    """The views the device offers, in the order of `VIEW_RANK` (the dashboard among them
+    when it has a region), and its dashboard regions by view."""
     views = list(ssm.views) if ssm.views is not None else list(STANDARD_VIEWS)
     view_list = [v.lower() for v in views]
     regions: dict[str, list[Rect]] = {}
@@ -366,11 +431,25 @@ def compile_machine(
     if regions and DASHBOARD not in view_list:
         view_list.append(DASHBOARD)
     view_list.sort(key=lambda v: VIEW_RANK.get(v, len(VIEW_RANK)))
+    return tuple(view_list), regions
 
+
+def _compile_transitions(
+    ssm: StateMachine,
+    index: dict[str, int],
+    chains: list[tuple[int, ...]],
+    ends: list[int],
+    error_states: frozenset[int],
+) -> tuple[
+    list[CompiledTransition], list[list[CompiledTransition]], list[CompiledTransition | None]
+]:
+    """Every transition but the `immediate` ones, compiled in file order; the agent's
+    transitions of each state, and each state's `timed_wait` transition (the first)."""
+    n = len(index)
     transitions: list[CompiledTransition] = []
     by_state: list[list[CompiledTransition]] = [[] for _ in range(n)]
     wait: list[CompiledTransition | None] = [None] * n
-    for i, nm in enumerate(names):
+    for i, nm in enumerate(index):
         for comp, trs in ssm.states[nm].on.items():
             if comp == IMMEDIATE:
                 continue
@@ -404,7 +483,12 @@ def compile_machine(
                         wait[i] = ct
                 else:
                     by_state[i].append(ct)
+    return transitions, by_state, wait
 
+
+def _rect_tables(transitions: list[CompiledTransition]) -> tuple[dict, dict, dict]:
+    """The agent transitions' boxes looked up three ways: (state, view) -> [(transition,
+    its rects)], view -> {(component, rect)}, (state, view) -> {component: [rects]}."""
     by_state_view: dict[tuple[int, str], list] = {}
     state_component_rects: dict[tuple[int, str], dict[str, list[Rect]]] = {}
     component_rects: dict[str, dict[tuple[str, Rect], None]] = {}
@@ -419,50 +503,4 @@ def compile_machine(
                 if r not in bucket:
                     bucket.append(r)
                 component_rects.setdefault(view, {})[(ct.component, r)] = None
-
-    images = {}
-    if ssm.images:
-        for view, ref in ssm.images.items():
-            images[view.lower()] = (ref.path, ref.width, ref.height)
-
-    return Machine(
-        device_id=device_id or ssm.device_id or ssm.name,
-        category=ssm.category or ssm.name,
-        name=ssm.name,
-        source=source,
-        states=names,
-        state_index=index,
-        descriptions=tuple(ssm.states[nm].description for nm in names),
-        initial=index[ssm.initial_state],
-        error_states=error_states,
-        views=tuple(view_list),
-        immediate_chain=tuple(chains),
-        chain_end=tuple(ends),
-        transitions=tuple(transitions),
-        by_state=tuple(tuple(x) for x in by_state),
-        wait=tuple(wait),
-        by_state_view={k: tuple(v) for k, v in by_state_view.items()},
-        component_rects={
-            v: tuple(sorted(d, key=lambda cr: (cr[0], cr[1]))) for v, d in component_rects.items()
-        },
-        state_component_rects={
-            k: {c: tuple(rs) for c, rs in sorted(d.items())}
-            for k, d in state_component_rects.items()
-        },
-        dashboard_regions={v: tuple(r) for v, r in regions.items()},
-        images=images,
-        ssm=ssm,
-    )
-
-
-__all__ = [
-    "AXONOMETRIC_VIEWS",
-    "CompiledTransition",
-    "Machine",
-    "Rect",
-    "compile_machine",
-    "rect_contains",
-    "rect_distance",
-    "rect_from_coordinate",
-    "validate_machine",
-]
+    return by_state_view, component_rects, state_component_rects

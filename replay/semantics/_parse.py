@@ -23,7 +23,7 @@ from math import isfinite
 
 import msgspec
 
-from ._vocab import ACTION_NAMES, DISPLAY_NAMES, normalize_param
+from ._vocab import ACTION_NAMES, DISPLAY_NAMES, TIMED_WAIT, normalize_param
 
 _LABEL_LINE = re.compile(r"^[ \t>*_#`\-]*action[ \t*_`]*:", re.IGNORECASE | re.MULTILINE)
 _LABEL_ANY = re.compile(r"\baction[ \t*_`]*:", re.IGNORECASE)
@@ -70,7 +70,7 @@ class Action(msgspec.Struct, frozen=True):
         parts = []
         if self.coord is not None:
             parts.append(f"coord=[{_num(self.coord[0])}, {_num(self.coord[1])}]")
-        if self.params or self.type != "timed_wait":
+        if self.params or self.type != TIMED_WAIT:
             parts.append("params=[" + ", ".join(self.params) + "]")
         return f"{DISPLAY_NAMES.get(self.type, self.type)}({', '.join(parts)})"
 

@@ -1,6 +1,6 @@
 """Typed, versioned records for every input format (PROTOCOL §1).
 
-The JSON Schemas in `schemas/` are generated from these classes (`replay.write_schemas`),
+The JSON Schemas in `schemas/` are generated from these classes (`replay.io.write_schemas`),
 and a test fails when the committed files drift. Field descriptions live in `Meta` so
 they reach the schemas.
 """

@@ -98,7 +98,7 @@ def step(machine: Machine, sim: SimState, parsed: ParsedAction) -> tuple[SimStat
         tr = machine.wait[sim.state]
         if tr is None:
             return sim, _WAIT_NO_EFFECT
-        return _apply(machine, sim, tr)
+        return apply_transition(machine, sim, tr)
 
     # Interactions: Press / Rotate / Push / Pull / Grasp.
     view = sim.view
@@ -130,11 +130,16 @@ def step(machine: Machine, sim: SimState, parsed: ParsedAction) -> tuple[SimStat
             if best_key is None or key < best_key:
                 best, best_key = tr, key
     if best is not None:
-        return _apply(machine, sim, best)
+        return apply_transition(machine, sim, best)
     return sim, (_OPERATIONAL if hit else _NULL)
 
 
-def _apply(machine: Machine, sim: SimState, tr: CompiledTransition) -> tuple[SimState, Outcome]:
+def apply_transition(
+    machine: Machine, sim: SimState, tr: CompiledTransition
+) -> tuple[SimState, Outcome]:
+    """Fire `tr` from `sim` (PROTOCOL §3.3, §3.4): the device moves to the stable end of the
+    transition's chain and the feedback is the transition's text (the texts of the error
+    states it enters appended when it is dangerous). The view and the dashboard stay."""
     text = tr.description
     if tr.dangerous:
         errors = [machine.descriptions[s] for s in tr.entered if s in machine.error_states]

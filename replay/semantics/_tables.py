@@ -12,7 +12,6 @@ import msgspec
 import pyarrow as pa
 
 from ._records import SCHEMA_VERSION
-from ._rows import EpisodeRow, GoalRow, StepRow
 
 _SCALARS = {
     msgspec.inspect.StrType: pa.string(),
@@ -69,5 +68,15 @@ def rows_to_table(rows: list, row_type: type) -> pa.Table:
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
-TABLE_ROWS: dict[str, type] = {"steps": StepRow, "episodes": EpisodeRow, "goals": GoalRow}
-"""Output table name -> row class."""
+def table_rows(table: pa.Table, row_type: type) -> list:
+    """The rows of a table of `row_type` (as `rows_to_table` or the kernel builds it), as
+    instances of that class holding the values the replay computed: Arrow gives back the
+    same Python values (floats as floats, lists as lists), so a row encodes to the same
+    JSON whichever engine made the table."""
+    names = row_type.__struct_fields__
+    return [row_type(**dict(zip(names, values, strict=True))) for values in table_tuples(table)]
+
+
+def table_tuples(table: pa.Table) -> list[tuple]:
+    """The rows of a table as tuples in column order (the field order of its row class)."""
+    return list(zip(*(column.to_pylist() for column in table.columns), strict=True))

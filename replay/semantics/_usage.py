@@ -75,15 +75,3 @@ def origin_of(k: int, prefix_steps: int, fixed: bool) -> str:
     if fixed and k == prefix_steps:
         return "fix"
     return "agent"
-
-
-__all__ = [
-    "COMPLETION_PRICE_KEY",
-    "NO_PRICES",
-    "ORIGINS",
-    "PROMPT_PRICE_KEY",
-    "Prices",
-    "origin_of",
-    "run_prices",
-    "usage_cost",
-]

@@ -1,5 +1,6 @@
-"""The fixed vocabulary: views, action names, feedback kinds, error types, and the
-normalisation of parameter values. One place, so every module agrees."""
+"""The fixed vocabulary: the coordinate scale, views, action names and their parameter codes,
+feedback kinds, terminations, error types, and the normalisation of parameter values. One
+place, so every module agrees (docs/ARCHITECTURE.md, "Where each name lives")."""
 
 from __future__ import annotations
 
@@ -9,29 +10,74 @@ SCALE = 1000
 """The agent's coordinate scale: a point is `[x, y]` with 0..SCALE on both axes of a view,
 relative to its width and height (PROTOCOL §1.2)."""
 
-ORTHOGRAPHIC_VIEWS = ("front", "back", "left", "right", "top", "bottom")
-AXONOMETRIC_VIEWS = ("front_top", "back_bottom")
+FRONT, BACK, LEFT, RIGHT, TOP, BOTTOM = "front", "back", "left", "right", "top", "bottom"
+FRONT_TOP, BACK_BOTTOM = "front_top", "back_bottom"
 DASHBOARD = "dashboard"
+ORTHOGRAPHIC_VIEWS = (FRONT, BACK, LEFT, RIGHT, TOP, BOTTOM)
+AXONOMETRIC_VIEWS = (FRONT_TOP, BACK_BOTTOM)
 STANDARD_VIEWS = ORTHOGRAPHIC_VIEWS + AXONOMETRIC_VIEWS
-VIEW_ORDER = ("front", "back", "left", "right", "top", "bottom", DASHBOARD) + AXONOMETRIC_VIEWS
-"""Planner tie-break order of views (PROTOCOL §4)."""
+VIEWS = STANDARD_VIEWS + (DASHBOARD,)
+"""Every view name, in PROTOCOL §3.1's order (the standard views, then the dashboard): the
+order in which the synthetic benchmark lists a device's views and a component's boxes in its
+SSM (the planner's preference is `VIEW_ORDER`)."""
+VIEW_ORDER = ORTHOGRAPHIC_VIEWS + (DASHBOARD,) + AXONOMETRIC_VIEWS
+"""Planner tie-break order of views (PROTOCOL §4.3); also the order of the views a device
+offers, of the environments' view codes and of the kernel's."""
 VIEW_RANK = {v: i for i, v in enumerate(VIEW_ORDER)}
 
-INTERACTIONS = ("press", "rotate", "push", "pull", "grasp")
+PRESS, ROTATE, PUSH, PULL, GRASP = "press", "rotate", "push", "pull", "grasp"
+INTERACTIONS = (PRESS, ROTATE, PUSH, PULL, GRASP)
 ATOMIC_ACTIONS = frozenset(INTERACTIONS)
 SWITCH_VIEW = "switch_view"
 TIMED_WAIT = "timed_wait"
 ACTION_NAMES = INTERACTIONS + (SWITCH_VIEW, TIMED_WAIT)
 """Lowercase action names of the grammar (PROTOCOL §2)."""
-DISPLAY_NAMES = {
-    "press": "Press",
-    "rotate": "Rotate",
-    "push": "Push",
-    "pull": "Pull",
-    "grasp": "Grasp",
-    SWITCH_VIEW: "Switch_view",
-    TIMED_WAIT: "Timed_wait",
+DISPLAY_NAMES = {name: name[0].upper() + name[1:] for name in ACTION_NAMES}
+"""How the grammar writes each action (`Press`, ..., `Switch_view`, `Timed_wait`)."""
+
+# Parameter codes: the action space the prompt teaches (the paper's), which the environments'
+# parameter lists and the synthetic devices use (PROTOCOL §2). A code is its position here;
+# matching compares whatever an SSM lists (PROTOCOL §1.2), so they are a convention, not a rule.
+PRESS_KINDS = ("a short press", "a long press (held more than a second)", "a double press")
+"""`Press(params=[kind])`."""
+ROTATE_DIRECTIONS = ("clockwise", "counter-clockwise")
+"""`Rotate(params=[direction, notches])`'s first parameter; the second counts notches."""
+ROTATE_NOTCHES = (1, 2, 3, 4)
+"""The notch counts `vge/DeviceRL-v0` offers (a transition's `*` accepts any)."""
+PUSH_DIRECTIONS = (
+    "up",
+    "down",
+    "left",
+    "right",
+    "in or forward (closing a door, inserting a plug)",
+)
+"""`Push(params=[direction])`."""
+PULL_DIRECTIONS = PUSH_DIRECTIONS[:4] + ("out or backward (opening a door, pulling a drawer out)",)
+"""`Pull(params=[direction])`: as Push's, the last one outwards."""
+GRASP_STATES = ("take hold or pick up", "let go or put down")
+"""`Grasp(params=[state])`."""
+PARAMETER_CODES: dict[str, tuple[str, ...]] = {
+    PRESS: PRESS_KINDS,
+    ROTATE: ROTATE_DIRECTIONS,
+    PUSH: PUSH_DIRECTIONS,
+    PULL: PULL_DIRECTIONS,
+    GRASP: GRASP_STATES,
 }
+"""Each interaction's first parameter: code `i` means entry `i`."""
+PARAMETER_NAMES: dict[str, tuple[str, ...]] = {
+    PRESS: ("kind",),
+    ROTATE: ("direction", "steps"),
+    PUSH: ("direction",),
+    PULL: ("direction",),
+    GRASP: ("state",),
+}
+"""What an interaction's parameters are called, in order (`Rotate(params=[direction, steps])`)."""
+
+
+def codes_text(action: str) -> str:
+    """`0 a short press, 1 ..., 2 a double press`: the codes of an interaction's first parameter."""
+    return ", ".join(f"{code} {meaning}" for code, meaning in enumerate(PARAMETER_CODES[action]))
+
 
 IMMEDIATE = "immediate"
 PSEUDO_COMPONENTS = frozenset({IMMEDIATE, TIMED_WAIT})
@@ -68,7 +114,12 @@ ERROR_GROUPS = {
 ERROR_TYPES = tuple(ERROR_GROUPS)
 SWITCH_CLASSES = ("NP", "PN", "NN", "PP")
 
-TERMINATIONS = ("success", "budget_global", "budget_local", "log_ended", "context_exceeded")
+SUCCESS = "success"
+BUDGET_GLOBAL = "budget_global"
+BUDGET_LOCAL = "budget_local"
+LOG_ENDED = "log_ended"
+CONTEXT_EXCEEDED = "context_exceeded"
+TERMINATIONS = (SUCCESS, BUDGET_GLOBAL, BUDGET_LOCAL, LOG_ENDED, CONTEXT_EXCEEDED)
 """How an episode ends (PROTOCOL §3.5), in the order of the kernel's codes: a new one goes
 last so that the codes of the others never change."""
 

@@ -27,8 +27,7 @@ import pytest
 
 import replay
 import vge_analytics as va
-from vge_analytics.commands.replay import image_source
-from vge_analytics.synth import generate
+from vge_analytics.synth import generate, image_source
 
 from ..vge_analytics.metrics.metric_files import SR_AS_SSR, SR_MULTI, write_folder
 from .streamlit_browser import CHROMIUM, LAUNCH_ARGS, AppPage, AppServer
@@ -70,6 +69,26 @@ def build_tiny(root: Path) -> Path:
         progress=False,
     )
     return out
+
+
+def build_seeded(root: Path) -> Path:
+    """The tiny benchmark with three seeds of two simulated runs (`vge synth --seeds 3
+    --runs sim-vlm-f,sim-human`) and two of sim-vlm-d, replayed into `root/out`."""
+    generate(root / "synth", scale="tiny", seed=0, workers=1, agent_seeds=3,
+             only_runs=["sim-vlm-f", "sim-human"])  # fmt: skip
+    generate(root / "more", scale="tiny", seed=0, workers=1, agent_seeds=2, only_runs=["sim-vlm-d"])
+    runs = sorted(
+        p for base in ("synth", "more") for p in (root / base / "runs").iterdir() if p.is_dir()
+    )
+    out = root / "out"
+    replay.replay_runs(runs, root / "synth" / "bench", out, progress=False)
+    return out
+
+
+@pytest.fixture(scope="session")
+def seeded_out(tmp_path_factory, cache_dir) -> Path:
+    """`build_seeded`: repeated runs for the Significance page (built once per session)."""
+    return build_seeded(tmp_path_factory.mktemp("seeded"))
 
 
 @pytest.fixture(scope="session", autouse=True)

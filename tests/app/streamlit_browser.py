@@ -6,7 +6,7 @@
   memory measured.
 - `AppPage`: a Playwright page on that server with the waits a Streamlit app needs: a page
   is *rendered* when the app's end-of-run marker of a run after the one before is there
-  (`app._ui.END_MARKER`), nothing is stale, every visible chart has drawn, every image has
+  (`app._lifecycle.END_MARKER`), nothing is stale, every visible chart has drawn, every image has
   loaded, every visible table has its cells, no skeleton or status widget is left, and the
   page shows the expected text, steadily for a moment.
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from app import _data, _ui
+import app
+from app import _data, _settings
 from vge_analytics import dashboard as dash
 from vge_analytics.cli import main
 from vge_analytics.commands.app import is_loopback, streamlit_command
@@ -33,7 +34,7 @@ def test_not_a_replay_output(tmp_path, capsys):
 def test_streamlit_command(tiny_out):
     cmd = streamlit_command(tiny_out, port=8600, headless=True)
     assert cmd[1:4] == ["-m", "vge_analytics.commands._serve", "run"]  # streamlit run, warmed up
-    assert Path(cmd[4]) == dash.app_script() and dash.app_script().name == "streamlit_app.py"
+    assert Path(cmd[4]) == app.ENTRY_FILE and app.ENTRY_FILE.name == "streamlit_app.py"
     assert cmd[cmd.index("--server.port") + 1] == "8600"
     assert cmd[cmd.index("--server.headless") + 1] == "true"
     assert cmd[cmd.index("--server.address") + 1] == "127.0.0.1"  # this machine only
@@ -52,8 +53,8 @@ def test_streamlit_command(tiny_out):
         "--sql-max-rows",
         "50",
     ]
-    assert _ui.sql_settings(script_args) == (limits, 50)
-    default_limits, rows = _ui.sql_settings([])
+    assert _settings.sql_settings(script_args) == (limits, 50)
+    default_limits, rows = _settings.sql_settings([])
     assert (default_limits.timeout, rows) == (30.0, 10_000)
     assert default_limits.memory == SqlLimits.make().memory
     # The other pages' analytics queries: `vge app --query-timeout S` passes it on.
@@ -104,7 +105,7 @@ def test_play_command(tiny_out, tmp_path):
     bench, run = tiny_out.parent / "synth" / "bench", tmp_path / "run"
     cmd = play_command(bench, run, port=8600, headless=True)
     assert cmd[1:4] == ["-m", "vge_analytics.commands._serve", "run"]  # as `vge app` serves
-    assert Path(cmd[4]) == dash.app_script()
+    assert Path(cmd[4]) == app.ENTRY_FILE
     assert cmd[cmd.index("--server.address") + 1] == "127.0.0.1"  # this machine only
     assert cmd[cmd.index("--server.port") + 1] == "8600"
     assert cmd[cmd.index("--") :] == ["--", "--bench", str(bench), "--run", str(run)]
@@ -112,10 +113,10 @@ def test_play_command(tiny_out, tmp_path):
     assert cmd[cmd.index("--server.address") + 1] == "0.0.0.0"
     script_args = cmd[cmd.index("--") + 1 :]
     assert script_args[-2:] == ["--image-width", "480"]
-    assert _ui.play_target(script_args) == _ui.PlayTarget(str(bench), str(run), 480)
-    assert _ui.play_target(["--bench", "B"]) == _ui.PlayTarget("B", "human-run", None)
+    assert _settings.play_target(script_args) == _settings.PlayTarget(str(bench), str(run), 480)
+    assert _settings.play_target(["--bench", "B"]) == _settings.PlayTarget("B", "human-run", None)
     # `vge app OUT` has no benchmark: the dashboard, without the Play page.
-    assert _ui.play_target(["--out", str(tiny_out)]) is None
+    assert _settings.play_target(["--out", str(tiny_out)]) is None
 
 
 def test_play_refuses_with_one_line(tiny_out, tmp_path, capsys):

@@ -3,6 +3,7 @@ reshape and the replayed tiny synthetic benchmark."""
 
 from __future__ import annotations
 
+import copy
 import io
 import re
 import shutil
@@ -17,10 +18,20 @@ import vge_analytics as va
 from vge_analytics import OutputDirError, compare, error_distribution, sql, switch_classes
 from vge_analytics import dashboard as dash
 from vge_analytics.dashboard._budgets import _sweep_cache_file
-from vge_analytics.play._page import RESULT_HEADLINES
+from vge_analytics.play import result_headline
 from vge_analytics.store import resolve_input
 from vge_analytics.store._limits import SqlLimits
 
+from ..vge_analytics.conftest import (
+    KETTLE_CASES,
+    KETTLE_RUN,
+    OVEN_CASES,
+    OVEN_RUN,
+    _case,
+    replay_to,
+    write_bench,
+    write_run,
+)
 from ..vge_analytics.metrics.metric_files import SR_MULTI, write_folder
 
 # ------------------------------------------------------------------------------ OUT
@@ -213,7 +224,7 @@ def test_view_boxes_targets_are_the_planners(tiny_out):
         hit=row["hit_components"],
     )
     s, g = machine.state_index[row["state_before"]], machine.state_index[row["goal_state"]]
-    expected = {c for c, _ in replay.target_rects(machine, s, g, row["view_before"])}
+    expected = {c for c, _ in replay.semantics.target_rects(machine, s, g, row["view_before"])}
     assert {b.component for b in boxes if b.role == "target"} == expected
     hits = {b.component for b in boxes if b.role == "hit"}
     assert hits == set(row["hit_components"]) - expected
@@ -329,10 +340,82 @@ def test_sweep_curves():
     assert dash.sweep_curves(table).columns == ["group", "lambda", "SR", "gain"]
 
 
-@pytest.mark.parametrize("name", list(dash.EXAMPLE_QUERIES))
-def test_example_queries_run(tiny_out, name):
-    result = sql(tiny_out, dash.EXAMPLE_QUERIES[name])
-    assert result.width > 0
+@pytest.fixture(scope="module")
+def hand_examples_out(tmp_path_factory) -> Path:
+    """The hand-worked runs (kettle cases a-g as `kettle-vlm`, dashboard cases a-e as
+    `oven-human`; see tests/vge_analytics/metrics/test_metrics_hand.py) with values recorded
+    by the harness on two kettle steps: case g's step 0 records feedback `null_effect` (the
+    replay gives `transition`: it diverges) and state `LidOpen` (as replayed); case c's step
+    1 records view `right` (as replayed). Recorded values never change the scoring."""
+    root = tmp_path_factory.mktemp("examples")
+    kettle = [_case(n) for n in KETTLE_CASES]
+    oven = [_case(n) for n in OVEN_CASES]
+    episodes = [copy.deepcopy(doc["episode"]) for doc in kettle]
+    episodes[KETTLE_CASES.index("kettle_g_reset_chain")]["steps"][0].update(
+        feedback="null_effect", state="LidOpen"
+    )
+    episodes[KETTLE_CASES.index("kettle_c_parse_multigoal_chain")]["steps"][1]["view"] = "right"
+    bench = write_bench(root, kettle + oven)
+    runs = [
+        write_run(root, KETTLE_RUN, episodes),
+        write_run(root, OVEN_RUN, [doc["episode"] for doc in oven]),
+    ]
+    return replay_to(root / "out", runs, bench)
+
+
+EXAMPLE_ANSWERS = {
+    # Oven: 5 of 5 succeed, L_act 8 + 9 + 5 + 8 + 2 = 32 -> 6.4. Kettle: 4 of 7 (57.14 %),
+    # L_act 10 + 6 + 8 + 6 + 5 + 5 + 1 = 41 -> 5.857 -> 5.9.
+    "Success rate and steps per model": [("model-o", 5, 100.0, 6.4), ("model-k", 7, 57.14, 5.9)],
+    # Errors on scored steps. Oven: action_error a 3 + b 1 + d 2 = 6 beats switch_view_nn
+    # (a 2, b 2, c 1 = 5). Kettle: action_error a 2 + c 3 = 5 beats component_selection,
+    # params_error and invalid_coord (4 each).
+    "Most common error per category": [
+        ("Oven", "action_error", 6),
+        ("ElectricKettle", "action_error", 5),
+    ],
+    # The failed episodes are kettle b, d and e; each was played by one run.
+    "Episodes no run solved": [
+        ("hw_kettle_b", "kettle", 1),
+        ("hw_kettle_d", "kettle", 1),
+        ("hw_kettle_e", "kettle", 1),
+    ],
+    # Every distance above 0 in the hand runs is above 200 (test_metrics_hand.py), with the
+    # click and view the case notes give.
+    "Clicks far from every target": [
+        ("kettle-vlm", "hw_kettle_c", 4, "right", 1200.0, 90.0, 665.6),
+        ("kettle-vlm", "hw_kettle_a", 6, "front", 780.0, 70.0, 627.6),
+        ("kettle-vlm", "hw_kettle_f", 2, "front", 503.0, 297.0, 448.5),
+        ("kettle-vlm", "hw_kettle_f", 3, "front", 498.0, 304.0, 444.6),
+        ("kettle-vlm", "hw_kettle_d", 5, "top", 500.0, 300.0, 340.1),
+        ("oven-human", "hw_dash_d", 5, "dashboard", 150.0, 175.0, 325.0),
+    ],
+    # Dangerous: kettle b steps 2 and 4, e 2, f 4; oven c 1. Scored steps: 41 and 32.
+    "Dangerous actions per run": [("kettle-vlm", 4, 41), ("oven-human", 1, 32)],
+    # Only the recorded feedback of kettle g differs from the replay.
+    "Steps that diverge from the log": [
+        ("kettle-vlm", "hw_kettle_g", 0, ["feedback"], "null_effect", "transition"),
+    ],
+}
+
+
+@pytest.mark.parametrize("name", list(EXAMPLE_ANSWERS))
+def test_example_queries_give_the_hand_answers(hand_examples_out, name):
+    assert sql(hand_examples_out, dash.EXAMPLE_QUERIES[name]).rows() == EXAMPLE_ANSWERS[name]
+
+
+def test_every_example_query_has_a_hand_answer(hand_examples_out):
+    assert [*EXAMPLE_ANSWERS, "Run facets"] == list(dash.EXAMPLE_QUERIES)
+    # Run facets: one row per run, sorted, with its counts and facets (45 kettle rows: the
+    # 41 scored steps and 4 truncated ones, kettle b's and d's).
+    facets = sql(hand_examples_out, dash.EXAMPLE_QUERIES["Run facets"])
+    assert facets.select(
+        "run_id", "model", "agent_kind", "lambda", "episodes", "steps", "diverged_steps",
+        "meta_history", "meta_perturbation",
+    ).rows() == [
+        ("kettle-vlm", "model-k", "vlm", 5.0, 7, 45, 1, "full", "none"),
+        ("oven-human", "model-o", "human", 5.0, 5, 32, 0, "3", "blur"),
+    ]  # fmt: skip
 
 
 def test_sql_preview_runs_in_its_own_process(tiny_out):
@@ -389,9 +472,15 @@ def test_step_text(tiny_out):
     assert table["field"].to_list() == list(dash.CLASSIFICATION_FIELDS)
     assert dash.termination_label("budget_local") == "local budget out"
     assert dash.termination_label("context_exceeded") == "context window full"
-    # Every termination has its words, here and on the Play page.
-    assert list(dash.TERMINATION_LABELS) == list(replay.TERMINATIONS)
-    assert list(RESULT_HEADLINES) == list(replay.TERMINATIONS)
+    # Every termination has its words (replay.semantics.TERMINATION_TEXTS), here and on the
+    # Play page, where the log ends when the player gives up.
+    labels = [dash.termination_label(t) for t in replay.TERMINATIONS]
+    assert labels == ["success", "global budget out", "local budget out", "log ended",
+                      "context window full"]  # fmt: skip
+    assert result_headline("budget_global") == "Ended: the episode's step budget is spent"
+    assert result_headline("context_exceeded") == "Ended: the model's context window is full"
+    assert result_headline("log_ended") == "Ended by the player"
+    assert result_headline("success") == "Success"
 
 
 def test_episode_labels(tiny_out):

@@ -143,27 +143,27 @@ def test_errors_page_shares_and_drill_down(app_env):
 
 
 def ui_max_rows() -> int:
-    from app import _ui
+    from app import _tables
 
-    return _ui.MAX_ROWS
+    return _tables.MAX_ROWS
 
 
 def test_drill_down_link_opens_the_episode(app_env):
-    from app import _ui
+    from app import _links, _tables
 
     class Selection:
         class selection:  # noqa: N801 - the shape of Streamlit's dataframe selection
             rows = [0]
 
-    steps = va.steps_with_error(app_env, "invalid_coord", columns=list(_ui.STEP_COLUMNS))
-    row = _ui.selected_row(steps, Selection())
+    steps = va.steps_with_error(app_env, "invalid_coord", columns=list(_tables.STEP_COLUMNS))
+    row = _tables.selected_row(steps, Selection())
     assert row == steps.row(0, named=True)
-    assert _ui.viewer_query(row["run_id"], row["episode_id"], row["step"]) == {
+    assert _links.viewer_query(row["run_id"], row["episode_id"], row["step"]) == {
         "run": row["run_id"],
         "episode": row["episode_id"],
         "step": str(row["step"]),
     }
-    assert _ui.selected_row(steps, object()) is None
+    assert _tables.selected_row(steps, object()) is None
 
 
 # ----------------------------------------------------------------------- navigation

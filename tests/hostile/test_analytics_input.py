@@ -377,10 +377,10 @@ def test_the_cap_on_queries_is_a_setting(out: Path):
     cmd = streamlit_command(out, port=1, headless=True, max_queries=3)
     script_args = cmd[cmd.index("--") + 1 :]
     assert script_args[-2:] == ["--sql-max-queries", "3"]
-    from app import _ui
+    from app import _settings
 
-    assert _ui.sql_max_queries(script_args) == 3
-    assert _ui.sql_max_queries(["--sql-memory-limit", "1GB"]) == _isolated.default_max_queries(
+    assert _settings.sql_max_queries(script_args) == 3
+    assert _settings.sql_max_queries(["--sql-memory-limit", "1GB"]) == _isolated.default_max_queries(
         limits
     )
     assert dash.sql_limits_note(limits, 100, 3).endswith(

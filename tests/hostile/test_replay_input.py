@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import gzip
+import hashlib
 import json
 import os
 import random
@@ -244,7 +245,7 @@ def test_line_splitting_is_linear(tmp_path, monkeypatch: pytest.MonkeyPatch) -> 
             fh.write(block)
         fh.write(b"\n{}")
     started = time.monotonic()
-    got = [(n, len(raw)) for n, raw in replay.iter_lines(path)]
+    got = [(n, len(raw)) for n, raw in replay.io.iter_lines(path)]
     assert got == [(1, 2), (2, 32 * MiB), (3, 2)]
     assert time.monotonic() - started < 15  # 0.3 s here; minutes if quadratic
 
@@ -296,7 +297,7 @@ def test_the_depth_bound_is_the_same_in_every_process(
 ) -> None:
     """256 levels decode and 257 do not, in this process and in a worker process alike (the
     decoder alone gives up where each one's stack does, deeper in a worker)."""
-    monkeypatch.setattr(replay.io._runner, "BATCH_LINES", 4)  # batch 1 goes to the worker
+    monkeypatch.setattr(replay.io._job, "BATCH_LINES", 4)  # batch 1 goes to the worker
     good = [episode(f"e{i}") for i in range(4)]
     deep = [deep_step(f"e{4 + i}", depth) for i, depth in enumerate([252, 253, 254, 600])]
     run = write_run(tmp_path / "run", good + deep)
@@ -363,7 +364,7 @@ def test_long_machines_validate_and_replay(ssm, goal, steps, tmp_path, vge_here)
 def test_a_machine_of_100000_states_validates_in_seconds() -> None:
     ssm = msgspec.convert(line_ssm(100_000), replay.StateMachine)
     started = time.monotonic()
-    assert replay.validate_machine(ssm, "big.json") == []
+    assert replay.semantics.validate_machine(ssm, "big.json") == []
     assert time.monotonic() - started < 20  # a fraction of a second unloaded
 
 
@@ -375,7 +376,7 @@ def test_immediate_chains_too_long_to_compile_are_refused_before_compiling() -> 
     refuses the machine in one problem, in linear time, before anything is built."""
     ssm = msgspec.convert(chain_ssm(100_000), replay.StateMachine)
     started = time.monotonic()
-    (problem,) = replay.validate_machine(ssm, "big.json")
+    (problem,) = replay.semantics.validate_machine(ssm, "big.json")
     assert time.monotonic() - started < 20
     assert str(problem) == (
         "big.json [component 'immediate']: immediate chains too long: compiling would hold "
@@ -425,7 +426,7 @@ def test_cycle_check_matches_the_walk_from_every_state(successors, rng) -> None:
         states[name] = {"on": on}
     doc = {"name": "X", "initial_state": names[0], "states": states}
     ssm = msgspec.convert(doc, replay.StateMachine)
-    got = [p.message for p in replay.validate_machine(ssm, "x") if "cycle" in p.message]
+    got = [p.message for p in replay.semantics.validate_machine(ssm, "x") if "cycle" in p.message]
     assert got == _cycles_by_walking_from_every_state(ssm)
 
 
@@ -532,12 +533,21 @@ def test_an_episode_id_of_300_characters_gets_a_short_unique_file(tmp_path, vge_
         assert done.returncode == 0, done.stderr
         names.append(sorted(p.name for p in (tmp_path / attempt / "mcap" / "run").iterdir()))
     assert names[0] == names[1]  # the same names on every run
-    assert len(set(names[0])) == 4 and "short%2Fone.mcap" in names[0]
-    long_ones = [n for n in names[0] if n != "short%2Fone.mcap"]
-    for name in long_ones:  # 200 bytes, then ".mcap"; the id's hash after "="
-        assert len(name.encode()) == 205 or name.startswith("%C3%A9")
-        assert len(name.encode()) <= 205 and name.split("=")[1][:32].isalnum()
-    assert sorted(replay.safe_file_name(i) + ".mcap" for i in ids[:3]) == long_ones
+    # PROTOCOL §7.8, by hand: the head holds whole characters within 200 - 1 - 32 = 167
+    # bytes, then "=" and 32 hex digits of the id's sha256. "x" encodes to 1 byte: 167 of
+    # them, a name of exactly 200 bytes. "é" encodes to 6 ("%C3%A9"): 27 fit (162 bytes; a
+    # 28th would make 168), so those names are 162 + 1 + 32 = 195 bytes, never a cut "%C3".
+    digest = {i: hashlib.sha256(i.encode()).hexdigest()[:32] for i in ids}
+    want = sorted(
+        [
+            "short%2Fone.mcap",
+            "x" * 167 + f"={digest['x' * 300]}.mcap",
+            "%C3%A9" * 27 + f"={digest[ids[0]]}.mcap",
+            "%C3%A9" * 27 + f"={digest[ids[1]]}.mcap",
+        ]
+    )
+    assert names[0] == want
+    assert sorted(len(n.encode()) for n in want) == [16, 200, 200, 205]  # ".mcap" included
 
 
 def test_a_run_id_that_cannot_name_a_directory_is_refused_in_one_line(
@@ -577,7 +587,7 @@ _IDLE_POOL = """
 import functools, os, sys, time
 from concurrent.futures import ProcessPoolExecutor
 import multiprocessing
-from replay.io._parent import end_with_parent
+from replay.io._worker import end_with_parent
 if __name__ == "__main__":
     init = functools.partial(end_with_parent, death_signal=sys.argv[1] == "signal")
     pool = ProcessPoolExecutor(1, multiprocessing.get_context("spawn"), init, (os.getpid(),))

@@ -132,3 +132,87 @@ def test_import_chains_are_short() -> None:
     floors = {m: floor(m) for m in graph if m not in packages}
     assert max(floors.values()) <= 9, sorted(floors.items(), key=lambda kv: -kv[1])[:5]
     assert max(v for m, v in floors.items() if _layer(m) == "semantics") <= 5
+
+
+SHARED = frozenset({"replay._errors", "replay._lazy", "replay._version"})
+"""The root's private modules every layer imports: the error classes, the lazy loading of a
+package face's names and the engine version (leaves: they import nothing of the package)."""
+
+
+def _private_imports(path: Path) -> list[str]:
+    """Every private module a file of `replay` imports (at run time or for typing), by name
+    or through `from package import _module`, as absolute names."""
+    module = _module(path)
+    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+
+    def resolve(level: int, name: str) -> str:
+        if not level:
+            return name
+        base = package.split(".")
+        return ".".join(base[: len(base) - level + 1] + ([name] if name else []))
+
+    text = path.read_text()
+    if path.suffix in (".pyx", ".pxd"):
+        names = [resolve(len(m.group(1)), m.group(2)) for m in _PYX_IMPORT.finditer(text)]
+    else:
+        names = []
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ImportFrom):
+                target = resolve(node.level, node.module or "")
+                names.append(target)
+                names.extend(f"{target}.{a.name}" for a in node.names)
+            elif isinstance(node, ast.Import):
+                names.extend(a.name for a in node.names)
+    return [n for n in names if n.split(".")[0] == "replay" and any(p.startswith("_") for p in n.split("."))]
+
+
+def _owner(name: str) -> tuple[str, str]:
+    """(the private module named, the package it belongs to): the name up to its first
+    private part, and what comes before that part."""
+    parts = name.split(".")
+    first = next(i for i, p in enumerate(parts) if p.startswith("_"))
+    return ".".join(parts[: first + 1]), ".".join(parts[:first])
+
+
+def test_subpackages_import_each_other_through_their_public_names() -> None:
+    """A module may import the private modules of its own subpackage; another subpackage
+    (and the package's `__init__`) only through the names its `__init__` chooses. There
+    were 62 imports of another layer's private modules (issue 24); now none."""
+    found = []
+    for path in [*REPLAY.rglob("*.py"), *REPLAY.rglob("*.pyx"), *REPLAY.rglob("*.pxd")]:
+        module = _module(path)
+        own = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+        for name in _private_imports(path):
+            private, owner = _owner(name)
+            if private in SHARED or owner == own:
+                continue
+            found.append(f"{path.relative_to(REPLAY.parent)} imports {name}")
+    assert not found, "\n".join(found)
+
+
+def test_each_subpackage_chooses_its_public_names() -> None:
+    """Each layer opens with its purpose and lists its public names in `__all__`; each name
+    listed is there (the package's own `__init__` too)."""
+    import importlib
+
+    for package in ("replay", *(f"replay.{layer}" for layer in LAYERS)):
+        init = REPLAY.parent.joinpath(*package.split("."), "__init__.py")
+        tree = ast.parse(init.read_text())
+        assert ast.get_docstring(tree), f"{package} has no purpose line"
+        loaded = importlib.import_module(package)
+        assert loaded.__all__, package
+        missing = [n for n in loaded.__all__ if not hasattr(loaded, n)]
+        assert not missing, (package, missing)
+
+
+def test_what_is_built_on_replay_names_its_public_modules_only() -> None:
+    """The analytics, the app and the benchmarks import `replay` and its layers, never a
+    private module of it (the tests may: they test the parts)."""
+    found = []
+    for folder in ("vge_analytics", "app", "benchmarks"):
+        for path in sorted((REPLAY.parent / folder).rglob("*.py")):
+            for level, name in _imported_names(ast.parse(path.read_text())):
+                parts = name.split(".")
+                if level == 0 and parts[0] == "replay" and any(p.startswith("_") for p in parts):
+                    found.append(f"{path.relative_to(REPLAY.parent)} imports {name}")
+    assert not found, "\n".join(found)

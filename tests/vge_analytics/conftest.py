@@ -8,6 +8,10 @@ written by `replay.replay_runs`.
 `pair_out` is a constructed pair of runs for `compare`: ten copies of the kettle_c task
 played by run A and run B with either the full (successful) kettle_c log or its first two
 steps (the log ends after goal 1), so the success pattern and the error counts are known.
+
+`clustered_out` is the statistics' hand-worked case: the kettle_c task on three devices
+(copies of the kettle, `kettle_1` to `kettle_3`) with two episodes each, played by run A,
+run B and two more seeds of B (`CLUSTERED_SUCCESS` says who solves which episode).
 """
 
 from __future__ import annotations
@@ -178,3 +182,59 @@ def sample_out(tmp_path_factory) -> Path:
     runs = sorted(p for p in (LOGS / "runs").iterdir() if (p / "run.json").exists())
     assert runs, "logs/runs holds no run: the bundled sample is missing"
     return replay_to(tmp_path_factory.mktemp("sample") / "out", runs, LOGS / "bench")
+
+
+# ---------------------------------------------------------------------- clustered (3 x 2)
+
+CLUSTERED_EPISODES = (
+    ("e1", "kettle_1"),
+    ("e2", "kettle_1"),
+    ("e3", "kettle_2"),
+    ("e4", "kettle_2"),
+    ("e5", "kettle_3"),
+    ("e6", "kettle_3"),
+)
+CLUSTERED_SUCCESS: dict[str, tuple[int, ...]] = {
+    # episodes:  e1 e2 e3 e4 e5 e6
+    "A": (1, 0, 1, 1, 0, 0),
+    "B": (1, 1, 0, 1, 1, 1),
+    "B-seed1": (1, 0, 0, 1, 0, 1),
+    "B-seed2": (0, 1, 0, 1, 1, 0),
+}
+"""Who solves which episode of `clustered_out`; B and its two seeds form a group of three
+runs (run.json differs only in `meta.seed`), A a group of one."""
+
+
+def _build_clustered(root: Path) -> dict:
+    doc = _case("kettle_c_parse_multigoal_chain")
+    full = doc["episode"]["steps"]
+    bench = root / "bench"
+    (bench / "ssm").mkdir(parents=True)
+    tasks = []
+    for episode_id, device_id in CLUSTERED_EPISODES:
+        target = bench / "ssm" / f"{device_id}.json"
+        if not target.exists():
+            shutil.copyfile(_ssm_path(doc["ssm"]), target)
+        tasks.append({**doc["task"], "episode_id": episode_id, "device_id": device_id})
+    _write_jsonl(bench / "tasks.jsonl", tasks)
+    runs = []
+    for run_id, solved in CLUSTERED_SUCCESS.items():
+        seed = {"B-seed1": 1, "B-seed2": 2}.get(run_id)
+        header = {
+            "run_id": run_id,
+            "model": "model-a" if run_id == "A" else "model-b",
+            "agent_kind": "vlm",
+            "lambda": 2,
+            "meta": {"history": "full"} | ({"seed": seed} if seed is not None else {}),
+        }
+        episodes = [
+            {"episode_id": e, "steps": full if s else full[:2]}
+            for (e, _), s in zip(CLUSTERED_EPISODES, solved, strict=True)
+        ]
+        runs.append(write_run(root, header, episodes))
+    return {"bench": bench, "runs": runs, "out": replay_to(root / "out", runs, bench)}
+
+
+@pytest.fixture(scope="session")
+def clustered_out(tmp_path_factory) -> Path:
+    return _build_clustered(tmp_path_factory.mktemp("clustered"))["out"]

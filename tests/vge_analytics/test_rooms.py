@@ -76,7 +76,8 @@ def test_each_room_says_what_it_is_and_chooses_its_public_names() -> None:
         init = PACKAGE / room / "__init__.py"
         tree = ast.parse(init.read_text())
         assert ast.get_docstring(tree), f"{room}/__init__.py has no purpose line"
-        names = {t.id for n in tree.body if isinstance(n, ast.Assign) for t in n.targets}
+        targets = [t for n in tree.body if isinstance(n, ast.Assign) for t in n.targets]
+        names = {e.id for t in targets for e in getattr(t, "elts", [t]) if isinstance(e, ast.Name)}
         assert "__all__" in names, f"{room}/__init__.py chooses no public names"
 
 
@@ -86,3 +87,25 @@ def test_the_package_keeps_few_top_level_modules_and_short_files() -> None:
     for path in [*PACKAGE.rglob("*.py"), *(ROOT / "replay").rglob("*.py"), *(ROOT / "app").rglob("*.py")]:
         lines = path.read_text().count("\n")
         assert lines <= 700, f"{path.relative_to(ROOT)}: {lines} lines"
+
+
+def test_only_the_commands_start_the_app_through_its_public_names() -> None:
+    """The app is above the analytics: only the commands that serve it name it, through what
+    its `__init__` offers (`app.ENTRY_FILE`, `app.warm`), never a module of it or a string."""
+    starters = {PACKAGE / "commands" / "app.py", PACKAGE / "commands" / "_serve.py"}
+    for path in SOURCES:
+        tree = ast.parse(path.read_text())
+        named = [name for level, name in _imported_names(tree) if not level]
+        apps = [n for n in named if n == "app" or n.startswith("app.")]
+        where = path.relative_to(ROOT)
+        if path not in starters:
+            assert not apps, f"{where} imports {apps}"
+            continue
+        assert apps == ["app"], f"{where} imports {apps}"
+        used = {
+            n.attr
+            for n in ast.walk(tree)
+            if isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name)
+            and n.value.id in ("app", "dashboard_app")
+        }
+        assert used <= {"ENTRY_FILE", "warm"}, f"{where} uses app.{used}"

@@ -1,4 +1,5 @@
-"""Options several commands share."""
+"""Options several commands share, and the parsing of those that need it (`--where`,
+`--episodes`)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import typer
 
 from replay import MAX_RECORD_BYTES, ConfigError
 
+from .._errors import UnknownColumnError
 from ..metrics import METRICS_DIR_ENV
 from ..store import CLI_TIMEOUT
 from ._output import FORMAT_HELP
@@ -56,6 +58,17 @@ def flag_option(name: str, help: str) -> bool:
 def where_option() -> list[str]:
     """`--where COLUMN=VALUE[,VALUE...]`, repeatable (a typer option default)."""
     return typer.Option(None, "--where", help="Filter COLUMN=VALUE[,VALUE...] (repeatable).")
+
+
+def parse_where(items: list[str] | None) -> dict[str, list[str]]:
+    """`--where col=v1,v2` options -> {col: [v1, v2]} (values cast to the column's type)."""
+    where: dict[str, list[str]] = {}
+    for item in items or []:
+        col, sep, values = item.partition("=")
+        if not sep or not col.strip():
+            raise UnknownColumnError(f"--where expects COLUMN=VALUE[,VALUE...], got {item!r}")
+        where.setdefault(col.strip(), []).extend(v.strip() for v in values.split(","))
+    return where
 
 
 def memory_limit_option(name: str = "--memory-limit", what: str = "the query") -> str | None:
@@ -134,6 +147,7 @@ __all__ = [
     "metric_names_option",
     "metrics_dir_option",
     "out_argument",
+    "parse_where",
     "timeout_option",
     "where_option",
 ]

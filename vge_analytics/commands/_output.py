@@ -1,24 +1,39 @@
-"""Printing command results: one table or several sections, in the chosen format."""
+"""Printing command results: one table or several sections, in the chosen format; the paper's
+table as people read it."""
 
 from __future__ import annotations
 
 import os
 import shutil
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
-import polars as pl
 import typer
-from rich.console import Console
 
-from ..metrics import MetricSet
-from ..reports import render, render_sections, stream_chunks
-from ..store import Batches
+from .. import reports, store
+
+if TYPE_CHECKING:
+    import polars as pl
+    from rich.console import Console
+
+    from ..metrics import MetricSet
+    from ..store import Batches
 
 FORMAT_HELP = "Output format: table (for people), json, csv, markdown or latex."
 
 
+def for_people(df: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:
+    """The metrics table as the paper prints it: run_id dropped from the default grouping
+    when each model has one run."""
+    if tuple(by) == store.DEFAULT_BY and df["model"].n_unique() == df.height:
+        return df.drop("run_id")
+    return df
+
+
 def _console() -> Console:
+    from rich.console import Console
+
     # A terminal: its width (rich squeezes what does not fit, as people expect). Anything
     # else (pipe, file, test runner): wide enough that no column is ever squeezed, whatever
     # COLUMNS says (pytest-xdist sets it to 80 in its workers).
@@ -44,7 +59,7 @@ def emit(
     marks: bool = True,
     metric_set: MetricSet | None = None,
 ) -> None:
-    out = render(df, fmt, title=title, marks=marks, metric_set=metric_set)
+    out = reports.render(df, fmt, title=title, marks=marks, metric_set=metric_set)
     if isinstance(out, str):
         typer.echo(out, nl=not out.endswith("\n"))
     else:
@@ -60,7 +75,7 @@ def emit_stream(result: Batches, fmt: str) -> None:
         for batch in result:
             yield result.frame([batch])
 
-    chunks = stream_chunks(frames(), fmt)
+    chunks = reports.stream_chunks(frames(), fmt)
     try:
         for chunk in chunks:
             if chunk:
@@ -83,7 +98,7 @@ def emit_sections(
 ) -> None:
     """Print named tables; `fixed`: every float with 2 decimals in the formats for people."""
     console = None
-    for item in render_sections(sections, fmt, marks=marks, fixed=fixed, metric_set=metric_set):
+    for item in reports.render_sections(sections, fmt, marks=marks, fixed=fixed, metric_set=metric_set):
         if isinstance(item, str):
             typer.echo(item, nl=not item.endswith("\n"))
             if fmt in ("csv", "markdown", "latex"):
@@ -93,4 +108,4 @@ def emit_sections(
             console.print(item)
 
 
-__all__ = ["FORMAT_HELP", "emit", "emit_sections", "emit_stream"]
+__all__ = ["FORMAT_HELP", "emit", "emit_sections", "emit_stream", "finish", "for_people"]

@@ -12,18 +12,15 @@ from __future__ import annotations
 import os
 import sys
 
+import app
+from vge_analytics.dashboard import OUT_ENV
+
 
 def _warm(out: str) -> None:
-    import importlib
-
     import vge_analytics as va
     from vge_analytics.store import warm_query_processes
 
-    # The dashboard's own helpers (and through them streamlit, altair, pandas, polars):
-    # the page scripts import the same module objects.
-    for module in ("app._ui", "app._charts"):
-        importlib.import_module(module)
-
+    app.warm()  # the dashboard's modules: the page scripts import the same module objects
     try:
         va.runs(out)
         va.metrics(out)
@@ -34,7 +31,7 @@ def _warm(out: str) -> None:
 
 
 def main() -> int:
-    out = os.environ.get("VGE_APP_OUT")
+    out = os.environ.get(OUT_ENV)
     if out:
         _warm(out)
     from streamlit.web import cli

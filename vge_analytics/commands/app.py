@@ -22,7 +22,8 @@ from pathlib import Path
 
 import typer
 
-from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, app_script, check_out
+import app as dashboard_app
+from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, check_out
 from vge_analytics.metrics import load_metrics
 from vge_analytics.store import (
     APP_MAX_ROWS,
@@ -108,7 +109,7 @@ def streamlit_command(
         "-m",
         "vge_analytics.commands._serve",
         "run",
-        str(app_script()),
+        str(dashboard_app.ENTRY_FILE),
         "--server.address",
         host,
         "--server.port",
@@ -144,7 +145,7 @@ def streamlit_command(
     return cmd
 
 
-def app(
+def app_command(
     out: str = typer.Argument(
         DEFAULT_OUT,
         help="Replay output directory (default: ./logs-replayed, written by `vge demo`).",
@@ -218,4 +219,4 @@ def app(
 
 
 def register(typer_app: typer.Typer) -> None:
-    typer_app.command("app")(app)
+    typer_app.command("app")(app_command)

@@ -5,9 +5,7 @@ from __future__ import annotations
 
 import typer
 
-from ..reports import check_format
-from ..reports import diff as compute_diff
-from ..store import query_time_limit
+from .. import reports, store
 from ._options import episode_ids, ids_option, out_argument, timeout_option
 from ._output import emit, emit_sections
 
@@ -35,9 +33,9 @@ def diff(
     (success_a, success_b), the median first difference, the error types at the first
     errors.
     """
-    with query_time_limit(timeout):
-        check_format(fmt, DIFF_FORMATS)  # not latex: a row per episode is no table for a paper
-        result = compute_diff(out, run_a, run_b, episodes=episode_ids(episodes, "--episodes"))
+    with store.query_time_limit(timeout):
+        reports.check_format(fmt, DIFF_FORMATS)  # not latex: a row per episode is no table for a paper
+        result = reports.diff(out, run_a, run_b, episodes=episode_ids(episodes, "--episodes"))
         if fmt == "json":  # the rows alone: what another tool reads
             emit(result.episodes, fmt)
         else:

@@ -2,18 +2,30 @@
 
 from __future__ import annotations
 
-import polars as pl
+from typing import TYPE_CHECKING
+
 import typer
 
-from ..reports import ERROR_LABELS, check_format, error_distribution, groups_of, switch_classes
-from ..store import parse_by, query_time_limit
-from ._options import by_option, format_option, out_argument, timeout_option, where_option
+from .. import reports, store
+from ._options import (
+    by_option,
+    format_option,
+    out_argument,
+    parse_where,
+    timeout_option,
+    where_option,
+)
 from ._output import emit_sections
-from .metrics import parse_where
+from ._selection import check_where
+
+if TYPE_CHECKING:
+    import polars as pl
 
 
 def _wide(df: pl.DataFrame, by: list[str], index: list[str], value: str) -> pl.DataFrame:
     """One column per group (its values joined by '/'), one row per index entry."""
+    import polars as pl
+
     keyed = df.with_columns(
         pl.concat_str(
             [pl.col(c).cast(pl.String).fill_null("null") for c in by], separator="/"
@@ -24,7 +36,7 @@ def _wide(df: pl.DataFrame, by: list[str], index: list[str], value: str) -> pl.D
     return keyed.pivot(on="__group", index=index, values=value, maintain_order=True)
 
 
-def errors(
+def errors_command(
     out: str = out_argument(),
     by: str = by_option("run_id", "Group by these columns (default: run_id)."),
     where: list[str] = where_option(),
@@ -36,18 +48,21 @@ def errors(
     The seven error types and three error groups as shares of all errors (the paper's pie)
     with counts, and the NP/PN/NN/PP classes of successful view switches.
     """
-    with query_time_limit(timeout):
-        check_format(fmt)
-        by_cols = list(parse_by(by))
+    import polars as pl
+
+    with store.query_time_limit(timeout):
+        reports.check_format(fmt)
+        by_cols = list(store.parse_by(by))
         filters = parse_where(where)
-        types = error_distribution(out, by_cols, filters)
-        groups = groups_of(types, by_cols)
-        switches = switch_classes(out, by_cols, filters)
+        check_where(out, filters, where)
+        types = reports.error_distribution(out, by_cols, filters)
+        groups = reports.groups_of(types, by_cols)
+        switches = reports.switch_classes(out, by_cols, filters)
         if fmt in ("json", "csv"):
             sections = {"error_types": types, "error_groups": groups, "switch_classes": switches}
         else:
             labelled = types.with_columns(
-                error_type=pl.col("error_type").replace_strict(ERROR_LABELS)
+                error_type=pl.col("error_type").replace_strict(reports.ERROR_LABELS)
             )
             sections = {
                 "error types: share of errors (%)": _wide(
@@ -68,4 +83,4 @@ def errors(
 
 
 def register(app: typer.Typer) -> None:
-    app.command("errors")(errors)
+    app.command("errors")(errors_command)

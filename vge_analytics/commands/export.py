@@ -6,9 +6,6 @@ from __future__ import annotations
 import time
 
 import typer
-from rich.console import Console
-from rich.markup import escape
-from rich.progress import MofNCompleteColumn, Progress
 
 from ._options import episode_ids, ids_option, metrics_dir_option, out_argument
 
@@ -42,7 +39,11 @@ def export_command(
     had, step by step, with the replay's verdicts as scores and metadata; a log's results
     hold the run's metrics. The same OUT gives the same bytes.
     """
-    from ..export import export  # here, not at `vge`'s start: every command is registered then
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.progress import MofNCompleteColumn, Progress
+
+    from ..export import export
 
     console = Console(stderr=True, highlight=False)
     # rich's own columns (description, bar, percentage, time left) and the episodes done

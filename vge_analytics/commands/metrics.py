@@ -3,26 +3,30 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import click
-import polars as pl
 import typer
 
-from .._errors import UnknownColumnError
-from ..metrics import MetricSet, load_metrics, metric_table
-from ..metrics import metrics as compute_metrics
-from ..reports import check_format
-from ..store import DEFAULT_BY, parse_by, query_time_limit
-from ._complete import PEOPLE_FORMATS, marked, marked_rows, warn_incomplete
+from .. import reports, store
+from ._incomplete import PEOPLE_FORMATS, marked, marked_rows, warn_incomplete
 from ._options import (
     by_option,
     flag_option,
     format_option,
     metric_names_option,
     metrics_dir_option,
+    parse_where,
     timeout_option,
     where_option,
 )
-from ._output import emit
+from ._output import emit, for_people
+from ._selection import check_where
+
+if TYPE_CHECKING:
+    import polars as pl
+
+    from ..metrics import MetricSet
 
 LIST_COLUMNS: tuple[str, ...] = (
     "metric",
@@ -37,27 +41,13 @@ LIST_COLUMNS: tuple[str, ...] = (
 """What `vge metrics --list` shows of each metric."""
 
 
-def parse_where(items: list[str] | None) -> dict[str, list[str]]:
-    """`--where col=v1,v2` options -> {col: [v1, v2]} (values cast to the column's type)."""
-    where: dict[str, list[str]] = {}
-    for item in items or []:
-        col, sep, values = item.partition("=")
-        if not sep or not col.strip():
-            raise UnknownColumnError(f"--where expects COLUMN=VALUE[,VALUE...], got {item!r}")
-        where.setdefault(col.strip(), []).extend(v.strip() for v in values.split(","))
-    return where
-
-
-def for_people(df: pl.DataFrame, by: tuple[str, ...]) -> pl.DataFrame:
-    """Drop run_id from the default grouping when each model has one run (like the paper)."""
-    if by == DEFAULT_BY and df["model"].n_unique() == df.height:
-        return df.drop("run_id")
-    return df
-
-
 def list_table(available: MetricSet) -> pl.DataFrame:
     """The metrics of a set as `--list` shows them: source is `built-in`, or the file that
     defines (adds or overrides) the metric."""
+    import polars as pl
+
+    from ..metrics import metric_table
+
     table = metric_table(available).with_columns(
         source=pl.when(pl.col("origin") == "built-in")
         .then(pl.lit("built-in"))
@@ -66,12 +56,12 @@ def list_table(available: MetricSet) -> pl.DataFrame:
     return table.select(LIST_COLUMNS)
 
 
-def metrics(
+def metrics_command(
     out: str = typer.Argument(
         None, help="Replay output directory (vge replay --out); not needed with --list."
     ),
     by: str = by_option(
-        ",".join(DEFAULT_BY),
+        ",".join(store.DEFAULT_BY),
         "Group by these columns of runs/episodes (comma-separated), e.g. model,category "
         "or meta_history; step columns such as action_type work with step metrics only.",
     ),
@@ -97,8 +87,10 @@ def metrics(
     --metrics-dir); in table, markdown and latex the best value of each metric is bold and
     the second best underlined.
     """
-    with query_time_limit(timeout):
-        check_format(fmt)
+    from ..metrics import load_metrics, metrics
+
+    with store.query_time_limit(timeout):
+        reports.check_format(fmt)
         available = load_metrics(metrics_dir)
         if list_metrics:
             title = "Metrics" + (f" (built-in and {available.folder})" if available.folder else "")
@@ -106,10 +98,11 @@ def metrics(
             return
         if out is None:
             raise click.UsageError("Missing argument 'OUT' (or --list to list the metrics).")
-        by_cols = parse_by(by)
+        by_cols = store.parse_by(by)
         chosen = metric_names  # `main` and `continuation` stand for their metrics
         filters = parse_where(where)
-        df = compute_metrics(out, by=by_cols, metrics=chosen, where=filters, metrics_dir=available)
+        check_where(out, filters, where)
+        df = metrics(out, by=by_cols, metrics=chosen, where=filters, metrics_dir=available)
         runs = warn_incomplete(out, filters.get("run_id"))
         if fmt in PEOPLE_FORMATS:
             incomplete = [r.run_id for r in runs if r.incomplete]
@@ -128,4 +121,4 @@ def metrics(
 
 
 def register(app: typer.Typer) -> None:
-    app.command("metrics")(metrics)
+    app.command("metrics")(metrics_command)

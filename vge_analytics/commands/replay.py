@@ -6,20 +6,24 @@ Exit codes: 0 every record replayed; 2 something was quarantined (see OUT/quaran
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import typer
-from rich import box
-from rich.console import Console
-from rich.markup import escape
-from rich.table import Table
 
-from replay import Manifest, location, replay_runs
+import replay
 
-from ..synth import image_source
 from ._options import episode_ids, max_record_bytes_option
 from ._output import finish
 
+if TYPE_CHECKING:
+    from rich.table import Table
 
-def _summary(manifest: Manifest) -> Table:
+
+def _summary(manifest: replay.Manifest) -> Table:
+    from rich import box
+    from rich.markup import escape
+    from rich.table import Table
+
     table = Table(box=box.SIMPLE_HEAD, pad_edge=False)
     table.add_column("run", no_wrap=True)
     table.add_column("status", no_wrap=True)
@@ -81,10 +85,15 @@ def replay_command(
 
     Exit code 0 when every record replayed, 2 when some were quarantined, 1 on fatal errors.
     """
+    from rich.console import Console
+    from rich.markup import escape
+
+    from ..synth import image_source
+
     console = Console(highlight=False)
     if not console.is_terminal:  # logs and pipes: do not squeeze the table into 80 columns
         console = Console(highlight=False, width=120)
-    manifest = replay_runs(
+    manifest = replay.replay_runs(
         runs,
         bench,
         out,
@@ -101,10 +110,10 @@ def replay_command(
     console.print(_summary(manifest))
     for run_id in manifest.skipped:
         console.print(f"{escape(run_id)}: up to date, skipped (--force redoes it)", soft_wrap=True)
-    listed = escape(str(location(out) / "quarantine.jsonl"))
+    listed = escape(str(replay.io.quarantine_path(replay.location(out))))
     n = manifest.quarantined
     problem = f"{n:,} record(s) quarantined[/]: see {listed}" if n else None
-    finish(console, f"wrote {escape(str(out))} (manifest.json)", problem)
+    finish(console, f"wrote {escape(str(out))} ({replay.io.MANIFEST})", problem)
 
 
 def register(app: typer.Typer) -> None:

@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import typer
 
-from ..reports import DEFAULT_RESCORE_BY, check_format
-from ..reports import rescore as compute_rescore
-from ..store import parse_by, query_time_limit
-from ._complete import marked, warn_incomplete
+from .. import reports, store
+from ._incomplete import marked, warn_incomplete
 from ._options import (
     by_option,
     flag_option,
@@ -15,11 +13,12 @@ from ._options import (
     metric_names_option,
     metrics_dir_option,
     out_argument,
+    parse_where,
     timeout_option,
     where_option,
 )
 from ._output import emit, emit_sections
-from .metrics import parse_where
+from ._selection import check_where
 
 
 def rescore(
@@ -33,7 +32,7 @@ def rescore(
         help="Compare with the metrics of this folder instead of the built-in metrics.",
     ),
     by: str = by_option(
-        ",".join(DEFAULT_RESCORE_BY),
+        ",".join(reports.DEFAULT_RESCORE_BY),
         "Rank these groups (comma-separated columns, as vge metrics --by); default: runs.",
     ),
     metric_names: str = metric_names_option(
@@ -57,14 +56,15 @@ def rescore(
     rank_before, rank_after), or with --summary the rankings; table, markdown and latex print
     both.
     """
-    with query_time_limit(timeout):
-        check_format(fmt)
+    with store.query_time_limit(timeout):
+        reports.check_format(fmt)
         filters = parse_where(where)
-        result = compute_rescore(
+        check_where(out, filters, where)
+        result = reports.rescore(
             out,
             metrics_dir,
             against=against,
-            by=parse_by(by),
+            by=store.parse_by(by),
             where=filters,
             metrics=metric_names,
         )

@@ -14,20 +14,145 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
-from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from replay import MAX_RECORD_BYTES
+from replay.io import FAILURES
 
 from ._options import episode_ids, record_of
 from ._output import finish
 
 if TYPE_CHECKING:
-    from vge_analytics.live import Counters
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from vge_analytics.live import Counters, LiveAgent, RunSummary
+
+# The options, declared once each; the command's signature names them.
+Bench = Annotated[Path, typer.Argument(help="Benchmark directory (ssm/, tasks.jsonl).")]
+AgentSpec = Annotated[
+    str,
+    typer.Option(
+        "--agent",
+        help="module:callable (agent(obs) -> text), sim:PROFILE (a profile of vge synth) or "
+        "openai:MODEL (an OpenAI-compatible chat API).",
+    ),
+]
+RunDir = Annotated[Path, typer.Option("--out", help="Run directory to write (run.json, episodes).")]
+Episodes = Annotated[
+    str | None,
+    typer.Option("--episodes", help="Comma-separated episode ids (default: every task, in order)."),
+]
+Limit = Annotated[int | None, typer.Option("--limit", min=0, help="Play the first N only.")]
+Concurrency = Annotated[
+    int, typer.Option("--concurrency", min=1, help="Episodes played at once (threads).")
+]
+History = Annotated[
+    int | None,
+    typer.Option("--history", min=0, help="Steps of history the agent keeps (default: all)."),
+]
+HistoryImages = Annotated[
+    int | None,
+    typer.Option(
+        "--history-images",
+        min=0,
+        help="openai: of the steps kept, the latest J keep their picture (default: all; 0: "
+        "text only, for servers that take one image per request).",
+    ),
+]
+Lambda = Annotated[
+    float | None,
+    typer.Option("--lambda", help="Budget factor of the run (default 5; a task's own wins)."),
+]
+RunId = Annotated[str | None, typer.Option("--run-id", help="Run id (default: RUN_DIR's name).")]
+Model = Annotated[str | None, typer.Option("--model", help="Model name written in run.json.")]
+AgentKind = Annotated[
+    str | None,
+    typer.Option("--agent-kind", help="vlm, human or scripted (default: from the agent)."),
+]
+Resume = Annotated[
+    bool,
+    typer.Option(
+        "--resume",
+        help="Complete the run in RUN_DIR (same settings as it was started), or extend it with "
+        "more episodes (--limit, --episodes).",
+    ),
+]
+Seed = Annotated[int, typer.Option("--seed", help="Seed of sim: agents.")]
+BaseUrl = Annotated[
+    str | None,
+    typer.Option("--base-url", help="openai: server address, e.g. http://127.0.0.1:8000/v1."),
+]
+Temperature = Annotated[float | None, typer.Option("--temperature", help="openai: sampling.")]
+MaxTokens = Annotated[
+    int | None, typer.Option("--max-tokens", min=1, help="openai: answer cap.")
+]
+Timeout = Annotated[
+    float,
+    typer.Option(
+        "--timeout", min=0.001, help="openai: s per request, in all (not per read)."
+    ),
+]
+MaxResponseBytes = Annotated[
+    int,
+    typer.Option(
+        "--max-response-bytes",
+        min=1024,
+        max=MAX_RECORD_BYTES,
+        metavar="BYTES",
+        help="openai: the most one answer may take (4 MiB); a longer one is dropped, and retried.",
+    ),
+]
+Retries = Annotated[int, typer.Option("--retries", min=0, help="openai: retries of a request.")]
+RetryWait = Annotated[
+    float,
+    typer.Option(
+        "--retry-wait", min=0.0, help="openai: s before the first retry (doubles, with jitter)."
+    ),
+]
+PromptPrice = Annotated[
+    float | None,
+    typer.Option("--prompt-price", min=0.0, help="USD per million prompt tokens (for the cost)."),
+]
+CompletionPrice = Annotated[
+    float | None,
+    typer.Option("--completion-price", min=0.0, help="USD per million completion tokens."),
+]
+MaxConsecutiveFailures = Annotated[
+    int,
+    typer.Option(
+        "--max-consecutive-failures",
+        min=0,
+        help="Stop the run (exit 2, --resume continues) after N infrastructure failures in a "
+        "row; 0: never.",
+    ),
+]
+ShowProgress = Annotated[
+    bool, typer.Option("--progress/--no-progress", help="Progress bar on a TTY.")
+]
+Source = Annotated[
+    Path | None,
+    typer.Option(
+        "--from",
+        help="A continuation run: continue the episodes of this run directory (with --at).",
+    ),
+]
+At = Annotated[
+    str | None,
+    typer.Option(
+        "--at",
+        help="With --from: replay the first K steps of each episode, or every step before its "
+        "first error (first-error), then hand it to the agent.",
+    ),
+]
+Fix = Annotated[
+    bool,
+    typer.Option(
+        "--fix", help="With --from: play the planner's optimal step at the cut before the agent."
+    ),
+]
 
 
 def _figures(counters: Counters, started: float, done_before: int) -> dict[str, str]:
@@ -45,120 +170,17 @@ def _figures(counters: Counters, started: float, done_before: int) -> dict[str, 
     }
 
 
-def run_command(
-    bench: Path = typer.Argument(..., help="Benchmark directory (ssm/, tasks.jsonl)."),
-    agent: str = typer.Option(
-        ...,
-        "--agent",
-        help="module:callable (agent(obs) -> text), sim:PROFILE (a profile of vge synth) or "
-        "openai:MODEL (an OpenAI-compatible chat API).",
-    ),
-    out: Path = typer.Option(..., "--out", help="Run directory to write (run.json, episodes)."),
-    episodes: str | None = typer.Option(
-        None, "--episodes", help="Comma-separated episode ids (default: every task, in order)."
-    ),
-    limit: int | None = typer.Option(None, "--limit", min=0, help="Play the first N only."),
-    concurrency: int = typer.Option(
-        1, "--concurrency", min=1, help="Episodes played at once (threads)."
-    ),
-    history: int | None = typer.Option(
-        None, "--history", min=0, help="Steps of history the agent keeps (default: all)."
-    ),
-    history_images: int | None = typer.Option(
-        None,
-        "--history-images",
-        min=0,
-        help="openai: of the steps kept, the latest J keep their picture (default: all; 0: "
-        "text only, for servers that take one image per request).",
-    ),
-    lam: float | None = typer.Option(
-        None, "--lambda", help="Budget factor of the run (default 5; a task's own wins)."
-    ),
-    run_id: str | None = typer.Option(None, "--run-id", help="Run id (default: RUN_DIR's name)."),
-    model: str | None = typer.Option(None, "--model", help="Model name written in run.json."),
-    agent_kind: str | None = typer.Option(
-        None, "--agent-kind", help="vlm, human or scripted (default: from the agent)."
-    ),
-    resume: bool = typer.Option(
-        False,
-        "--resume",
-        help="Complete the run in RUN_DIR (same settings as it was started), or extend it with "
-        "more episodes (--limit, --episodes).",
-    ),
-    seed: int = typer.Option(0, "--seed", help="Seed of sim: agents."),
-    base_url: str | None = typer.Option(
-        None, "--base-url", help="openai: server address, e.g. http://127.0.0.1:8000/v1."
-    ),
-    temperature: float | None = typer.Option(None, "--temperature", help="openai: sampling."),
-    max_tokens: int | None = typer.Option(None, "--max-tokens", min=1, help="openai: answer cap."),
-    timeout: float = typer.Option(
-        120.0, "--timeout", min=0.001, help="openai: s per request, in all (not per read)."
-    ),
-    max_response_bytes: int = typer.Option(
-        4 << 20,
-        "--max-response-bytes",
-        min=1024,
-        max=MAX_RECORD_BYTES,
-        metavar="BYTES",
-        help="openai: the most one answer may take (4 MiB); a longer one is dropped, and retried.",
-    ),
-    retries: int = typer.Option(4, "--retries", min=0, help="openai: retries of a request."),
-    retry_wait: float = typer.Option(
-        2.0,
-        "--retry-wait",
-        min=0.0,
-        help="openai: s before the first retry (doubles, with jitter).",
-    ),
-    prompt_price: float | None = typer.Option(
-        None, "--prompt-price", min=0.0, help="USD per million prompt tokens (for the cost)."
-    ),
-    completion_price: float | None = typer.Option(
-        None, "--completion-price", min=0.0, help="USD per million completion tokens."
-    ),
-    max_consecutive_failures: int = typer.Option(
-        10,
-        "--max-consecutive-failures",
-        min=0,
-        help="Stop the run (exit 2, --resume continues) after N infrastructure failures in a "
-        "row; 0: never.",
-    ),
-    progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
-    source: Path | None = typer.Option(
-        None,
-        "--from",
-        help="A continuation run: continue the episodes of this run directory (with --at).",
-    ),
-    at: str | None = typer.Option(
-        None,
-        "--at",
-        help="With --from: replay the first K steps of each episode, or every step before its "
-        "first error (first-error), then hand it to the agent.",
-    ),
-    fix: bool = typer.Option(
-        False,
-        "--fix",
-        help="With --from: play the planner's optimal step at the cut before the agent.",
-    ),
-) -> None:
-    """Play the benchmark with an agent and write a run directory that `vge replay` reads."""
-    params = dict(locals())  # the options, by name: they fill the records below
-    from vge_analytics._errors import RunStoppedError
-    from vge_analytics.live import (
-        AgentOptions,
-        ClientSettings,
-        RunOptions,
-        continuation_of,
-        load_agent,
-        run_live,
+def _progress_bar(console: Console, shown: bool) -> Progress:
+    """The run's progress bar: episodes done, rate, success, failures, tokens, cost."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
     )
 
-    continuation = continuation_of(source, at, fix)
-    client = record_of(ClientSettings, params)
-    live_agent = load_agent(agent, record_of(AgentOptions, params, client=client))
-    episode_list = episode_ids(episodes, "--episodes")
-    options = record_of(RunOptions, params, episodes=episode_list, continuation=continuation)
-    console = Console(stderr=True, highlight=False)
-    bar = Progress(
+    return Progress(
         TextColumn("[bold]run[/] {task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
@@ -166,8 +188,21 @@ def run_command(
         TextColumn("{task.fields[tokens]}  {task.fields[cost]}"),
         TimeElapsedColumn(),
         console=console,
-        disable=not (progress and console.is_terminal),
+        disable=not (shown and console.is_terminal),
     )
+
+
+def _play(live_agent: LiveAgent, options: object, out: Path, progress: bool) -> RunSummary:
+    """Play the run with a progress bar on stderr; an interruption or a run stopped after too
+    many failures in a row ends the command with its line (exit 130, 2)."""
+    from rich.console import Console
+    from rich.markup import escape
+
+    from vge_analytics._errors import RunStoppedError
+    from vge_analytics.live import run_live
+
+    console = Console(stderr=True, highlight=False)
+    bar = _progress_bar(console, progress)
     started = time.monotonic()
     state: dict[str, int] = {}
 
@@ -185,7 +220,7 @@ def run_command(
 
     try:
         with bar:
-            summary = run_live(live_agent, options, progress=tick)
+            return run_live(live_agent, options, progress=tick)
     except KeyboardInterrupt:
         console.print(
             f"interrupted: the finished episodes are in {escape(str(out))}; the same command "
@@ -196,11 +231,13 @@ def run_command(
     except RunStoppedError as exc:
         console.print(escape(str(exc)), soft_wrap=True)
         raise typer.Exit(2) from None
+
+
+def _summary_line(summary: RunSummary) -> str:
+    """What the run did, in one line: episodes, success, steps, tokens, cost."""
     c = summary.counters
-    h = summary.header
-    out_console = Console(highlight=False)
     rate = f"{100.0 * c.succeeded / c.finished:.1f}%" if c.finished else "-"
-    line = f"{h.run_id}: {c.finished}/{c.selected} episodes, success {rate}, {c.steps} steps"
+    line = f"{summary.header.run_id}: {c.finished}/{c.selected} episodes, success {rate}, {c.steps} steps"
     if c.has_usage:
         line += f", {c.prompt_tokens} prompt + {c.completion_tokens} completion tokens"
     if c.cost_usd is not None:
@@ -209,14 +246,73 @@ def run_command(
         line += f", {c.context_exceeded} ended by the model's context window (context_exceeded)"
     if summary.extended_from is not None:
         line += f" (extended from {summary.extended_from} selected)"
-    out_console.print(escape(line), soft_wrap=True)
+    return line
+
+
+def _report(summary: RunSummary, bench: Path, out: Path) -> None:
+    """The run's summary on stdout, what could not be played, and where to go next; exit 2
+    when some episodes ended on an infrastructure failure."""
+    from rich.console import Console
+    from rich.markup import escape
+
+    out_console = Console(highlight=False)
+    out_console.print(escape(_summary_line(summary)), soft_wrap=True)
     for reason in summary.skipped:
         out_console.print(f"[yellow]not playable[/]: {escape(reason)}", soft_wrap=True)
     wrote = f"wrote {escape(str(out))}; score it: vge replay {escape(str(out))} --bench {escape(str(bench))} --out OUT"
     failed = len(summary.failures)
-    listed = escape(str(out / "failures.jsonl"))
+    listed = escape(str(out / FAILURES))
     problem = f"{failed} episode(s) ended on an infrastructure failure[/] (see {listed}); --resume plays them again"
     finish(out_console, wrote, problem if failed else None)
+
+
+def run_command(
+    bench: Bench,
+    agent: AgentSpec,
+    out: RunDir,
+    episodes: Episodes = None,
+    limit: Limit = None,
+    concurrency: Concurrency = 1,
+    history: History = None,
+    history_images: HistoryImages = None,
+    lam: Lambda = None,
+    run_id: RunId = None,
+    model: Model = None,
+    agent_kind: AgentKind = None,
+    resume: Resume = False,
+    seed: Seed = 0,
+    base_url: BaseUrl = None,
+    temperature: Temperature = None,
+    max_tokens: MaxTokens = None,
+    timeout: Timeout = 120.0,
+    max_response_bytes: MaxResponseBytes = 4 << 20,
+    retries: Retries = 4,
+    retry_wait: RetryWait = 2.0,
+    prompt_price: PromptPrice = None,
+    completion_price: CompletionPrice = None,
+    max_consecutive_failures: MaxConsecutiveFailures = 10,
+    progress: ShowProgress = True,
+    source: Source = None,
+    at: At = None,
+    fix: Fix = False,
+) -> None:
+    """Play the benchmark with an agent and write a run directory that `vge replay` reads."""
+    params = dict(locals())  # the options, by name: they fill the records below
+    from vge_analytics.live import (
+        AgentOptions,
+        ClientSettings,
+        RunOptions,
+        continuation_of,
+        load_agent,
+    )
+
+    continuation = continuation_of(source, at, fix)
+    client = record_of(ClientSettings, params)
+    live_agent = load_agent(agent, record_of(AgentOptions, params, client=client))
+    episode_list = episode_ids(episodes, "--episodes")
+    options = record_of(RunOptions, params, episodes=episode_list, continuation=continuation)
+    summary = _play(live_agent, options, out, progress)
+    _report(summary, bench, out)
 
 
 def register(app: typer.Typer) -> None:

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import typer
 
+from .. import reports
 from .._errors import QueryLimitError
-from ..reports import check_format
-from ..store import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap, sql_head, stream
+from ..store import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap
 from ._options import format_option, memory_limit_option, out_argument
 from ._output import emit, emit_stream
 
@@ -39,7 +39,11 @@ def sql(
     One SELECT statement; writing statements and access to files outside OUT are refused.
     A query that goes past its time or memory limit stops with a one-line error.
     """
-    check_format(fmt)
+    reports.check_format(fmt)  # the renderers imported, before the cap below
+    # The query's libraries (DuckDB, pyarrow, polars) are imported before the process's memory
+    # is capped: the cap is for what the query takes, not for the code that runs it.
+    from ..store import sql_head, stream
+
     limits = SqlLimits.make(memory=memory_limit, timeout=timeout)
     try:
         with process_memory_cap(limits):

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from ..reports import DEFAULT_SWEEP_METRICS, check_format
-from ..reports import sweep as compute_sweep
-from ..store import query_time_limit
+from .. import reports, store
 from ._options import format_option, metric_names_option, metrics_dir_option, timeout_option
 from ._output import emit
 
@@ -18,7 +16,7 @@ def sweep(
     lambdas: str = typer.Option("2,3,4,5", "--lambdas", help="Comma-separated lambdas."),
     runs: str = typer.Option(None, "--runs", help="Only these run ids (comma-separated)."),
     metric_names: str = metric_names_option(
-        "Episode metrics to compute.", ",".join(DEFAULT_SWEEP_METRICS)
+        "Episode metrics to compute.", ",".join(reports.DEFAULT_SWEEP_METRICS)
     ),
     workers: int = typer.Option(1, "--workers", min=1, help="Worker processes."),
     ray: str | None = typer.Option(
@@ -36,10 +34,10 @@ def sweep(
     Also the gain over the smallest lambda. A lambda above what a run's logs support (an
     episode hit its recorded budget and its log stops there) is refused.
     """
-    with query_time_limit(timeout):
-        check_format(fmt)
+    with store.query_time_limit(timeout):
+        reports.check_format(fmt)
         run_ids = [r.strip() for r in runs.split(",") if r.strip()] if runs else None
-        df = compute_sweep(
+        df = reports.sweep(
             out,
             lambdas,
             runs=run_ids,

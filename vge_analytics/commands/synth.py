@@ -1,5 +1,6 @@
-"""`vge synth --out DIR [--scale tiny|sample|full] [--seed N] [--images]`: the synthetic
-benchmark and its simulated runs (docs/SYNTHETIC.md)."""
+"""`vge synth --out DIR [--scale tiny|sample|full] [--seed N] [--images] [--seeds N]
+[--device-spread S] [--runs ID,...]`: the synthetic benchmark and its simulated runs
+(docs/SYNTHETIC.md)."""
 
 from __future__ import annotations
 
@@ -7,8 +8,6 @@ import time
 from pathlib import Path
 
 import typer
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from replay import ConfigError
 
@@ -23,8 +22,27 @@ def synth(
     workers: int = typer.Option(
         0, "--workers", help="Processes (0: one per CPU); output does not depend on it."
     ),
+    agent_seeds: int = typer.Option(
+        1,
+        "--seeds",
+        min=1,
+        help="Play each run N times with other random choices (runs <run_id>-seed<k>, "
+        "meta.seed = k): repeated runs for `vge passk`.",
+    ),
+    device_spread: float = typer.Option(
+        0.0,
+        "--device-spread",
+        help="How much devices differ in difficulty, in logits (0: as their logic makes them; "
+        "1 is strong): a device hard for one profile is hard for all.",
+    ),
+    only_runs: str | None = typer.Option(
+        None, "--runs", metavar="ID,...", help="Only these simulated runs (default: all)."
+    ),
 ) -> None:
     """Generate a synthetic VGEBench-style benchmark and simulated agent runs."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
     from vge_analytics.synth import SCALES, SynthError, generate
 
     if scale not in SCALES:
@@ -52,6 +70,11 @@ def synth(
                 workers=workers or None,
                 images=images,
                 progress=tick,
+                agent_seeds=agent_seeds,
+                device_spread=device_spread,
+                only_runs=[r.strip() for r in only_runs.split(",") if r.strip()]
+                if only_runs is not None
+                else None,
             )
         except SynthError as exc:
             raise ConfigError(str(exc)) from None

@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
-import typer
-from rich.console import Console
-from rich.markup import escape
+from typing import TYPE_CHECKING
 
-from replay import Benchmark, Problem, validate_benchmark, validate_run
+import typer
+
+import replay
 
 from ._options import max_record_bytes_option
 
+if TYPE_CHECKING:
+    from rich.console import Console
 
-def _report(console: Console, problems: list[Problem]) -> tuple[int, int]:
+
+def _report(console: Console, problems: list[replay.Problem]) -> tuple[int, int]:
+    from rich.markup import escape
+
     errors = warnings = 0
     for p in problems:
         if p.severity == "error":
@@ -32,11 +37,13 @@ def validate(
     max_record_bytes: int = max_record_bytes_option("is an error"),
 ) -> None:
     """Check SSMs, UCSMs, tasks and run logs; exit 1 with a report if anything is wrong."""
+    from rich.console import Console
+
     console = Console(highlight=False)
-    problems = validate_benchmark(bench)
-    opened = Benchmark.open(bench)
+    problems = replay.validate_benchmark(bench)
+    opened = replay.Benchmark.open(bench)
     for run in runs or []:
-        problems.extend(validate_run(run, opened, max_record_bytes=max_record_bytes))
+        problems.extend(replay.validate_run(run, opened, max_record_bytes=max_record_bytes))
     errors, warnings = _report(console, problems)
     n_ssm = len(opened.ssm_paths)
     n_tasks = len(opened.tasks)

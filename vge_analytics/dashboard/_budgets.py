@@ -5,19 +5,17 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Sequence
 from pathlib import Path
 
 import polars as pl
 
 import replay
+from replay.io import atomic_file
 
 from ..metrics import MetricsSource, fingerprint, metric_set
-from ..store import (
-    open_store,
-)
-from ._out import out_version
+from ..store import open_store, run_query
+from ._replay_output import out_version
 
 SWEEP_AUTO_LIMIT = 12_000
 """Episode replays (episodes x lambdas) a sweep may take without asking (a few seconds)."""
@@ -27,16 +25,12 @@ SWEEP_SECONDS_PER_REPLAY = 0.0005
 
 def sweep_size(out: str | Path, runs: Sequence[str], lambdas: Sequence[float]) -> int:
     """Episode replays a sweep of `runs` at `lambdas` takes."""
-    store = open_store(out)
-    n = (
-        store.cursor()
-        .execute(
-            "SELECT count(*) FROM episodes WHERE list_contains(CAST(? AS VARCHAR[]), run_id)",
-            [list(runs)],
-        )
-        .fetchall()[0][0]
+    counted = run_query(
+        open_store(out),
+        "SELECT count(*) AS n FROM episodes WHERE list_contains(CAST(? AS VARCHAR[]), run_id)",
+        [list(runs)],
     )
-    return int(n) * len(lambdas)
+    return int(counted["n"][0]) * len(lambdas)
 
 
 def _sweep_cache_file(
@@ -94,14 +88,11 @@ def computed_sweep(
     path = _sweep_cache_file(out, runs, lambdas, metrics_dir)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        table.write_parquet(tmp)
-        os.replace(tmp, path)
+        with atomic_file(path, sync=False) as fh:  # a cache: whole, not synced
+            table.write_parquet(fh)
     except OSError:
         pass  # a read-only cache only costs the recomputation
     return table
-
-
 
 
 def sweep_curves(sweep: pl.DataFrame, *, relative: bool = False) -> pl.DataFrame:

@@ -18,6 +18,7 @@ from ..store import (
     run_entry,
 )
 from ..synth import image_source
+from ._pictures import benchmark
 
 
 def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
@@ -30,7 +31,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
     entry = run_entry(out, run_id)
     inputs = entry["inputs"]
     bench_root = bench_dir(out, run_id)
-    bench = replay.Benchmark.open(bench_root)
+    bench = benchmark(bench_root)
     run_dir = resolve_input(out, inputs["run_dir"])
     header = replay.read_run_header(run_dir)
     log = _find_episode_log(replay.episodes_file(run_dir), episode_id)
@@ -45,7 +46,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
         run_id=header.run_id,
         model=header.model,
         agent_kind=header.agent_kind,
-        prices=replay.run_prices(header.meta),  # replayed already: the prices are valid
+        prices=replay.semantics.run_prices(header.meta),  # replayed already: the prices are valid
     )
     source = image_source(bench_root)
     buf = io.BytesIO()
@@ -61,7 +62,7 @@ def episode_mcap(out: str | Path, run_id: str, episode_id: str) -> bytes:
 
 def _find_episode_log(path: Path, episode_id: str) -> replay.EpisodeLog:
     needle = json.dumps(episode_id).encode()
-    for _, line in replay.iter_lines(path):
+    for _, line in replay.io.iter_lines(path):
         if needle not in line:
             continue
         log = msgspec.json.decode(line, type=replay.EpisodeLog)

@@ -7,25 +7,21 @@ from collections.abc import Mapping
 
 import polars as pl
 
-TERMINATION_LABELS: dict[str, str] = {
-    "success": "success",
-    "budget_global": "global budget out",
-    "budget_local": "local budget out",
-    "log_ended": "log ended",
-    "context_exceeded": "context window full",
-}
+from replay.semantics import TERMINATION_TEXTS
+
+_LABELS = {termination: ending.label for termination, ending in TERMINATION_TEXTS.items()}
 
 
 def termination_label(termination: str) -> str:
-    """How an episode ended, in words."""
-    return TERMINATION_LABELS.get(termination, termination)
+    """How an episode ended, in words (`replay.semantics.TERMINATION_TEXTS`)."""
+    return _LABELS.get(termination, termination)
 
 
 def episode_labels(episodes: pl.DataFrame) -> dict[str, str]:
     """{episode_id: `<id> · <device> · <how it ended> · <done>/<goals> goals`} for a picker
     (computed once for all episodes: a full-scale run has 10^4 of them)."""
     ended = pl.col("termination").replace_strict(
-        TERMINATION_LABELS, default=pl.col("termination"), return_dtype=pl.String
+        _LABELS, default=pl.col("termination"), return_dtype=pl.String
     )
     label = pl.format(
         "{} · {} · {} · {}/{} goals",

@@ -8,12 +8,15 @@ from pathlib import Path
 
 import polars as pl
 
+from replay.io import STEPS_TABLE
+
 from ..store import (
     Filters,
     build_scope,
     check_columns,
     open_store,
     quote_ident,
+    run_query,
 )
 
 
@@ -29,27 +32,24 @@ def error_step_sample(
     there are in all: the drill-down table. Unlike `steps_with_error`, the limit is applied
     in the query, so a common error type on the full benchmark (10^5 steps) stays cheap."""
     store = open_store(out)
-    check_columns(store, [*(where or {}), *columns], ["steps"], "filter/column")
+    check_columns(store, [*(where or {}), *columns], [STEPS_TABLE], "filter/column")
     order = "ORDER BY g.run_id, g.episode_id, g.step LIMIT ?"
-    scope = build_scope(store, "steps", [], where)
+    scope = build_scope(store, STEPS_TABLE, [], where)
     base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
     params = [*scope.params, error_type, int(limit)]
-    total, runs = (
-        store.cursor()
-        .execute(
-            f"SELECT (SELECT count(*) {base}), "
-            f"(SELECT list(DISTINCT run_id) FROM (SELECT g.run_id {base} {order}))",
-            [*params[:-1], *params],
-        )
-        .fetchall()[0]
-    )
+    total, runs = run_query(
+        store,
+        f"SELECT (SELECT count(*) {base}) AS total, "
+        f"(SELECT list(DISTINCT run_id) FROM (SELECT g.run_id {base} {order})) AS runs",
+        [*params[:-1], *params],
+    ).row(0)
     # The wide columns are read from the runs of the first rows only: the scan skips the
     # other runs' files instead of reading every column of every step (same rows).
-    scope = build_scope(store, "steps", [], {**(where or {}), "run_id": runs or []})
+    scope = build_scope(store, STEPS_TABLE, [], {**(where or {}), "run_id": runs or []})
     cols = ", ".join(f"g.{quote_ident(c)}" for c in columns)
     base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
-    df = store.cursor().sql(f"SELECT {cols} {base} {order}", params=[*scope.params, *params[-2:]])
-    return df.pl(), int(total)
+    df = run_query(store, f"SELECT {cols} {base} {order}", [*scope.params, *params[-2:]])
+    return df, int(total)
 
 
 def error_share_wide(dist: pl.DataFrame) -> pl.DataFrame:

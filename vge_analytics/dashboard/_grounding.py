@@ -8,11 +8,14 @@ from pathlib import Path
 
 import polars as pl
 
+from replay.io import STEPS_TABLE
+
 from ..store import (
     Filters,
     build_scope,
     check_columns,
     open_store,
+    run_query,
 )
 from ._pictures import device_machine, view_boxes
 
@@ -21,14 +24,14 @@ def interaction_views(out: str | Path, where: Filters = None) -> pl.DataFrame:
     """(device_id, category, view, interactions) for every device view clicked in, most
     clicked first: what the grounding scatter can show."""
     store = open_store(out)
-    check_columns(store, list(where or {}), ["steps"], "filter")
-    scope = build_scope(store, "steps", [], where)
+    check_columns(store, list(where or {}), [STEPS_TABLE], "filter")
+    scope = build_scope(store, STEPS_TABLE, [], where)
     sql = (
         "SELECT g.device_id, g.category, g.view_before AS view, count(*) AS interactions "
         f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.is_interaction "
         "GROUP BY ALL ORDER BY interactions DESC, g.device_id, view"
     )
-    return store.cursor().sql(sql, params=scope.params).pl()
+    return run_query(store, sql, scope.params)
 
 
 def device_labels(views: pl.DataFrame) -> dict[str, str]:
@@ -53,8 +56,8 @@ def click_points(
     """Interactions on one device view: run_id, model, episode_id, step, x, y, outcome
     (`target hit`, `other component`, `miss`), error_type, distance, nearest_target."""
     store = open_store(out)
-    check_columns(store, list(where or {}), ["steps"], "filter")
-    scope = build_scope(store, "steps", [], where)
+    check_columns(store, list(where or {}), [STEPS_TABLE], "filter")
+    scope = build_scope(store, STEPS_TABLE, [], where)
     sql = (
         "SELECT g.run_id, g.model, g.episode_id, g.step, g.x, g.y, "
         "CASE WHEN g.hit_target THEN 'target hit' WHEN g.hit_component THEN 'other component' "
@@ -64,7 +67,7 @@ def click_points(
         "ORDER BY g.run_id, g.episode_id, g.step LIMIT ?"
     )
     params = [*scope.params, device_id, view, int(limit)]
-    return store.cursor().sql(sql, params=params).pl()
+    return run_query(store, sql, params)
 
 
 def clicked_targets(points: pl.DataFrame) -> tuple[str, ...]:

@@ -1,12 +1,13 @@
 """The Human vs VLM page: paired comparison, error differences, flipped episodes."""
 
-
 from __future__ import annotations
 
 import polars as pl
 
 from ..metrics import MetricSet
+from ..reports import Comparison
 from ._leaderboard import _metric
+from ._significance import CLUSTER_WORDS, CORRECTION_WORDS
 
 
 def run_choices(runs: pl.DataFrame) -> tuple[list[str], list[str]]:
@@ -28,8 +29,8 @@ def comparison_rows(
     metrics: pl.DataFrame, label_a: str, label_b: str, metric_set: MetricSet | None = None
 ) -> pl.DataFrame:
     """A `Comparison.metrics` table for people: metric (with its arrow), both values under
-    the runs' names, the difference B - A, its 95% interval, and whether the interval
-    excludes 0."""
+    the runs' names, the difference B - A, its 95% clustered interval, whether the interval
+    excludes 0, the clustered SE, the design effect and the adjusted p-value."""
     arrows = {m: _metric(m, metric_set).arrow for m in metrics["metric"].to_list()}
     return metrics.select(
         pl.col("metric").map_elements(lambda m: f"{m} {arrows[m]}", return_dtype=pl.String),
@@ -39,7 +40,23 @@ def comparison_rows(
         pl.col("ci_low").alias("CI low"),
         pl.col("ci_high").alias("CI high"),
         ((pl.col("ci_low") > 0) | (pl.col("ci_high") < 0)).alias("CI excludes 0"),
+        pl.col("se").alias("SE"),
+        pl.col("deff").alias("design effect"),
+        pl.col("p_adjusted").alias("p (adjusted)"),
     )
+
+
+def interval_caption(cmp: Comparison) -> str:
+    """How the intervals and p-values of a comparison were made, with its numbers."""
+    unit = CLUSTER_WORDS[cmp.cluster]
+    text = (
+        f"95% intervals from {cmp.resamples} resamples of the {cmp.n_clusters} {unit} the "
+        f"common episodes are in (all of a resampled one's episodes, the same draw for both "
+        "runs); SE is the clustered standard error of the difference, the design effect its "
+        "variance over the one of independent episodes; p-values of the cluster sign-flip "
+        f"test, {CORRECTION_WORDS[cmp.correction]} across the metrics."
+    )
+    return text + (f" Note: {cmp.note}." if cmp.note else "")
 
 
 def error_difference_rows(errors: pl.DataFrame, label_a: str, label_b: str) -> pl.DataFrame:

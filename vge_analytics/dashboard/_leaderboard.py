@@ -7,6 +7,8 @@ from collections.abc import Sequence
 
 import polars as pl
 
+from replay.io import EPISODES_TABLE
+
 from ..metrics import Metric, MetricSet
 from ..reports import RunCompleteness, mark_incomplete, mark_rows
 from ..store import (
@@ -136,8 +138,8 @@ def cost_table(out, by: Sequence[str], where: Filters = None) -> pl.DataFrame:
     (all of it over the successes: what each success cost; null without one)."""
     store = open_store(out)
     by = list(by)
-    check_columns(store, [*by, *(where or {})], ["episodes"], "grouping/filter")
-    sql, params = grouped_aggregate(store, "episodes", by, where, _COST_TERMS)  # a row a group
+    check_columns(store, [*by, *(where or {})], [EPISODES_TABLE], "grouping/filter")
+    sql, params = grouped_aggregate(store, EPISODES_TABLE, by, where, _COST_TERMS)  # a row a group
     if by:
         sql = f"SELECT * FROM ({sql}){order_by(by)}"
     df = run_query(store, sql, params)
@@ -204,4 +206,22 @@ def incomplete_note(runs: Sequence[RunCompleteness]) -> str | None:
     return (
         f"Incomplete: {named}. Their run.json says `complete: false`: the metrics cover the "
         f"episodes written so far, not the run's selection; `vge run --resume` completes it."
+    )
+
+
+# ------------------------------------------------------------------------------ intervals
+
+
+def interval_rows(intervals: pl.DataFrame, by: Sequence[str], metric: str) -> pl.DataFrame:
+    """`metric_intervals` for people: group label, the metric, its 95% clustered interval,
+    the clustered SE, the design effect, episodes and clusters."""
+    return intervals.select(
+        group_labels(intervals, by),
+        pl.col("value").alias(metric),
+        pl.col("ci_low").alias("CI low"),
+        pl.col("ci_high").alias("CI high"),
+        pl.col("se").alias("SE"),
+        pl.col("deff").alias("design effect"),
+        pl.col("n_episodes").alias("episodes"),
+        pl.col("n_clusters").alias("clusters"),
     )

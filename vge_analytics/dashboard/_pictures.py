@@ -10,6 +10,7 @@ from functools import lru_cache
 from pathlib import Path
 
 import replay
+from replay.io import ssm_path
 
 from .._errors import OutputDirError, UnknownRunError
 from ..store import bench_dir
@@ -42,21 +43,34 @@ side-by-side view's optimal next action blue."""
 CLICK_COLOR = (230, 26, 26)
 
 
-@lru_cache(maxsize=64)
-def _machine(ssm_path: str, device_id: str) -> replay.Machine:
-    return replay.load_machine(ssm_path, device_id)
+_MOVED = "(the benchmark moved since the replay?)"
+
+
+@lru_cache(maxsize=8)
+def _benchmark(root: str) -> replay.Benchmark:
+    return replay.Benchmark.open(root)
+
+
+def benchmark(bench: Path | replay.Location) -> replay.Benchmark:
+    """The benchmark at `bench`, opened once per process: its machines compile once, in its
+    own cache (`replay.Benchmark.machine`), for every page and download."""
+    try:
+        return _benchmark(str(bench))
+    except replay.InputError as exc:
+        raise OutputDirError(f"{exc} {_MOVED}") from None
 
 
 def device_machine(out: str | Path, device_id: str, run_id: str | None = None) -> replay.Machine:
     """The compiled SSM of a device, from the benchmark OUT was replayed against."""
-    return _bench_machine(bench_dir(out, run_id), device_id)
+    return bench_machine(bench_dir(out, run_id), device_id)
 
 
-def _bench_machine(bench, device_id: str) -> replay.Machine:
-    path = bench / "ssm" / f"{device_id}.json"
-    if not path.is_file():
-        raise OutputDirError(f"{path}: SSM not found (the benchmark moved since the replay?)")
-    return _machine(str(path), device_id)
+def bench_machine(bench: Path | replay.Location, device_id: str) -> replay.Machine:
+    """The compiled SSM of a device of the benchmark at `bench`."""
+    opened = benchmark(bench)
+    if device_id not in opened.ssm_paths:
+        raise OutputDirError(f"{ssm_path(bench, device_id)}: SSM not found {_MOVED}")
+    return opened.machine(device_id)
 
 
 def view_boxes(
@@ -80,7 +94,7 @@ def view_boxes(
     elif state is not None and goal is not None and state in machine.state_index:
         s, g = machine.state_index[state], machine.state_index.get(goal)
         if g is not None:
-            for component, rect in replay.target_rects(machine, s, g, view):
+            for component, rect in replay.semantics.target_rects(machine, s, g, view):
                 target_names.add(component)
                 boxes.append(Box(component, *rect[:4], role="target"))
     hit_names = set(hit)
@@ -116,7 +130,7 @@ def view_picture(
 ) -> ViewPicture:
     """The image of a device view (rendered synthetic views included), or a blank canvas."""
     bench = bench_dir(out, run_id)  # the manifest read once for the machine and the picture
-    got = image_source(bench)(_bench_machine(bench, device_id), view)
+    got = image_source(bench)(bench_machine(bench, device_id), view)
     if got is not None:
         return ViewPicture(*got, rendered=True)
     from PIL import Image

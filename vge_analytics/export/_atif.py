@@ -16,6 +16,8 @@ version that brought images), in the `atif` package's models, which validate it.
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -32,11 +34,11 @@ from atif import (
     Trajectory,
 )
 
+from replay.io import make_folders, write_atomic
+
 from ._conversation import Said, conversation
 from ._pictures import Views
-from ._source import Episode, Run
-from ._time import iso_time
-from ._verdicts import episode_verdict, step_usage, step_verdict
+from ._source import Episode, Run, episode_verdict, iso_time, step_usage, step_verdict
 
 SCHEMA_VERSION = "ATIF-v1.6"
 IMAGES_DIR = "images"
@@ -56,20 +58,21 @@ class PictureFiles:
             return None
         name = picture.name
         if name not in self.written:
-            target = self.root / IMAGES_DIR / name
-            if not target.is_file():  # named by its content: one there is this picture
-                target.parent.mkdir(parents=True, exist_ok=True)
-                write_atomic(target, picture.data)
+            folder = make_folders(self.root, IMAGES_DIR)
+            target = folder / name
+            if not _regular_file(target):  # named by its content: one there is this picture
+                write_atomic(target, picture.data, sync=False)  # why not synced: _durable
             self.written.add(name)
         source = ImageSource(media_type=picture.media_type, path=f"{IMAGES_DIR}/{name}")
         return ContentPart(type="image", source=source)
 
 
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write `path` whole or not at all (a temporary name, then a rename)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    tmp.replace(path)
+def _regular_file(path: Path) -> bool:
+    """A file at `path`, not a link to one."""
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode)
+    except FileNotFoundError:
+        return False
 
 
 def _content(said: Said, device_id: str, pictures: PictureFiles | None) -> str | list[ContentPart]:
@@ -197,5 +200,4 @@ __all__ = [
     "PictureFiles",
     "trajectory",
     "trajectory_json",
-    "write_atomic",
 ]

@@ -18,17 +18,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from replay.semantics import TERMINATION_TEXTS
 from vge_analytics.live import SYSTEM_PROMPT, observation_text
 
 from ._source import Episode
-
-ENDINGS: dict[str, str] = {
-    "success": "every goal is reached",
-    "budget_global": "the episode's step budget is spent",
-    "budget_local": "the step budget of the current goal is spent",
-    "log_ended": "the log ends here",
-}
-"""Why an episode is over, by termination (PROTOCOL §3.5)."""
 
 
 @dataclass(frozen=True)
@@ -82,7 +75,8 @@ def _observation(
 
 def _ending(episode: Episode, last: dict[str, Any], truncated: int) -> Said:
     termination = episode.row["termination"]
-    why = ENDINGS.get(termination, termination)
+    ending = TERMINATION_TEXTS.get(termination)
+    why = ending.reason if ending is not None else termination
     text = (
         f"Your last action: {last['action_raw'] or '(it could not be read)'}\n"
         f"What happened: {last['feedback_text']}\n"
@@ -123,4 +117,4 @@ def conversation(episode: Episode, views: tuple[str, ...]) -> Conversation:
     return Conversation(SYSTEM_PROMPT, opening, exchanges)
 
 
-__all__ = ["ENDINGS", "Conversation", "Exchange", "Said", "answer_of", "conversation"]
+__all__ = ["Conversation", "Exchange", "Said", "answer_of", "conversation"]

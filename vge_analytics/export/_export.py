@@ -10,7 +10,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import replay
+from replay.io import make_folders, staged_path, write_atomic
 
+from ..metrics import load_metrics
 from ._pictures import Views
 from ._source import Episode, Run, Source, open_source
 
@@ -65,7 +67,7 @@ def export(
     """Write the runs of OUT (all, or `runs`; their episodes, or `episodes` of them) to `dest`
     as Inspect logs (`fmt="inspect"`: `dest/<run_id>.eval`) or ATIF trajectories
     (`fmt="atif"`: `dest/<run_id>/<episode_id>.json`), with the views' pictures or not
-    (`images`: `embed` or `none`). File names are made from ids by `replay.safe_file_name`."""
+    (`images`: `embed` or `none`). File names are made from ids by `replay.io.safe_file_name`."""
     check_choice(fmt, FORMATS, "--format")
     check_choice(images, IMAGES, "--images")
     require(fmt)
@@ -119,8 +121,6 @@ def _write_inspect(
     from inspect_ai.log import EvalResults, EvalSample, EvalStats
     from inspect_ai.model import ModelUsage
 
-    import vge_analytics as va
-
     from ._inspect import eval_plan, eval_results, eval_sample, eval_spec, eval_stats
     from ._inspect_log import write_eval
 
@@ -136,28 +136,30 @@ def _write_inspect(
             yield sample
 
     def finish() -> tuple[EvalResults, EvalStats]:
-        results = eval_results(run, va.load_metrics(metrics_dir))
+        results = eval_results(run, load_metrics(metrics_dir))
         return results, eval_stats(run, usage[0] if usage else None)
 
-    path = root / f"{replay.safe_file_name(run.run_id)}.eval"
+    path = root / f"{replay.io.safe_file_name(run.run_id)}.eval"
     spec, plan = eval_spec(run, images), eval_plan(run)
-    write_eval(path, spec, plan, samples(), finish, condense=pictures is not None)
+    # inspect_ai's recorder opens the file by name: it writes into a private folder, and the
+    # finished log replaces `path` (a link there is replaced, never written through)
+    with staged_path(path, sync=False) as staged:
+        write_eval(staged, spec, plan, samples(), finish, condense=pictures is not None)
     return path
 
 
 def _write_atif(
     run: Run, episodes: Iterator[Episode], root: Path, views: Views, images: str
 ) -> tuple[Path, int]:
-    from ._atif import PictureFiles, trajectory, trajectory_json, write_atomic
+    from ._atif import PictureFiles, trajectory, trajectory_json
 
-    folder = root / replay.safe_file_name(run.run_id)
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = make_folders(root, replay.io.safe_file_name(run.run_id))
     pictures = PictureFiles(folder, views) if images == "embed" else None
     written = 0
     for episode in episodes:
         traj = trajectory(run, episode, views.names(episode.row["device_id"]), pictures)
-        path = folder / f"{replay.safe_file_name(episode.episode_id)}.json"
-        write_atomic(path, trajectory_json(traj))
+        path = folder / f"{replay.io.safe_file_name(episode.episode_id)}.json"
+        write_atomic(path, trajectory_json(traj), sync=False)  # why not synced: replay.io
         written += 1
     return folder, written
 

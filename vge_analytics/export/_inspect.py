@@ -44,13 +44,10 @@ from inspect_ai.model import (
 )
 from inspect_ai.scorer import Score
 
-import vge_analytics as va
-
+from ..metrics import MetricSet
 from ._conversation import Said, conversation
 from ._pictures import Views
-from ._source import Episode, Run
-from ._time import EPOCH, iso_time
-from ._verdicts import episode_verdict, step_usage, step_verdict
+from ._source import EPOCH, Episode, Run, episode_verdict, iso_time, step_usage, step_verdict
 
 TASK = "vgebench"
 SCORER = "vge_replay"
@@ -98,7 +95,7 @@ def eval_plan(run: Run) -> EvalPlan:
     return EvalPlan(steps=[EvalPlanStep(solver=run.agent, params=dict(run.meta))])
 
 
-def eval_results(run: Run, metrics: va.MetricSet) -> EvalResults:
+def eval_results(run: Run, metrics: MetricSet) -> EvalResults:
     """The run's metrics over the exported episodes (a metric without a value is left out)."""
     found: dict[str, EvalMetric] = {}
     for name, value in run.metrics.items():

@@ -1,11 +1,13 @@
 """What an export reads from OUT: the selected runs, their headers and metrics, and their
-episodes one batch at a time.
+episodes one batch at a time; and what both formats carry of them as plain JSON values
+(Inspect's scores and metadata, ATIF's `extra` and metrics): the replay's verdict of an
+episode and of each step, what the run recorded of a step's cost, and the recorded times in
+ISO 8601 (no clock is read).
 
-Everything is read through the public analytics (`vge_analytics.runs/episodes/goals/steps/
-metrics`, and one query of ours on `vge_analytics.open_store`'s locked-down views), the
+Everything is read through the store and the metrics (`store.runs/episodes/goals/steps`,
+`metrics.metrics`, and one query of ours on `store.open_store`'s locked-down views), the
 manifest through `replay.read_manifest`, and the benchmark's location through
-`vge_analytics.store.bench_dir`, so an export sees OUT exactly as `vge sql` and the
-dashboard do. Memory stays bounded whatever the size of a run: a run's episodes are fetched
+`store.bench_dir`, so an export sees OUT exactly as `vge sql` and the dashboard do. Memory stays bounded whatever the size of a run: a run's episodes are fetched
 a batch at a time (their rows, goals and steps; a few megabytes of text at most, or one
 episode when it alone holds more), never the run at once. What a batch holds is known
 beforehand: one query per run measures each episode's text inside DuckDB, without fetching
@@ -15,15 +17,22 @@ it.
 from __future__ import annotations
 
 import json
+import math
+from collections import Counter
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from itertools import groupby
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import replay
-import vge_analytics as va
-from vge_analytics.store import bench_dir
+from replay.io import STEPS_TABLE
+
+from .. import store
+from .._errors import OutputDirError, UnknownRunError
+from .._nearest import nearest_hint
+from ..metrics import metrics as computed_metrics
 
 BATCH_STEPS = 5000
 """Steps fetched per query (the episodes whose steps add up to it); each query costs about
@@ -155,10 +164,10 @@ class Source:
         """The run's selected episodes in episode id order, fetched a batch at a time."""
         for batch in _batches(run.episodes):
             where = {"run_id": run.run_id, "episode_id": batch}
-            rows = va.episodes(self.out, where=where).to_dicts()
-            goals = _by_episode(va.goals(self.out, where=where).to_dicts())
+            rows = store.episodes(self.out, where=where).to_dicts()
+            goals = _by_episode(store.goals(self.out, where=where).to_dicts())
             steps = _by_episode(
-                va.steps(
+                store.steps(
                     self.out, where=where, columns=["episode_id", *self.step_columns]
                 ).to_dicts()
             )
@@ -189,10 +198,12 @@ def _by_episode(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
 
 
 def _listed(wanted: Sequence[str], known: Sequence[str], what: str, where: str) -> None:
+    """Refuse ids of `wanted` not in `known` (`what`: `run`), naming the nearest to the first."""
     unknown = sorted(set(wanted) - set(known))
     if unknown:
         shown = ", ".join(repr(u) for u in unknown[:5]) + (" ..." if len(unknown) > 5 else "")
-        raise va.UnknownRunError(f"unknown {what} {shown} in {where}")
+        hint = nearest_hint(unknown[0], sorted(set(known)), what)
+        raise UnknownRunError(f"unknown {what}(s) {shown} in {where}{hint}")
 
 
 def open_source(
@@ -207,29 +218,30 @@ def open_source(
     not there raise one-line errors."""
     shown = str(out)
     if replay.read_manifest(out) is None:
-        raise va.OutputDirError(
+        raise OutputDirError(
             f"{shown}: no manifest.json, not a replay output directory; run "
             f"`vge replay RUN... --bench BENCH --out {shown}` first"
         )
-    table = va.runs(out)
+    table = store.runs(out)
     known = table["run_id"].to_list()
     if runs is not None:
-        _listed(runs, known, "run(s)", f"{shown}; runs: {', '.join(known)}")
+        _listed(runs, known, "run", shown)
     chosen = [r for r in table.to_dicts() if runs is None or r["run_id"] in set(runs)]
     run_ids = [r["run_id"] for r in chosen]
     wanted = set(episodes) if episodes is not None else None
+    every = {r: _contents(out, r) for r in run_ids}
     contents = {
-        r: [c for c in _contents(out, r) if wanted is None or c.episode_id in wanted]
-        for r in run_ids
+        r: [c for c in listed if wanted is None or c.episode_id in wanted]
+        for r, listed in every.items()
     }
     if episodes is not None:
-        found = [c.episode_id for listed in contents.values() for c in listed]
-        _listed(episodes, found, "episode(s)", f"the selected runs of {shown}")
+        found = [c.episode_id for listed in every.values() for c in listed]
+        _listed(episodes, found, "episode", f"the selected runs of {shown}")
         # the runs that hold none of the episodes named are left out
         chosen = [r for r in chosen if contents[r["run_id"]]]
         run_ids = [r["run_id"] for r in chosen]
     metrics = _metrics(out, run_ids, episodes, metrics_dir)
-    columns = va.table_columns(out)["steps"]
+    columns = store.table_columns(out)[STEPS_TABLE]
     return Source(
         out=shown,
         runs=[
@@ -240,7 +252,7 @@ def open_source(
                 lam=float(r["lambda"]),
                 meta=json.loads(r["meta"] or "{}"),
                 engine_version=r["engine_version"],
-                bench=bench_dir(out, r["run_id"]),
+                bench=store.bench_dir(out, r["run_id"]),
                 episodes=tuple(contents[r["run_id"]]),
                 metrics=metrics.get(r["run_id"], {}),
             )
@@ -260,7 +272,7 @@ def _metrics(
     where: dict[str, Any] = {"run_id": run_ids}
     if episodes is not None:
         where["episode_id"] = list(episodes)
-    df = va.metrics(out, by=("run_id",), where=where, metrics_dir=metrics_dir)
+    df = computed_metrics(out, by=("run_id",), where=where, metrics_dir=metrics_dir)
     return {row.pop("run_id"): row for row in df.to_dicts()}
 
 
@@ -279,11 +291,52 @@ and last recorded times (one row per episode; the text is measured, not fetched)
 
 
 def _contents(out: str | Path, run_id: str) -> list[Contents]:
-    cursor = va.open_store(out).cursor()
+    cursor = store.open_store(out).cursor()
     try:
         return [Contents(*row) for row in cursor.execute(CONTENTS, [run_id]).fetchall()]
     finally:
         cursor.close()
+
+
+EPOCH = "1970-01-01T00:00:00+00:00"
+"""What a required time says when nothing was recorded."""
+
+
+def iso_time(seconds: float | None) -> str | None:
+    """A recorded time (seconds since the epoch) in ISO 8601, UTC, to the millisecond (the
+    precision the harnesses record); None when there is none."""
+    if seconds is None or not math.isfinite(seconds):
+        return None
+    return datetime.fromtimestamp(seconds, tz=UTC).isoformat(timespec="milliseconds")
+
+
+RUN_COLUMNS = ("run_id", "model", "agent_kind")
+"""Columns every row repeats; the run says them once."""
+
+
+def episode_verdict(episode: Episode) -> dict[str, Any]:
+    """The episode's row (PROTOCOL §7.3, without the run's columns), the error types of its
+    scored steps with their counts, and its diverged steps by field."""
+    row = {k: v for k, v in episode.row.items() if k not in RUN_COLUMNS}
+    scored = [s for s in episode.steps if not s["truncated"]]
+    errors = Counter(s["error_type"] for s in scored if s["error_type"] is not None)
+    fields = Counter(f for s in scored for f in s["diverged_fields"] or ())
+    return {
+        **row,
+        "error_types": dict(sorted(errors.items())),
+        "diverged_by_field": dict(sorted(fields.items())),
+    }
+
+
+def step_verdict(step: dict[str, Any]) -> dict[str, Any]:
+    """The step's replay columns (`STEP_VERDICT`) that have a value."""
+    return {k: step[k] for k in STEP_VERDICT if step.get(k) is not None}
+
+
+def step_usage(step: dict[str, Any]) -> dict[str, Any]:
+    """What the run recorded of the step's model call: tokens, latency, cost (the steps
+    table's columns, when it has them and they are not null)."""
+    return {k: step[k] for k in STEP_METRICS if step.get(k) is not None}
 
 
 __all__ = [
@@ -291,11 +344,17 @@ __all__ = [
     "BATCH_BYTES",
     "BATCH_STEPS",
     "Contents",
+    "EPOCH",
+    "RUN_COLUMNS",
     "STEP_COLUMNS",
     "STEP_METRICS",
     "STEP_VERDICT",
     "Episode",
     "Run",
     "Source",
+    "episode_verdict",
+    "iso_time",
     "open_source",
+    "step_usage",
+    "step_verdict",
 ]

@@ -1,10 +1,10 @@
 """Live runs: `vge run` plays agents (module callables, simulated profiles, VLMs) through `vge/Device-v0`."""
 
+from ._agent_spec import load_agent
 from ._agents import AgentOptions, EpisodeStart, LiveAgent, Player, Reply
 from ._continue import FIRST_ERROR, ContinueFrom, continuation_of
 from ._harness import RunSummary, run_live, select_episodes
 from ._header import Counters, RunOptions
-from ._load import load_agent
 from ._openai import ChatClient, ClientSettings, Completion
 from ._prompt import SYSTEM_PROMPT, build_messages, observation_text
 from ._rundir import FAILURES, FailureRecord

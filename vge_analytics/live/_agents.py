@@ -4,7 +4,7 @@ An agent gives, per episode, a *player*: `act(obs) -> Reply` answers one observa
 `vge/Device-v0`; `observe(obs, info)` hears what the step did (the next observation and the
 step's row). `check()` runs once, before the first episode. The three kinds:
 `module:callable` (`_module.py`), `sim:PROFILE` (`_sim.py`) and `openai:MODEL` (`_vlm.py`);
-`load_agent` (`_load.py`) reads the AGENT argument.
+`load_agent` (`_agent_spec.py`) reads the AGENT argument.
 """
 
 from __future__ import annotations

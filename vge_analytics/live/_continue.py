@@ -92,7 +92,7 @@ class SourceRun:
         unread: list[str] = []
         count = 0
         path = replay.episodes_file(run_dir)
-        for number, line in replay.iter_lines(path):
+        for number, line in replay.io.iter_lines(path):
             try:
                 episode_id = _decoder.decode(line).episode_id
             except (msgspec.DecodeError, UnicodeDecodeError) as exc:  # the replay's verdict
@@ -156,7 +156,7 @@ def cut_episode(
         if whole.advance(step)[_ERROR_TYPE] is not None and first_error is None:
             first_error = k
     terminated = whole.done  # by the rules, before the log ran out
-    success = whole.termination == "success"
+    success = whole.termination == replay.semantics.SUCCESS
     n = len(log.steps)
     if at == FIRST_ERROR:
         prefix = first_error

@@ -28,8 +28,10 @@ from pathlib import Path
 import msgspec
 
 import replay
+from replay.io import run_json_path
 
 from .._errors import RequestRefusedError, RunDirError, RunStoppedError
+from .._nearest import nearest_hint
 from ._agents import LiveAgent
 from ._continue import Source, SourceRun
 from ._header import Counters, RunOptions, check_resume, run_header
@@ -76,6 +78,7 @@ def _chosen(
             raise RunDirError(
                 f"--episodes: not in {where}: {', '.join(map(repr, unknown[:5]))}"
                 + (f" and {len(unknown) - 5} more" if len(unknown) > 5 else "")
+                + nearest_hint(unknown[0], list(available), "episode")
             )
     if limit is not None:
         chosen = chosen[:limit]
@@ -137,11 +140,7 @@ def run_live(
     run directory. Raises `AgentError` when the agent cannot go on, `RunStoppedError` after
     too many infrastructure failures in a row (the episodes finished so far stay written:
     `--resume` continues)."""
-    if options.concurrency < 1:
-        raise RunDirError("--concurrency must be at least 1")
-    if options.max_consecutive_failures < 0:
-        raise RunDirError("--max-consecutive-failures must be 0 (never stop) or more")
-    _check_prices(options)
+    _check_options(options)
     options = msgspec.structs.replace(options, bench=Path(options.bench), out=Path(options.out))
     bench = replay.Benchmark.open(options.bench)
     source: Source | None = None
@@ -152,7 +151,7 @@ def run_live(
         selection = _chosen(source.run.lines, str(source.run.root), options.episodes, options.limit)
     counters = Counters(
         selected=len(selection),
-        prices=replay.Prices(options.prompt_price, options.completion_price),
+        prices=replay.semantics.Prices(options.prompt_price, options.completion_price),
     )
     unread: tuple[str, ...] = ()
     if source is not None and options.episodes is None:
@@ -212,15 +211,19 @@ def run_live(
     )
 
 
-def _check_prices(options: RunOptions) -> None:
-    """A price is what run.json may hold (PROTOCOL §1.4: a finite number of USD, at least 0),
-    so every cost computed from it is a number too."""
+def _check_options(options: RunOptions) -> None:
+    """The options' bounds; a price is what run.json may hold (PROTOCOL §1.4: a finite
+    number of USD, at least 0), so every cost computed from it is a number too."""
+    if options.concurrency < 1:
+        raise RunDirError("--concurrency must be at least 1")
+    if options.max_consecutive_failures < 0:
+        raise RunDirError("--max-consecutive-failures must be 0 (never stop) or more")
     for option, price in (
         ("--prompt-price", options.prompt_price),
         ("--completion-price", options.completion_price),
     ):
         try:
-            replay.run_prices({replay.PROMPT_PRICE_KEY: price})
+            replay.semantics.run_prices({replay.semantics.PROMPT_PRICE_KEY: price})
         except ValueError:
             raise RunDirError(
                 f"{option}: a price is a finite number of USD, at least 0, not {price!r}"
@@ -241,7 +244,7 @@ def _continuing(options: RunOptions) -> tuple[RunOptions, Source]:
     if options.lam is not None and options.lam != lam:
         raise RunDirError(
             f"--lambda {options.lam:g}: a continuation plays under its source's lambda "
-            f"({lam:g}, {where / 'run.json'})"
+            f"({lam:g}, {run_json_path(where)})"
         )
     asked = msgspec.structs.replace(asked, source=where, from_run=run.header.run_id)
     options = msgspec.structs.replace(options, lam=lam, continuation=asked)

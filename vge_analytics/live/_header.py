@@ -81,19 +81,19 @@ class Counters:
     completion_tokens: int = 0
     latency_seconds: float = 0.0
     has_usage: bool = False
-    prices: replay.Prices = replay.Prices()
+    prices: replay.semantics.Prices = replay.semantics.Prices()
 
     @property
     def cost_usd(self) -> float | None:
         """The run's tokens at its prices, by the rule the replay prices each step with."""
         if not self.has_usage:
             return None
-        return replay.usage_cost(self.prompt_tokens, self.completion_tokens, self.prices)
+        return replay.semantics.usage_cost(self.prompt_tokens, self.completion_tokens, self.prices)
 
     def add(self, log: replay.EpisodeLog, success: bool) -> None:
         self.finished += 1
         self.succeeded += success
-        self.context_exceeded += log.ended == "context_exceeded"
+        self.context_exceeded += log.ended == replay.semantics.CONTEXT_EXCEEDED
         self.steps += len(log.steps)
         for s in log.steps:
             if s.prompt_tokens is not None or s.completion_tokens is not None:

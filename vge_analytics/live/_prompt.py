@@ -16,7 +16,40 @@ from typing import Any, NamedTuple
 import numpy as np
 from PIL import Image
 
-SYSTEM_PROMPT = """\
+from replay.semantics import (
+    AXONOMETRIC_VIEWS,
+    BOTTOM,
+    DASHBOARD,
+    DISPLAY_NAMES,
+    GRASP,
+    ORTHOGRAPHIC_VIEWS,
+    PARAMETER_NAMES,
+    PRESS,
+    PULL,
+    PUSH,
+    ROTATE,
+    SCALE,
+    SWITCH_VIEW,
+    TIMED_WAIT,
+    codes_text,
+)
+
+
+def _call(action: str) -> str:
+    """`Press(coord, params=[kind])`: an interaction as the prompt shows it."""
+    return f"{DISPLAY_NAMES[action]}(coord, params=[{', '.join(PARAMETER_NAMES[action])}])"
+
+
+def _first(action: str) -> str:
+    """`kind: 0 a short press, ...`: the codes of the interaction's first parameter."""
+    return f"{PARAMETER_NAMES[action][0]}: {codes_text(action)}"
+
+
+_N = DISPLAY_NAMES
+_ORTHOGRAPHIC = ", ".join(ORTHOGRAPHIC_VIEWS[:-1]) + f" and {ORTHOGRAPHIC_VIEWS[-1]}"
+_AXONOMETRIC = " and ".join(AXONOMETRIC_VIEWS)
+
+SYSTEM_PROMPT = f"""\
 You operate household devices by looking at pictures of them. Each turn you get the user's \
 request, the view of the device you are looking at, and what happened after your last action. \
 You answer with one action.
@@ -32,33 +65,28 @@ action that needs no point.
 
 ## 2. Coordinates
 Points are given on the picture you see, whatever its pixel size: x runs from 0 (left edge) \
-to 1000 (right edge), y from 0 (top edge) to 1000 (bottom edge), both as whole numbers. \
-[0, 0] is the top-left corner, [1000, 1000] the bottom-right one.
+to {SCALE} (right edge), y from 0 (top edge) to {SCALE} (bottom edge), both as whole numbers. \
+[0, 0] is the top-left corner, [{SCALE}, {SCALE}] the bottom-right one.
 
 ## 3. Actions
-- Press(coord, params=[kind]): buttons, touch areas, switches, triggers. kind: 0 a short \
-press, 1 a long press (held more than a second), 2 a double press.
-- Rotate(coord, params=[direction, steps]): knobs, dials, keys, winders. direction: 0 \
-clockwise, 1 counter-clockwise; steps: how many notches. Either may be * when it does not \
-matter.
-- Push(coord, params=[direction]): sliding, closing, inserting. direction: 0 up, 1 down, \
-2 left, 3 right, 4 in or forward (closing a door, inserting a plug).
-- Pull(coord, params=[direction]): opening, lifting off, unplugging. direction: 0 up, 1 down, \
-2 left, 3 right, 4 out or backward (opening a door, pulling a drawer out).
-- Grasp(coord, params=[state]): handles and handheld devices. state: 0 take hold or pick \
-up, 1 let go or put down.
-- Switch_view(params=[view]): look at the device from another side. view is one of the views \
-listed for the device. Use it when what you need is not visible here.
-- Timed_wait(): let time pass while the device finishes something it is doing.
+- {_call(PRESS)}: buttons, touch areas, switches, triggers. {_first(PRESS)}.
+- {_call(ROTATE)}: knobs, dials, keys, winders. {_first(ROTATE)}; \
+{PARAMETER_NAMES[ROTATE][1]}: how many notches. Either may be * when it does not matter.
+- {_call(PUSH)}: sliding, closing, inserting. {_first(PUSH)}.
+- {_call(PULL)}: opening, lifting off, unplugging. {_first(PULL)}.
+- {_call(GRASP)}: handles and handheld devices. {_first(GRASP)}.
+- {_N[SWITCH_VIEW]}(params=[view]): look at the device from another side. view is one of the \
+views listed for the device. Use it when what you need is not visible here.
+- {_N[TIMED_WAIT]}(): let time pass while the device finishes something it is doing.
 
 ## 4. Views
-The standard views are front, back, left, right, top and bottom, looked at straight on, and \
-two angled overviews, front_top and back_bottom. In an angled overview nothing can be \
-operated: only Switch_view works there. Large devices may also offer a dashboard view, a \
-close-up of the control panel. While it is listed as "dashboard (locked)" you cannot switch \
+The standard views are {_ORTHOGRAPHIC}, looked at straight on, and \
+two angled overviews, {_AXONOMETRIC}. In an angled overview nothing can be \
+operated: only {_N[SWITCH_VIEW]} works there. Large devices may also offer a {DASHBOARD} view, a \
+close-up of the control panel. While it is listed as "{DASHBOARD} (locked)" you cannot switch \
 to it by name alone. Unlock it in one of two ways:
-- Switch_view(coord=[x, y], params=[dashboard]) with the point on the control panel in the \
-current view: the dashboard unlocks and you see it at once.
+- {_N[SWITCH_VIEW]}(coord=[x, y], params=[{DASHBOARD}]) with the point on the control panel in \
+the current view: the dashboard unlocks and you see it at once.
 - Any other action with its point on the control panel: the dashboard unlocks, but that \
 action does nothing and the view stays as it is.
 Once unlocked, the dashboard is a view like the others; operate the panel's controls there.
@@ -69,20 +97,22 @@ Give exactly one Action per answer: a single call, never two.
 ## 6. Examples
 Thinking: The user wants the fan faster. On the front I see a round knob marked with speed \
 levels, set to 1; level 3 is two notches clockwise. I will turn it two notches clockwise.
-Action: Rotate(coord=[512, 640], params=[0, 2])
+Action: {_N[ROTATE]}(coord=[512, 640], params=[0, 2])
 
 Thinking: The user wants the battery compartment opened. Nothing on this side looks like a \
 cover, and such compartments are often underneath, so I will look at the bottom.
-Action: Switch_view(params=[bottom])
+Action: {_N[SWITCH_VIEW]}(params=[{BOTTOM}])
 
 Thinking: The rice is still cooking and the lid is locked while it does. I have to wait \
 until it finishes.
-Action: Timed_wait()
+Action: {_N[TIMED_WAIT]}()
 
 Thinking: The labels of the buttons on the panel are too small to read from here. I will \
 move closer to the panel at the top right of the picture.
-Action: Switch_view(coord=[780, 210], params=[dashboard])
+Action: {_N[SWITCH_VIEW]}(coord=[780, 210], params=[{DASHBOARD}])
 """
+"""The system message: the grammar (PROTOCOL §2), the scale, the actions with their parameter
+codes and the views (PROTOCOL §3), all named from `replay.semantics`."""
 
 
 def png_data_url(image: np.ndarray) -> str:
@@ -96,8 +126,8 @@ def views_text(obs: Mapping[str, Any]) -> str:
     """The views of the device, the locked dashboard marked as such."""
     names = []
     for view in obs["views"]:
-        if view == "dashboard" and not obs["dashboard_unlocked"]:
-            names.append("dashboard (locked)")
+        if view == DASHBOARD and not obs["dashboard_unlocked"]:
+            names.append(f"{DASHBOARD} (locked)")
         else:
             names.append(view)
     return ", ".join(names)

@@ -17,11 +17,9 @@ from pathlib import Path
 import msgspec
 
 import replay
-from replay.io import RUN_JSON, RunDirectory, append_record, write_atomic
+from replay.io import FAILURES, RUN_JSON, RunDirectory, append_record, write_atomic
 
 from .._errors import RunDirError
-
-FAILURES = "failures.jsonl"
 
 
 class FailureRecord(msgspec.Struct, frozen=True):

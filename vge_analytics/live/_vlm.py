@@ -100,7 +100,7 @@ class _VLMPlayer:
         said = observation_text(obs, self.last_action)
         answered = step.output
         if answered is None:  # a structured action (a human's, or the fix) as a call
-            answered = f"Action: {replay.parse_log_step(step).action_text}"
+            answered = f"Action: {replay.semantics.parse_log_step(step).action_text}"
         self._pending = Turn(said, png_data_url(obs["image"]), answered)
         self.observe(after, info)
 

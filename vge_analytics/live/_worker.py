@@ -117,7 +117,7 @@ class Worker:
             try:
                 reply = player.act(obs)
             except ContextExceededError:
-                ended = "context_exceeded"  # an outcome of the agent's settings, not a failure
+                ended = replay.semantics.CONTEXT_EXCEEDED  # an outcome of the agent's settings, not a failure
                 break
             except InfrastructureError as exc:
                 if self.stop.is_set():
@@ -173,7 +173,7 @@ class Worker:
         )
         session = self.env.session
         assert session is not None
-        return Finished(episode_id, episode_line(log), log, session.termination == "success")
+        return Finished(episode_id, episode_line(log), log, session.termination == replay.semantics.SUCCESS)
 
     def _copy(self, cut: Cut, steps: list[replay.LogStep]) -> None:
         """The source's episode as it was, replayed for what this run records: steps after
@@ -243,7 +243,7 @@ def replayed_success(bench: replay.Benchmark, log: replay.EpisodeLog, lam: float
     )
     for s in log.steps:
         session.advance(s)
-    return session.termination == "success"
+    return session.termination == replay.semantics.SUCCESS
 
 
 __all__ = [

@@ -1,39 +1,42 @@
 """The metrics (PROTOCOL §6): each defined once, in its `.sql` file, in one registry, with the
 metric files users add, their checks, the computation in DuckDB and the polars cross-check."""
 
-from ._compute import (
-    compose,
-    episode_terms,
-    metric_table,
-    metrics,
-)
-from ._polars import (
-    polars_metrics,
-)
-from ._registry import (
-    BUILTIN_NAMES,
-    CONTINUATION_METRICS,
-    MAIN_TABLE,
-    METRIC_NAMES,
-    Metric,
-    get_metric,
-    registry,
-)
-from ._set import (
-    METRIC_GROUPS,
-    METRICS_DIR_ENV,
-    MetricSet,
-    MetricsSource,
-    default_folder,
-    fingerprint,
-    load_metrics,
-    metric_set,
-    same_definition,
-)
+from typing import TYPE_CHECKING
+
+from replay import lazy_names
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ._compute import (
+        episode_terms,
+        metric_table,
+        metrics,
+    )
+    from ._polars import (
+        polars_metrics,
+    )
+    from ._registry import (
+        BUILTIN_NAMES,
+        CONTINUATION_METRICS,
+        MAIN_TABLE,
+        METRIC_NAMES,
+        Metric,
+        get_metric,
+        registry,
+    )
+    from ._set import (
+        METRIC_GROUPS,
+        METRICS_DIR_ENV,
+        MetricSet,
+        MetricsSource,
+        default_folder,
+        fingerprint,
+        load_metrics,
+        metric_set,
+        same_definition,
+    )
 
 __all__ = [
     "BUILTIN_NAMES",
-    "compose",
     "CONTINUATION_METRICS",
     "default_folder",
     "episode_terms",
@@ -54,3 +57,5 @@ __all__ = [
     "registry",
     "same_definition",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

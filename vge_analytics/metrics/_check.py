@@ -3,7 +3,7 @@ table, as one aggregate giving numbers.
 
 DuckDB binds (without running) `SELECT g.run_id, (<expression>) FROM <grain> AS g GROUP BY
 g.run_id` over empty tables with the replay's output schema (`replay.arrow_schema`), the
-shape in which `_metrics.compose` uses the expression. That catches an unknown column, a
+shape in which `store.ratio_query` uses the expression. That catches an unknown column, a
 syntax error, a column used outside an aggregate, an expression that is not a number, and
 text that is not one expression (a `;`, extra columns). The connection doing it is locked
 like the store's (`_locked`: no file access, a read-only catalog, no extensions, settings
@@ -34,6 +34,7 @@ import duckdb
 import pyarrow as pa
 
 import replay
+from replay.io import TABLE_ROWS
 
 from ..store import NUMERIC_TYPES, locked_connection, register_all
 from ._file import Metric, Problem
@@ -55,8 +56,8 @@ def _schema_connection() -> duckdb.DuckDBPyConnection:
     """A cursor on a locked DuckDB (made once) with empty `steps`, `episodes`, `goals`."""
     with _lock:
         if not _connection:
-            for table in replay.TABLE_ROWS:  # steps, episodes, goals
-                _EMPTY[table] = replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
+            for table, row_type in TABLE_ROWS.items():  # steps, episodes, goals
+                _EMPTY[table] = replay.arrow_schema(row_type).empty_table()
             # Binding needs no worker threads; serializing the parse tree of a long
             # expression (a list of 100,000 constants) takes tens of MB. The depth limit is
             # given at start: so set, it holds for every cursor (SET would hold for one).
@@ -70,7 +71,7 @@ def _schema_connection() -> duckdb.DuckDBPyConnection:
 
 
 def bind_query(grain: str, expression: str) -> str:
-    """The statement that binds `expression` as `_metrics.compose` uses it (the expression
+    """The statement that binds `expression` as `store.ratio_query` uses it (the expression
     starts on line 2; `grain` is one of the three fixed table names)."""
     return (
         "SELECT g.run_id AS __group, (\n"

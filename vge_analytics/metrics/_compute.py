@@ -1,10 +1,9 @@
 """PROTOCOL §6 metrics in DuckDB: the registry's SQL, grouped by any column, at query time.
 
-One statement per call: for each grain the requested metrics need (episodes, steps, goals),
-one aggregate over that table (joined to episodes/runs only when a grouping or filter column
-lives there) computing every metric's numerator and denominator; the aggregates are joined on
-the group keys and each metric is `scale * numerator / nullif(denominator, 0)`, so an empty
-group gives null and never a division error. Groups come out sorted by the group columns.
+Which metrics, and whether they can be grouped and filtered as asked, is said here; the
+statement computing them (every metric's numerator and denominator per grain, joined on the
+group keys, each metric `scale * numerator / nullif(denominator, 0)`) is composed whole by the
+store (`store.ratio_query`) and run through its guarded door (`store.run_query`).
 """
 
 from __future__ import annotations
@@ -13,19 +12,16 @@ from collections.abc import Sequence
 
 import polars as pl
 
+from replay.io import EPISODES_TABLE, GOALS_TABLE, RUNS_TABLE, STEPS_TABLE
+
 from .._errors import UnknownColumnError
 from ..store import (
     Filters,
     GroupBy,
     Store,
-    check_columns,
-    grouped_aggregate,
-    null_safe_join,
     open_store,
-    order_by,
     parse_by,
-    quote_ident,
-    run_keys_scope,
+    ratio_query,
     run_query,
 )
 from ._registry import Metric
@@ -34,30 +30,16 @@ from ._set import MetricSet, MetricsSource, metric_set
 MetricNames = str | Sequence[str] | None
 
 
-def _term(metric: Metric, part: str) -> str:
-    return quote_ident(f"{metric.name}:{part}")
-
-
-def _grain_query(store: Store, grain: str, metrics: list[Metric], by, where) -> tuple[str, list]:
-    # Each expression on lines of its own, as `_metric_check` binds it: a trailing `--`
-    # comment in a metric file ends with its line.
-    terms = []
-    for m in metrics:
-        terms.append((f"coalesce(\n{m.numerator}\n, 0)", f"{m.name}:num"))
-        terms.append((f"coalesce(\n{m.denominator}\n, 0)", f"{m.name}:den"))
-    return grouped_aggregate(store, grain, by, where, terms)
-
-
 def _check_grains(
     store: Store, columns: Sequence[str], metrics: list[Metric], available: MetricSet
 ) -> None:
     """A steps- or goals-only column can group only the metrics computed from that table."""
     for col in columns:
-        if store.has_column("episodes", col) or store.has_column("runs", col):
+        if store.has_column(EPISODES_TABLE, col) or store.has_column(RUNS_TABLE, col):
             continue
-        tables = [t for t in ("steps", "goals") if store.has_column(t, col)]
+        tables = [t for t in (STEPS_TABLE, GOALS_TABLE) if store.has_column(t, col)]
         if not tables:
-            continue  # unknown everywhere: check_columns says so
+            continue  # unknown everywhere: the store's column check says so
         blocked = [m.name for m in metrics if m.grain not in tables]
         if blocked:
             usable = [m.name for m in available if m.grain in tables]
@@ -68,74 +50,28 @@ def _check_grains(
             )
 
 
-def compose(
-    store: Store,
+def _computed(
+    out,
     by: Sequence[str],
-    metrics: list[Metric],
-    where: Filters = None,
+    names: MetricNames,
+    where: Filters,
+    metrics_dir: MetricsSource,
     *,
     terms: bool = False,
-    available: MetricSet | None = None,
-) -> tuple[str, list]:
-    """The SQL text and bound parameters computing `metrics` per group of `by`.
-
-    With `terms=True` the result holds each metric's numerator and denominator
-    (`"<name>:num"`, `"<name>:den"`) instead of its value. `available`: the set `metrics`
-    come from (named in messages; default the built-ins).
-    """
-    grains = [g for g in ("episodes", "steps", "goals") if any(m.grain == g for m in metrics)]
-    clash = [m.name for m in metrics if m.name in by]
+) -> tuple[pl.DataFrame, list[Metric]]:
+    """The metrics `names` of the set `metrics_dir` per group of `by` (or their terms), and
+    the metrics chosen: checked here, composed and run by the store."""
+    store = open_store(out)
+    available = metric_set(metrics_dir)
+    chosen = available.resolve(names)
+    clash = [m.name for m in chosen if m.name in by]
     if clash:
         raise UnknownColumnError(
             f"metric {clash[0]!r} has the name of a grouping column; group by other columns"
         )
-    _check_grains(store, [*by, *(where or {})], metrics, available or MetricSet.builtin())
-    check_columns(store, [*by, *(where or {})], grains, "grouping/filter")
-    ctes: list[str] = []
-    params: list[object] = []
-    for grain in grains:
-        sql, p = _grain_query(store, grain, [m for m in metrics if m.grain == grain], by, where)
-        ctes.append(f"agg_{grain} AS ({sql})")
-        params.extend(p)
-
-    key_names = list(by)
-    keys_cols = ", ".join(quote_ident(n) for n in key_names)
-    runs_scope = run_keys_scope(store, by, where)
-    if not key_names:
-        keys_sql = "SELECT 1 AS __one"
-    elif runs_scope is not None:
-        keys_sql = (
-            f"SELECT DISTINCT {runs_scope.key_select} FROM {runs_scope.from_sql} "
-            f"WHERE {runs_scope.where_sql}"
-        )
-        params.extend(runs_scope.params)
-        # Groups present in the data but missing from runs (should not happen) still show.
-        keys_sql += "".join(f" UNION SELECT {keys_cols} FROM agg_{g}" for g in grains)
-    else:
-        keys_sql = " UNION ".join(f"SELECT {keys_cols} FROM agg_{g}" for g in grains)
-    ctes.append(f"keys AS ({keys_sql})")
-
-    select = [f"k.{quote_ident(n)}" for n in key_names]
-    for m in metrics:
-        src = f"agg_{m.grain}"
-        num, den = f"{src}.{_term(m, 'num')}", f"{src}.{_term(m, 'den')}"
-        if terms:
-            select.append(f"coalesce({num}, 0) AS {_term(m, 'num')}")
-            select.append(f"coalesce({den}, 0) AS {_term(m, 'den')}")
-        else:
-            select.append(f"CAST(? AS DOUBLE) * {num} / nullif({den}, 0) AS {quote_ident(m.name)}")
-    joins = "".join(
-        f" LEFT JOIN agg_{g} ON {null_safe_join('k', f'agg_{g}', key_names)}" for g in grains
-    )
-    sql = (
-        "WITH "
-        + ", ".join(ctes)
-        + f" SELECT {', '.join(select)} FROM keys AS k{joins}"
-        + order_by(key_names, "k")
-    )
-    if not terms:
-        params.extend(m.scale for m in metrics)
-    return sql, params
+    _check_grains(store, [*by, *(where or {})], chosen, available)
+    sql, params = ratio_query(store, by, chosen, where, terms=terms)
+    return run_query(store, sql, params), chosen
 
 
 def metrics(
@@ -161,12 +97,7 @@ def metrics(
 
     Columns: the group columns, then one Float64 column per metric (null for an empty group).
     """
-    store = open_store(out)
-    available = metric_set(metrics_dir)
-    chosen = available.resolve(metrics)
-    by_cols = parse_by(by)
-    sql, params = compose(store, by_cols, chosen, where, available=available)
-    df = run_query(store, sql, params)
+    df, chosen = _computed(out, parse_by(by), metrics, where, metrics_dir)
     return df.with_columns(pl.col(m.name).cast(pl.Float64) for m in chosen)
 
 
@@ -182,13 +113,7 @@ def episode_terms(
     Adding the terms of any set of episodes and taking `scale * num / den` gives that set's
     pooled metric: this is what the paired bootstrap of `compare` resamples.
     """
-    store = open_store(out)
-    available = metric_set(metrics_dir)
-    chosen = available.resolve(metrics)
-    sql, params = compose(
-        store, ("run_id", "episode_id"), chosen, where, terms=True, available=available
-    )
-    return run_query(store, sql, params)
+    return _computed(out, ("run_id", "episode_id"), metrics, where, metrics_dir, terms=True)[0]
 
 
 def metric_table(metrics_dir: MetricsSource = None) -> pl.DataFrame:
@@ -215,4 +140,4 @@ def metric_table(metrics_dir: MetricsSource = None) -> pl.DataFrame:
     return pl.DataFrame(rows)
 
 
-__all__ = ["compose", "episode_terms", "metric_table", "metrics", "run_query"]
+__all__ = ["episode_terms", "metric_table", "metrics"]

@@ -39,6 +39,8 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
+from replay.io import GRAINS
+
 Direction = Literal["higher", "lower"]
 Unit = Literal["percent", "ratio", "distance"]
 Level = Literal["episode-mean", "step-ratio", "run-level ratio", "goal-ratio"]
@@ -47,7 +49,6 @@ Grain = Literal["episodes", "steps", "goals"]
 DIRECTIONS: tuple[str, ...] = ("higher", "lower")
 UNITS: tuple[str, ...] = ("percent", "ratio", "distance")
 LEVELS: tuple[str, ...] = ("episode-mean", "step-ratio", "run-level ratio", "goal-ratio")
-GRAINS: tuple[str, ...] = ("episodes", "steps", "goals")
 SECTIONS: tuple[str, ...] = ("numerator", "denominator")
 
 REQUIRED_KEYS: tuple[str, ...] = (
@@ -186,138 +187,141 @@ def _check_value(key: str, value: str, line: int, path: str) -> Problem | None:
     return None
 
 
-def parse_metric_file(text: str, path: str) -> tuple[Metric | None, list[Problem]]:
-    """The metric a file defines, and every problem found in it (the metric is None when
-    there is any). `path` is how messages name the file."""
-    header: dict[str, str] = {}
-    key_lines: dict[str, int] = {}
-    sections: dict[str, _Section] = {}
-    problems: list[Problem] = []
-    current_key: str | None = None
-    current: _Section | None = None
-    lines = text.splitlines()
-    for number, raw in enumerate(lines, 1):
+class _Reader:
+    """Reads a metric file line by line: the header's keys and values (with the line of
+    each), the SQL sections, and every problem on the way."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.header: dict[str, str] = {}
+        self.key_lines: dict[str, int] = {}
+        self.sections: dict[str, _Section] = {}
+        self.problems: list[Problem] = []
+        self._key: str | None = None  # the header key a continuation line adds to
+        self._section: _Section | None = None  # the section SQL lines go to
+
+    def problem(self, line: int, message: str) -> None:
+        self.problems.append(Problem(self.path, line, message))
+
+    def read(self, number: int, raw: str) -> None:
         line = raw.rstrip()
-        sec = _SECTION.match(line)
-        if sec:
-            name = sec.group(1)
-            if name in sections:
-                problems.append(
-                    Problem(path, number, f"a second '-- {name}' line (one {name} per file)")
-                )
-            current = _Section(number, [])
-            sections.setdefault(name, current)
-            current_key = None
-            continue
-        head = _HEADER.match(line)
-        if current is not None:
-            if head and head.group(1) in HEADER_KEYS:
-                problems.append(
-                    Problem(
-                        path,
-                        number,
-                        f"header line '-- {head.group(1)}:' after the SQL sections "
-                        "(the header comes first)",
-                    )
-                )
-            else:
-                current.body.append((number, raw))
-            continue
-        if not line.strip():
-            current_key = None
-            continue
-        if not line.lstrip().startswith("--"):
-            problems.append(
-                Problem(
-                    path,
-                    number,
-                    "SQL before the '-- numerator' line (the header holds '-- key: value' "
-                    "lines only)",
-                )
+        section = _SECTION.match(line)
+        if section:
+            self._start_section(number, section.group(1))
+        elif self._section is not None:
+            self._section_line(number, raw, _HEADER.match(line))
+        elif not line.strip():
+            self._key = None
+        elif not line.lstrip().startswith("--"):
+            self.problem(
+                number,
+                "SQL before the '-- numerator' line (the header holds '-- key: value' lines only)",
             )
-            current_key = None
-            continue
+            self._key = None
+        else:
+            self._header_line(number, line)
+
+    def _start_section(self, number: int, name: str) -> None:
+        if name in self.sections:
+            self.problem(number, f"a second '-- {name}' line (one {name} per file)")
+        self._section = _Section(number, [])
+        self.sections.setdefault(name, self._section)
+        self._key = None
+
+    def _section_line(self, number: int, raw: str, head: re.Match[str] | None) -> None:
+        assert self._section is not None
+        if head and head.group(1) in HEADER_KEYS:
+            self.problem(
+                number,
+                f"header line '-- {head.group(1)}:' after the SQL sections (the header comes first)",
+            )
+        else:
+            self._section.body.append((number, raw))
+
+    def _header_line(self, number: int, line: str) -> None:
+        """A `--` line of the header: a key, the continuation of one, or a comment."""
+        head = _HEADER.match(line)
         known = head is not None and head.group(1) in HEADER_KEYS
         cont = _CONTINUATION.match(line)
-        if cont and current_key is not None and not known:
-            header[current_key] += " " + cont.group(1).strip()
-            continue
-        if head:
-            key, value = head.group(1), (head.group(2) or "").strip()
-            if not known:
-                problems.append(
-                    Problem(
-                        path,
-                        number,
-                        f"unknown header key {key!r} (known: {', '.join(HEADER_KEYS)})"
-                        + _did_you_mean(key, HEADER_KEYS),
-                    )
-                )
-                current_key = None
-                continue
-            if key in header:
-                problems.append(
-                    Problem(
-                        path,
-                        number,
-                        f"header key {key!r} given twice (first at line {key_lines[key]})",
-                    )
-                )
-                current_key = None
-                continue
-            header[key] = value
-            key_lines[key] = number
-            current_key = key
-            continue
-        current_key = None  # a comment
+        if cont and self._key is not None and not known:
+            self.header[self._key] += " " + cont.group(1).strip()
+            return
+        self._key = None
+        if head is None:
+            return  # a comment
+        key, value = head.group(1), (head.group(2) or "").strip()
+        if not known:
+            self.problem(
+                number,
+                f"unknown header key {key!r} (known: {', '.join(HEADER_KEYS)})"
+                + _did_you_mean(key, HEADER_KEYS),
+            )
+        elif key in self.header:
+            self.problem(
+                number, f"header key {key!r} given twice (first at line {self.key_lines[key]})"
+            )
+        else:
+            self.header[key] = value
+            self.key_lines[key] = number
+            self._key = key
 
-    for key, line in key_lines.items():
-        problem = _check_value(key, header[key], line, path)
-        if problem is not None:
-            problems.append(problem)
-    missing = [k for k in REQUIRED_KEYS if k not in header]
-    if missing:
-        problems.append(
-            Problem(
-                path,
+    def check_header(self) -> None:
+        """Each value as its key takes it, and every required key there."""
+        for key, line in self.key_lines.items():
+            problem = _check_value(key, self.header[key], line, self.path)
+            if problem is not None:
+                self.problems.append(problem)
+        missing = [k for k in REQUIRED_KEYS if k not in self.header]
+        if missing:
+            self.problem(
                 1,
                 f"missing header {'keys' if len(missing) > 1 else 'key'} "
                 f"{', '.join(missing)} (required: {', '.join(REQUIRED_KEYS)})",
             )
-        )
-    end = max(len(lines), 1)
-    texts: dict[str, tuple[str, int]] = {}
-    for name in SECTIONS:
-        if name not in sections:
-            problems.append(Problem(path, end, f"no '-- {name}' section (the metric's {name})"))
-            continue
-        texts[name] = _section_text(sections[name])
-        if not texts[name][0]:
-            problems.append(
-                Problem(path, sections[name].line, f"the {name} is empty (no SQL after it)")
-            )
-    if problems:
-        return None, sorted(problems, key=lambda p: p.line)
-    return (
-        Metric(
-            name=header["metric"],
-            title=header["title"],
-            direction=header["direction"],  # type: ignore[arg-type]
-            unit=header["unit"],  # type: ignore[arg-type]
-            level=header.get("level"),  # type: ignore[arg-type]
-            grain=header["grain"],  # type: ignore[arg-type]
-            version=int(header["version"]),
-            definition=header["definition"],
-            null_rule=header.get("null", ""),
-            numerator=texts["numerator"][0],
-            denominator=texts["denominator"][0],
-            source=path,
-            numerator_line=texts["numerator"][1],
-            denominator_line=texts["denominator"][1],
-            name_line=key_lines["metric"],
-        ),
-        [],
+
+    def section_texts(self, end: int) -> dict[str, tuple[str, int]]:
+        """(SQL text, its first line) of each section; `end`: the file's last line."""
+        texts: dict[str, tuple[str, int]] = {}
+        for name in SECTIONS:
+            if name not in self.sections:
+                self.problem(end, f"no '-- {name}' section (the metric's {name})")
+                continue
+            texts[name] = _section_text(self.sections[name])
+            if not texts[name][0]:
+                self.problem(self.sections[name].line, f"the {name} is empty (no SQL after it)")
+        return texts
+
+
+def parse_metric_file(text: str, path: str) -> tuple[Metric | None, list[Problem]]:
+    """The metric a file defines, and every problem found in it (the metric is None when
+    there is any). `path` is how messages name the file."""
+    reader = _Reader(path)
+    lines = text.splitlines()
+    for number, raw in enumerate(lines, 1):
+        reader.read(number, raw)
+    reader.check_header()
+    texts = reader.section_texts(max(len(lines), 1))
+    if reader.problems:
+        return None, sorted(reader.problems, key=lambda p: p.line)
+    header = reader.header
+    metric = Metric(
+        name=header["metric"],
+        title=header["title"],
+        direction=header["direction"],  # type: ignore[arg-type]
+        unit=header["unit"],  # type: ignore[arg-type]
+        level=header.get("level"),  # type: ignore[arg-type]
+        grain=header["grain"],  # type: ignore[arg-type]
+        version=int(header["version"]),
+        definition=header["definition"],
+        null_rule=header.get("null", ""),
+        numerator=texts["numerator"][0],
+        denominator=texts["denominator"][0],
+        source=path,
+        numerator_line=texts["numerator"][1],
+        denominator_line=texts["denominator"][1],
+        name_line=reader.key_lines["metric"],
     )
+    return metric, []
 
 
 __all__ = [

@@ -13,6 +13,9 @@ from pathlib import Path
 
 import polars as pl
 
+from replay.io import EPISODES_TABLE, GOALS_TABLE, RUNS_TABLE, STEPS_TABLE
+from replay.semantics import SWITCH_VIEW
+
 from .._errors import OutputDirError, UnknownColumnError
 from ..store import GroupBy, parse_by
 from ._registry import METRIC_NAMES, resolve_metrics
@@ -72,7 +75,7 @@ def _episode_aggs() -> dict[str, pl.Expr]:
 def _step_aggs() -> dict[str, pl.Expr]:
     inter = pl.col("is_interaction").fill_null(False)
     has_dist = pl.col("distance").is_not_null()
-    non_switch = pl.col("action_type").is_null() | (pl.col("action_type") != "switch_view")
+    non_switch = pl.col("action_type").is_null() | (pl.col("action_type") != SWITCH_VIEW)
     return {
         "EIR": _ratio((inter & pl.col("hit_component")).sum(), inter.sum(), 100.0),
         "TIR": _ratio((inter & pl.col("hit_target")).sum(), inter.sum(), 100.0),
@@ -102,8 +105,8 @@ def polars_metrics(
     out = Path(out).resolve()
     names = [m.name for m in resolve_metrics(metrics)]
     by_cols = list(parse_by(by))
-    episodes = _scan(out, "episodes")
-    runs = _scan(out, "runs")
+    episodes = _scan(out, EPISODES_TABLE)
+    runs = _scan(out, RUNS_TABLE)
     ep_cols = set(episodes.collect_schema().names())
     run_cols = set(runs.collect_schema().names())
     for col in by_cols:
@@ -120,8 +123,8 @@ def polars_metrics(
     parts: list[pl.DataFrame] = []
     plan = (
         (episodes, _episode_aggs(), _EPISODE_METRICS),
-        (_scan(out, "steps").filter(~pl.col("truncated")), _step_aggs(), _STEP_METRICS),
-        (_scan(out, "goals"), _goal_aggs(), _GOAL_METRICS),
+        (_scan(out, STEPS_TABLE).filter(~pl.col("truncated")), _step_aggs(), _STEP_METRICS),
+        (_scan(out, GOALS_TABLE), _goal_aggs(), _GOAL_METRICS),
     )
     for frame, aggs, group in plan:
         wanted = [n for n in names if n in group]

@@ -31,7 +31,6 @@ from typing import Literal
 
 from .._errors import MetricFileError, UnknownMetricError
 from ..store import MAX_METRIC_FILE, text_too_large
-from ._check import check_metric
 from ._file import Metric, Problem, parse_metric_file
 from ._registry import CONTINUATION_METRICS, MAIN_TABLE, registry
 
@@ -192,6 +191,8 @@ def _read_text(path: Path, shown: str, problems: list[Problem]) -> str | None:
 
 
 def _read_folder(folder: str) -> tuple[list[Metric], list[Problem]]:
+    from ._check import check_metric  # DuckDB binds the SQL: imported when a folder is read
+
     path = Path(folder)
     if not path.exists():
         raise MetricFileError([f"{folder}: metrics folder not found"])

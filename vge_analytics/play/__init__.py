@@ -31,40 +31,46 @@ that changed since a tab last wrote to it (another tab played on) is refused wit
 rather than interleaved.
 """
 
-from ._clicks import (
-    CLICK_ACTIONS,
-    DASHBOARD,
-    INTERACTIONS,
-    PARAM_HINTS,
-    SCALE,
-    SWITCH_VIEW,
-    TIMED_WAIT,
-    action,
-    action_text,
-    click_action,
-    click_id,
-    click_point,
-    parse_params,
-    scale_coordinate,
-)
-from ._page import (
-    FEEDBACK_TONES,
-    PlayState,
-    budget_left,
-    click_hint,
-    goal_text,
-    history,
-    result_text,
-)
-from ._run import (
-    DEFAULT_MODEL,
-    DEFAULT_RUN_DIR,
-    IMAGE_SIZE,
-    EpisodePlay,
-    EpisodeStatus,
-    HumanRun,
-    StepRecord,
-)
+from typing import TYPE_CHECKING
+
+from replay import lazy_names
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ._clicks import (
+        CLICK_ACTIONS,
+        DASHBOARD,
+        INTERACTIONS,
+        PARAM_HINTS,
+        SCALE,
+        SWITCH_VIEW,
+        TIMED_WAIT,
+        action,
+        action_text,
+        click_action,
+        click_id,
+        click_point,
+        parse_params,
+        scale_coordinate,
+    )
+    from ._files import DEFAULT_RUN_DIR
+    from ._page import (
+        FEEDBACK_TONES,
+        PlayState,
+        budget_left,
+        click_hint,
+        goal_text,
+        history,
+        result_headline,
+        result_text,
+    )
+    from ._run import (
+        DEFAULT_MODEL,
+        IMAGE_SIZE,
+        EpisodePlay,
+        EpisodeStatus,
+        HumanRun,
+        StepRecord,
+    )
 
 __all__ = [
     "CLICK_ACTIONS",
@@ -93,6 +99,9 @@ __all__ = [
     "goal_text",
     "history",
     "parse_params",
+    "result_headline",
     "result_text",
     "scale_coordinate",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

@@ -9,6 +9,7 @@ from typing import Any
 
 import replay
 from replay import DASHBOARD, DISPLAY_NAMES, SCALE
+from replay.semantics import GRASP, PARAMETER_NAMES, PRESS, PULL, PUSH, ROTATE, codes_text
 
 from .._errors import PlayError
 
@@ -20,18 +21,18 @@ CLICK_ACTIONS = (*INTERACTIONS, SWITCH_VIEW)
 """What a click on the image can do (a `Switch_view` with a point unlocks the dashboard
 when the point is on its panel, PROTOCOL §3.2)."""
 
+_DEFAULTS = {PRESS: "0", ROTATE: "0, 1", PUSH: "4", PULL: "4", GRASP: "0"}
+"""What the page pre-fills: a short press, a notch clockwise, inwards, outwards, take hold."""
 PARAM_HINTS: dict[str, tuple[str, str]] = {
-    DISPLAY_NAMES[action]: hint
-    for action, hint in {
-        "press": ("0", "0: a short press, 1: press and hold, 2: double press"),
-        "rotate": ("0, 1", "direction (0: clockwise, 1: counter-clockwise), then steps; * for any"),
-        "push": ("4", "direction: 0 up, 1 down, 2 left, 3 right, 4 in"),
-        "pull": ("4", "direction: 0 up, 1 down, 2 left, 3 right, 4 out"),
-        "grasp": ("0", "0: pick up, 1: let go"),
-    }.items()
+    DISPLAY_NAMES[action]: (
+        _DEFAULTS[action],
+        f"{PARAMETER_NAMES[action][0]}: {codes_text(action)}"
+        + "".join(f"; then {name}, * when it does not matter" for name in PARAMETER_NAMES[action][1:]),
+    )
+    for action in replay.INTERACTIONS
 }
 """Default parameters of each interaction as the page pre-fills them, with what they mean
-(the conventions of the paper's action space; the device decides what it accepts)."""
+(the codes of the paper's action space, PROTOCOL §2; the device decides what it accepts)."""
 
 
 # ----------------------------------------------------------------------- click mapping

@@ -1,4 +1,4 @@
-"""Reading a human run's journals back up to their last whole line (they are written with
+"""Where a human run is written by default, and reading its journals back up to their last whole line (they are written with
 `replay.io`'s crash-safe writes: whole records in one write and `fsync`, so a crash loses nothing
 shown)."""
 
@@ -9,6 +9,9 @@ from pathlib import Path
 import orjson
 
 from .._errors import PlayError
+
+DEFAULT_RUN_DIR = "human-run"
+"""Where `vge play` writes without `--out`."""
 
 
 def journal_header(path: Path) -> str | None:

@@ -7,6 +7,15 @@ from collections.abc import Mapping, MutableMapping, Sequence
 from typing import Any, Literal
 
 import replay
+from replay.semantics import (
+    ERROR,
+    FEEDBACK_SEVERITY,
+    INFO,
+    LOG_ENDED,
+    SUCCESS,
+    TERMINATION_TEXTS,
+    WARNING,
+)
 
 from .._errors import PlayConflictError, PlayError
 from ._clicks import (
@@ -22,16 +31,11 @@ from ._clicks import (
 )
 from ._run import EpisodePlay, HumanRun, StepRecord, counted
 
-FEEDBACK_TONES: dict[str, Literal["success", "warning", "error"]] = {
-    "transition": "success",
-    "view_switched": "success",
-    "dashboard_unlocked": "success",
-    "wait_no_effect": "warning",
-    "null_effect": "warning",
-    "operational_error": "warning",
-    "invalid_action": "error",
-}
-"""How the page colours a step's feedback, by kind (PROTOCOL §3.6)."""
+Tone = Literal["success", "warning", "error"]
+"""The Streamlit call (`st.success`, ...) that shows a message in a colour."""
+_TONES: dict[str, Tone] = {INFO: "success", WARNING: "warning", ERROR: "error"}
+FEEDBACK_TONES: dict[str, Tone] = {kind: _TONES[s] for kind, s in FEEDBACK_SEVERITY.items()}
+"""How the page colours a step's feedback: by the kind's severity (PROTOCOL §3.6)."""
 
 
 class PlayState:
@@ -208,19 +212,20 @@ def budget_left(value: Any) -> str:
     return f"{float(value):g}"
 
 
-RESULT_HEADLINES: dict[str, str] = {
-    "success": "Success",
-    "budget_global": "Ended: the episode's step budget ran out",
-    "budget_local": "Ended: the step budget of the current goal ran out",
-    "log_ended": "Ended by the player",
-    "context_exceeded": "Ended: the model's context window was full",
-}
-"""How an episode that ended this way (PROTOCOL §3.5) reads, one per termination."""
+def result_headline(termination: str) -> str:
+    """How an episode that ended this way (PROTOCOL §3.5) reads: in Play the log ends when the
+    player gives up; any other ending says why, in the words of `TERMINATION_TEXTS`."""
+    if termination == SUCCESS:
+        return "Success"
+    if termination == LOG_ENDED:
+        return "Ended by the player"
+    ending = TERMINATION_TEXTS.get(termination)
+    return f"Ended: {ending.reason}" if ending is not None else termination
 
 
 def result_text(row: replay.EpisodeRow) -> str:
     """How an ended episode reads."""
-    how = RESULT_HEADLINES.get(row.termination, row.termination)
+    how = result_headline(row.termination)
     return (
         f"**{how}.** {row.goals_completed} of {counted(row.n_goals, 'goal')} completed in "
         f"{counted(row.L_act, 'step')} (the shortest way takes {row.L_opt}); SPL {row.spl:.2f}."
@@ -241,5 +246,6 @@ __all__ = [
     "click_hint",
     "goal_text",
     "history",
+    "result_headline",
     "result_text",
 ]

@@ -22,6 +22,7 @@ import replay
 from replay.env import DeviceEnv
 from replay.io import (
     EPISODES,
+    EPISODES_GZ,
     RUN_JSON,
     RunDirectory,
     append_record,
@@ -34,15 +35,13 @@ from replay.io import (
 from .._errors import PlayConflictError, PlayError
 from ..synth import image_source as default_images
 from ._clicks import action_text
-from ._files import journal_header, journal_steps
+from ._files import DEFAULT_RUN_DIR, journal_header, journal_steps
 
 if TYPE_CHECKING:
     from replay import ImageSource
 
 DEFAULT_MODEL = "human"
 """`model` of a human run unless `--model` names the participant or group."""
-DEFAULT_RUN_DIR = "human-run"
-"""Where `vge play` writes without `--out`."""
 IMAGE_SIZE = 768
 """Side of the square image the environment renders each view at (the scale is relative to
 width and height, so resizing keeps it exact)."""
@@ -163,9 +162,9 @@ class HumanRun:
                         f"{header_path} has {key} {have[key]!r}, not {value!r}: a run keeps "
                         "the settings it was created with (give another --out)"
                     )
-            if (root / f"{EPISODES}.gz").exists():
+            if (root / EPISODES_GZ).exists():
                 raise PlayError(
-                    f"{root} holds {EPISODES}.gz: `vge play` appends to a plain "
+                    f"{root} holds {EPISODES_GZ}: `vge play` appends to a plain "
                     f"{EPISODES} (give another --out)"
                 )
         else:
@@ -279,7 +278,7 @@ class HumanRun:
         """The task's device loads and its goals can be planned (PROTOCOL §4)."""
         task = self.bench.tasks[episode_id].task
         try:
-            replay.setup_episode(self.bench.machine(task.device_id), task)
+            replay.semantics.setup_episode(self.bench.machine(task.device_id), task)
         except replay.VGEError:
             return False
         return True

@@ -1,65 +1,99 @@
 """What is built on the metrics: paired comparisons, trajectories side by side, the error taxonomy and switch classes,
 budget sweeps, rescoring and rankings, and tables rendered for people and for other tools."""
 
-from ._compare import (
-    DEFAULT_RESAMPLES,
-    DEFAULT_SEED,
-    Comparison,
-    compare,
-    mcnemar_exact,
-)
-from ._completeness import (
-    INCOMPLETE_MARK,
-    RunCompleteness,
-    completeness,
-    incomplete_runs,
-    mark_incomplete,
-    mark_rows,
-    with_complete_column,
-)
-from ._diff import (
-    DIFF_COLUMNS,
-    NO_ERROR,
-    Diff,
-    diff,
-)
-from ._format import (
-    FORMATS,
-    check_format,
-    render,
-    render_latex,
-    render_markdown,
-    render_sections,
-    stream_chunks,
-)
-from ._ranking import (
-    competition_ranks,
-    kendall_tau_b,
-)
-from ._rescore import (
-    DEFAULT_RESCORE_BY,
-    Rescore,
-    group_label,
-    rescore,
-)
-from ._sweep import (
-    DEFAULT_SWEEP_METRICS,
-    parse_lambdas,
-    sweep,
-)
-from ._taxonomy import (
-    ERROR_GROUPS,
-    ERROR_LABELS,
-    ERROR_TYPES,
-    SWITCH_CLASSES,
-    error_distribution,
-    error_groups,
-    groups_of,
-    switch_classes,
-)
+from typing import TYPE_CHECKING
+
+from replay import lazy_names
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ._compare import (
+        Comparison,
+        compare,
+        mcnemar_exact,
+    )
+    from ._completeness import (
+        INCOMPLETE_MARK,
+        RunCompleteness,
+        completeness,
+        incomplete_runs,
+        mark_incomplete,
+        mark_rows,
+        with_complete_column,
+    )
+    from ._defaults import (
+        CLUSTER_UNITS,
+        CORRECTIONS,
+        DEFAULT_ALPHA,
+        DEFAULT_CLUSTER,
+        DEFAULT_CORRECTION,
+        DEFAULT_DELTA,
+        DEFAULT_POWER,
+        DEFAULT_RESAMPLES,
+        DEFAULT_RESCORE_BY,
+        DEFAULT_SEED,
+        DEFAULT_SWEEP_METRICS,
+    )
+    from ._diff import (
+        DIFF_COLUMNS,
+        NO_ERROR,
+        Diff,
+        diff,
+    )
+    from ._format import (
+        FORMATS,
+        check_format,
+        render,
+        render_latex,
+        render_markdown,
+        render_sections,
+        stream_chunks,
+    )
+    from ._ranking import (
+        competition_ranks,
+        kendall_tau_b,
+    )
+    from ._rescore import (
+        Rescore,
+        group_label,
+        rescore,
+    )
+    from ._sweep import (
+        parse_lambdas,
+        sweep,
+    )
+    from ._taxonomy import (
+        ERROR_GROUPS,
+        ERROR_LABELS,
+        ERROR_TYPES,
+        SWITCH_CLASSES,
+        error_distribution,
+        error_groups,
+        groups_of,
+        switch_classes,
+    )
+    from .inference import (
+        AllPairs,
+        Repeated,
+        adjust_p,
+        compare_all,
+        metric_intervals,
+        plan,
+        power_of_pair,
+        repeated,
+    )
 
 __all__ = [
+    "adjust_p",
+    "AllPairs",
     "check_format",
+    "CLUSTER_UNITS",
+    "compare_all",
+    "CORRECTIONS",
+    "DEFAULT_ALPHA",
+    "DEFAULT_CLUSTER",
+    "DEFAULT_CORRECTION",
+    "DEFAULT_DELTA",
+    "DEFAULT_POWER",
     "compare",
     "Comparison",
     "competition_ranks",
@@ -85,9 +119,14 @@ __all__ = [
     "mark_incomplete",
     "mark_rows",
     "mcnemar_exact",
+    "metric_intervals",
     "NO_ERROR",
     "parse_lambdas",
+    "plan",
+    "power_of_pair",
     "render",
+    "Repeated",
+    "repeated",
     "render_latex",
     "render_markdown",
     "render_sections",
@@ -100,3 +139,5 @@ __all__ = [
     "switch_classes",
     "with_complete_column",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

@@ -1,14 +1,20 @@
 """Paired comparison of two runs on the episodes both have (human vs VLM, model vs model).
 
 - Metrics: each registry metric on the common episodes for run A and run B, the difference
-  B - A, and a paired bootstrap 95% percentile interval of the difference: the common
-  episodes are resampled with replacement (the same resample for both runs, seeded), and each
-  resample's metric is the pooled `scale * sum(num) / sum(den)` of the resampled episodes'
-  per-episode terms (`episode_terms`), so step-ratio and goal-ratio metrics are resampled by
-  episode, as the unit of the pairing.
+  B - A, and its uncertainty with the benchmark's structure respected (docs/STATISTICS.md):
+  episodes of one device move together, so by default the *devices* are resampled, not the
+  episodes (`cluster`: `device`, `category`, or `episode` for independent episodes). A
+  resample draws the clusters with replacement and takes all their common episodes, the same
+  draw for both runs and every metric; its metric is the pooled `scale * sum(num) /
+  sum(den)` of the drawn episodes' terms (`episode_terms`). Beside the 95% percentile
+  interval: the clustered (CR1) standard error of B - A, the naive one (independent
+  episodes), the design effect (their variances' ratio), the cluster sign-flip p-value, and
+  that p-value adjusted across the metrics reported (`correction`: Holm by default).
 - McNemar's exact test on episode success: b = episodes only A solved, c = episodes only B
   solved; under H0 each discordant pair is A-only with probability 1/2, so the two-sided
-  p-value is min(1, 2 * P(X <= min(b, c))) for X ~ Binomial(b + c, 1/2) (1 when b + c = 0).
+  p-value is min(1, 2 * P(X <= min(b, c))) for X ~ Binomial(b + c, 1/2) (1 when b + c = 0);
+  beside it the clustered McNemar test (Durkalski), which counts the discordant episodes
+  per cluster.
 - The error-type distribution of each run on the common episodes and the difference B - A
   in percentage points (the paper's human vs Gemini table).
 - The episodes that flip: solved by A only, solved by B only.
@@ -25,15 +31,46 @@ from math import comb
 import numpy as np
 import polars as pl
 
-from .._errors import AnalyticsError, UnknownRunError
-from ..metrics import MetricsSource, episode_terms, metric_set
-from ..store import open_store, run_query
+from .._errors import AnalyticsError
+from ..metrics import Metric, MetricsSource, metric_set
+from ..store import Store, check_runs, open_store, run_query
 from ._completeness import completeness
+from ._defaults import DEFAULT_RESAMPLES, DEFAULT_SEED
 from ._taxonomy import ERROR_LABELS, error_distribution
+from .inference import (
+    CLUSTER_COLUMNS,
+    DEFAULT_CLUSTER,
+    DEFAULT_CORRECTION,
+    PairStatistics,
+    adjust_p,
+    check_cluster,
+    check_correction,
+    check_resampling,
+    cluster_codes,
+    clustered_mcnemar,
+    entity_terms,
+    finite,
+    pair,
+    pair_statistics,
+    test_name,
+)
 
-DEFAULT_RESAMPLES = 2000
-DEFAULT_SEED = 0
-_CHUNK = 250
+METRIC_COLUMNS: dict[str, pl.DataType] = {
+    "metric": pl.String,
+    "direction": pl.String,
+    "unit": pl.String,
+    "A": pl.Float64,
+    "B": pl.Float64,
+    "diff": pl.Float64,
+    "ci_low": pl.Float64,
+    "ci_high": pl.Float64,
+    "se": pl.Float64,
+    "se_naive": pl.Float64,
+    "deff": pl.Float64,
+    "p_value": pl.Float64,
+    "p_adjusted": pl.Float64,
+}
+"""The columns of `Comparison.metrics`."""
 
 
 def mcnemar_exact(b: int, c: int) -> float:
@@ -60,9 +97,11 @@ class Comparison:
     seed: int
     resamples: int
     metrics: pl.DataFrame
-    """metric, direction, unit, A, B, diff (B - A), ci_low, ci_high (95% paired bootstrap)."""
+    """metric, direction, unit, A, B, diff (B - A), ci_low, ci_high (95% cluster bootstrap),
+    se (clustered CR1), se_naive, deff, p_value (cluster sign-flip), p_adjusted."""
     mcnemar: pl.DataFrame
-    """One row: n_common, both, a_only (b), b_only (c), neither, p_value."""
+    """One row: n_common, both, a_only (b), b_only (c), neither, p_value (exact McNemar),
+    p_cluster (clustered McNemar)."""
     errors: pl.DataFrame
     """error_group, error_type, label, count_a, count_b, share_a, share_b, diff_pp (B - A)."""
     flips: pl.DataFrame
@@ -70,9 +109,17 @@ class Comparison:
     complete_a: bool | None = None
     complete_b: bool | None = None
     """run.json's `complete` of each run (None: it does not say)."""
+    cluster: str = DEFAULT_CLUSTER
+    """The unit resampled: device, category or episode."""
+    n_clusters: int = 0
+    correction: str = DEFAULT_CORRECTION
+    test: str = ""
+    """The test behind p_value, as the summary names it."""
+    note: str | None = None
+    """What the reader must know (one cluster: no interval)."""
     summary: pl.DataFrame = field(init=False)
     """One row describing the pairing (runs, models, whether each is complete, episode
-    counts, seed, resamples)."""
+    counts, clusters, seed, resamples, correction, test, note)."""
 
     def __post_init__(self) -> None:
         self.summary = pl.DataFrame(
@@ -87,11 +134,20 @@ class Comparison:
                     "n_common": self.n_common,
                     "n_only_a": self.n_only_a,
                     "n_only_b": self.n_only_b,
+                    "cluster": self.cluster,
+                    "n_clusters": self.n_clusters,
                     "seed": self.seed,
                     "resamples": self.resamples,
+                    "correction": self.correction,
+                    "test": self.test,
+                    "note": self.note,
                 }
             ],
-            schema_overrides={"complete_a": pl.Boolean, "complete_b": pl.Boolean},
+            schema_overrides={
+                "complete_a": pl.Boolean,
+                "complete_b": pl.Boolean,
+                "note": pl.String,
+            },
         )
 
     def sections(self) -> dict[str, pl.DataFrame]:
@@ -105,133 +161,60 @@ class Comparison:
         }
 
 
-def _pooled(num: np.ndarray, den: np.ndarray, scale: float) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(den > 0, scale * num / np.where(den > 0, den, 1.0), np.nan)
+def metric_rows(chosen: list[Metric], stats: PairStatistics, correction: str) -> pl.DataFrame:
+    """The metrics section: one row per metric, p-values adjusted across the metrics."""
+    adjusted = adjust_p([finite(p) for p in stats.p_value], correction)
+    rows = []
+    for i, m in enumerate(chosen):
+        a, b = finite(stats.a[i]), finite(stats.b[i])
+        diff = b - a if a is not None and b is not None else None
+        present = diff is not None
+        rows.append(
+            {
+                "metric": m.name,
+                "direction": m.direction,
+                "unit": m.unit,
+                "A": a,
+                "B": b,
+                "diff": diff,
+                "ci_low": stats.ci_low[i] if present else None,
+                "ci_high": stats.ci_high[i] if present else None,
+                "se": finite(stats.se[i]),
+                "se_naive": finite(stats.se_naive[i]),
+                "deff": finite(stats.deff[i]),
+                "p_value": finite(stats.p_value[i]),
+                "p_adjusted": adjusted[i],
+            }
+        )
+    return pl.DataFrame(rows, schema=METRIC_COLUMNS)
 
 
-def _value(x: float) -> float | None:
-    return None if x is None or not np.isfinite(x) else float(x)
-
-
-def compare(
-    out,
-    run_a: str,
-    run_b: str,
-    *,
-    metrics: str | list[str] | None = None,
-    seed: int = DEFAULT_SEED,
-    resamples: int = DEFAULT_RESAMPLES,
-    metrics_dir: MetricsSource = None,
-) -> Comparison:
-    """Compare run B with run A on their common episodes (see the module docstring).
-
-    `metrics_dir`: a metrics folder (or `MetricSet`) whose metrics are compared; default
-    `$VGE_METRICS_DIR`, else the built-ins."""
-    store = open_store(out)
-    if resamples < 1:
-        raise AnalyticsError(f"resamples must be at least 1, not {resamples}")
-    known = store.run_ids()
-    for run in (run_a, run_b):
-        if run not in known:
-            raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
-    if run_a == run_b:
-        raise AnalyticsError(f"compare needs two different runs, got {run_a!r} twice")
-    available = metric_set(metrics_dir)
-    chosen = available.resolve(metrics)
-
+def _episodes(store: Store, run_a: str, run_b: str) -> tuple[pl.DataFrame, pl.DataFrame]:
     eps = run_query(
         store,
         "SELECT run_id, model, episode_id, device_id, category, success FROM episodes "
         "WHERE run_id IN (SELECT unnest(CAST(? AS VARCHAR[])))",
         [[run_a, run_b]],
     )
-    a_eps = eps.filter(pl.col("run_id") == run_a)
-    b_eps = eps.filter(pl.col("run_id") == run_b)
-    ids_a, ids_b = set(a_eps["episode_id"]), set(b_eps["episode_id"])
-    common = sorted(ids_a & ids_b)
-    if not common:
-        raise AnalyticsError(f"runs {run_a!r} and {run_b!r} have no episode in common")
-    model_a = str(a_eps["model"][0])
-    model_b = str(b_eps["model"][0])
+    return eps.filter(pl.col("run_id") == run_a), eps.filter(pl.col("run_id") == run_b)
 
-    # ---- metrics with paired bootstrap CIs
-    terms = episode_terms(
-        store, [m.name for m in chosen], where={"run_id": [run_a, run_b]}, metrics_dir=available
-    )
-    frame = pl.DataFrame({"episode_id": common})
-    aligned = {}
-    for run in (run_a, run_b):
-        part = terms.filter(pl.col("run_id") == run).drop("run_id")
-        aligned[run] = frame.join(part, on="episode_id", how="left").fill_null(0)
-    rng = np.random.default_rng(seed)
-    n = len(common)
-    cols = []
-    for m in chosen:
-        for run in (run_a, run_b):
-            for part in ("num", "den"):
-                cols.append(aligned[run][f"{m.name}:{part}"].cast(pl.Float64).to_numpy())
-    matrix = np.column_stack(cols)  # n x (4 * metrics)
-    boot_sums = np.empty((resamples, matrix.shape[1]))
-    done = 0
-    while done < resamples:
-        size = min(_CHUNK, resamples - done)
-        counts = rng.multinomial(n, np.full(n, 1.0 / n), size=size).astype(np.float64)
-        boot_sums[done : done + size] = counts @ matrix
-        done += size
-    totals = matrix.sum(axis=0)
-    rows = []
-    for i, m in enumerate(chosen):
-        j = 4 * i
-        a_val = _pooled(totals[j], totals[j + 1], m.scale)
-        b_val = _pooled(totals[j + 2], totals[j + 3], m.scale)
-        a_boot = _pooled(boot_sums[:, j], boot_sums[:, j + 1], m.scale)
-        b_boot = _pooled(boot_sums[:, j + 2], boot_sums[:, j + 3], m.scale)
-        diffs = b_boot - a_boot
-        finite = diffs[np.isfinite(diffs)]
-        a_v, b_v = _value(float(a_val)), _value(float(b_val))
-        diff = b_v - a_v if a_v is not None and b_v is not None else None
-        if diff is not None and finite.size:
-            low, high = np.percentile(finite, [2.5, 97.5])
-            ci_low, ci_high = float(low), float(high)
-        else:
-            ci_low = ci_high = None
-        rows.append(
-            {
-                "metric": m.name,
-                "direction": m.direction,
-                "unit": m.unit,
-                "A": a_v,
-                "B": b_v,
-                "diff": diff,
-                "ci_low": ci_low,
-                "ci_high": ci_high,
-            }
-        )
-    metrics_df = pl.DataFrame(
-        rows,
-        schema={
-            "metric": pl.String,
-            "direction": pl.String,
-            "unit": pl.String,
-            "A": pl.Float64,
-            "B": pl.Float64,
-            "diff": pl.Float64,
-            "ci_low": pl.Float64,
-            "ci_high": pl.Float64,
-        },
-    )
 
-    # ---- McNemar on success, and the flips
+def success_tests(
+    a_eps: pl.DataFrame, b_eps: pl.DataFrame, cluster_column: str
+) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """(the McNemar section, the flips) from both runs' episodes (success per episode)."""
     paired = (
         a_eps.select("episode_id", "device_id", "category", pl.col("success").alias("a"))
         .join(b_eps.select("episode_id", pl.col("success").alias("b")), on="episode_id")
         .sort("episode_id")
     )
+    a_only_each = (paired["a"] & ~paired["b"]).cast(pl.Float64).to_numpy()
+    b_only_each = (~paired["a"] & paired["b"]).cast(pl.Float64).to_numpy()
+    codes, names = cluster_codes(paired[cluster_column].to_list())
+    per_a = np.bincount(codes, weights=a_only_each, minlength=len(names))
+    per_b = np.bincount(codes, weights=b_only_each, minlength=len(names))
     both = int((paired["a"] & paired["b"]).sum())
-    a_only = int((paired["a"] & ~paired["b"]).sum())
-    b_only = int((~paired["a"] & paired["b"]).sum())
-    neither = len(paired) - both - a_only - b_only
+    a_only, b_only = int(a_only_each.sum()), int(b_only_each.sum())
     mcnemar = pl.DataFrame(
         [
             {
@@ -239,8 +222,9 @@ def compare(
                 "both": both,
                 "a_only": a_only,
                 "b_only": b_only,
-                "neither": neither,
+                "neither": len(paired) - both - a_only - b_only,
                 "p_value": mcnemar_exact(a_only, b_only),
+                "p_cluster": clustered_mcnemar(per_a, per_b),
             }
         ]
     )
@@ -252,8 +236,11 @@ def compare(
         .select("episode_id", "device_id", "category", "direction")
         .sort("direction", "episode_id")
     )
+    return mcnemar, flips
 
-    # ---- error distributions on the common episodes
+
+def error_difference(store: Store, run_a: str, run_b: str, common: list[str]) -> pl.DataFrame:
+    """Both runs' error distributions on the common episodes and B - A in points."""
     dist = error_distribution(
         store, by=("run_id",), where={"run_id": [run_a, run_b], "episode_id": common}
     )
@@ -266,7 +253,7 @@ def compare(
     b_d = dist.filter(pl.col("run_id") == run_b).select(
         "error_type", pl.col("count").alias("count_b"), pl.col("share").alias("share_b")
     )
-    errors = (
+    return (
         a_d.join(b_d, on="error_type", how="full", coalesce=True, maintain_order="left")
         .with_columns(
             label=pl.col("error_type").replace_strict(ERROR_LABELS),
@@ -284,24 +271,86 @@ def compare(
         )
     )
 
+
+def _check_runs(store: Store, run_a: str, run_b: str) -> None:
+    check_runs(store, [run_a, run_b])
+    if run_a == run_b:
+        raise AnalyticsError(f"compare needs two different runs, got {run_a!r} twice")
+
+
+def single_cluster_note(cluster: str, n_clusters: int) -> str | None:
+    """The note of a pair whose episodes fall in fewer than two clusters, else None."""
+    if n_clusters >= 2:
+        return None
+    return (
+        f"the common episodes are all in one {cluster}: no {cluster}-clustered interval, "
+        "standard error or p-value (a spread between clusters needs two or more; "
+        "--cluster episode treats the episodes as independent)"
+    )
+
+
+def compare(
+    out,
+    run_a: str,
+    run_b: str,
+    *,
+    metrics: str | list[str] | None = None,
+    seed: int = DEFAULT_SEED,
+    resamples: int = DEFAULT_RESAMPLES,
+    cluster: str = DEFAULT_CLUSTER,
+    correction: str = DEFAULT_CORRECTION,
+    metrics_dir: MetricsSource = None,
+) -> Comparison:
+    """Compare run B with run A on their common episodes (see the module docstring).
+
+    `metrics_dir`: a metrics folder (or `MetricSet`) whose metrics are compared; default
+    `$VGE_METRICS_DIR`, else the built-ins."""
+    store = open_store(out)
+    check_resampling(seed, resamples)
+    check_cluster(cluster)
+    check_correction(correction)
+    _check_runs(store, run_a, run_b)
+    available = metric_set(metrics_dir)
+    chosen = available.resolve(metrics)
+    a_eps, b_eps = _episodes(store, run_a, run_b)
+    ids_a, ids_b = set(a_eps["episode_id"]), set(b_eps["episode_id"])
+    if not ids_a & ids_b:
+        raise AnalyticsError(f"runs {run_a!r} and {run_b!r} have no episode in common")
+
+    terms = entity_terms(store, {run_a: [run_a], run_b: [run_b]}, chosen, available)
+    paired = pair(terms, run_a, run_b, chosen, cluster)
+    (stats,) = pair_statistics([paired], [m.scale for m in chosen], seed, resamples)
+    mcnemar, flips = success_tests(a_eps, b_eps, CLUSTER_COLUMNS[cluster])
     said = {r.run_id: r.complete for r in completeness(store, [run_a, run_b])}
     return Comparison(
         run_a=run_a,
         run_b=run_b,
-        model_a=model_a,
-        model_b=model_b,
-        n_common=n,
+        model_a=str(a_eps["model"][0]),
+        model_b=str(b_eps["model"][0]),
+        n_common=len(paired.episodes),
         n_only_a=len(ids_a - ids_b),
         n_only_b=len(ids_b - ids_a),
         seed=seed,
         resamples=resamples,
-        metrics=metrics_df,
+        metrics=metric_rows(chosen, stats, correction),
         mcnemar=mcnemar,
-        errors=errors,
+        errors=error_difference(store, run_a, run_b, paired.episodes),
         flips=flips,
         complete_a=said.get(run_a),
         complete_b=said.get(run_b),
+        cluster=cluster,
+        n_clusters=len(paired.clusters),
+        correction=correction,
+        test=test_name(len(paired.clusters), stats.exact, resamples),
+        note=single_cluster_note(cluster, len(paired.clusters)),
     )
 
 
-__all__ = ["DEFAULT_RESAMPLES", "DEFAULT_SEED", "Comparison", "compare", "mcnemar_exact"]
+__all__ = [
+    "Comparison",
+    "compare",
+    "mcnemar_exact",
+    "METRIC_COLUMNS",
+    "metric_rows",
+    "single_cluster_note",
+]

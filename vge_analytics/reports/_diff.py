@@ -15,8 +15,9 @@ from dataclasses import dataclass
 
 import polars as pl
 
-from .._errors import CommonEpisodesError, UnknownRunError
-from ..store import open_store, run_query
+from .._errors import CommonEpisodesError
+from .._nearest import nearest
+from ..store import check_runs, open_store, run_query
 from ._queries import query_text
 from ._taxonomy import ERROR_LABELS, ERROR_TYPES
 
@@ -136,16 +137,22 @@ def diff(out, run_a: str, run_b: str, *, episodes: Sequence[str] | None = None) 
     Raises `UnknownRunError` for a run not in OUT, `CommonEpisodesError` when the runs share
     no episode or `episodes` names one they do not share."""
     store = open_store(out)
-    known = store.run_ids()
-    for run in (run_a, run_b):
-        if run not in known:
-            raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
+    check_runs(store, [run_a, run_b])
     wanted = None if episodes is None else sorted(set(episodes))
     rows = run_query(store, query_text("diff"), [run_a, run_b, wanted])
     if wanted is not None and rows.height < len(wanted):
         missing = sorted(set(wanted) - set(rows["episode_id"]))
+        common = run_query(
+            store,
+            "SELECT episode_id FROM episodes WHERE run_id = ? "
+            "INTERSECT SELECT episode_id FROM episodes WHERE run_id = ? ORDER BY episode_id",
+            [run_a, run_b],
+        )["episode_id"]
+        close = nearest(missing[0], common.to_list())
         raise CommonEpisodesError(
             f"not replayed in both {run_a!r} and {run_b!r}: episode {_named(missing)}"
+            + (f"; nearest{'' if len(missing) == 1 else f' {missing[0]!r}'}: " if close else "")
+            + ", ".join(close)
         )
     if rows.height == 0:
         raise CommonEpisodesError(f"runs {run_a!r} and {run_b!r} have no episode in common")

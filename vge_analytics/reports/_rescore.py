@@ -26,9 +26,9 @@ from .._errors import ConfigError, UnknownMetricError
 from ..metrics import Metric, MetricSet, MetricsSource, default_folder, metric_set, same_definition
 from ..metrics import metrics as compute_metrics
 from ..store import Filters, GroupBy, open_store, parse_by
+from ._defaults import DEFAULT_RESCORE_BY
 from ._ranking import competition_ranks, kendall_tau_b
 
-DEFAULT_RESCORE_BY: tuple[str, ...] = ("run_id",)
 CHANGES: tuple[str, ...] = ("changed", "added", "removed")
 
 
@@ -170,6 +170,58 @@ _SUMMARY_SCHEMA = {
 }
 
 
+def _ranked(
+    change: MetricChange,
+    keys: pl.DataFrame,
+    by_cols: Sequence[str],
+    before: pl.DataFrame,
+    after: pl.DataFrame,
+) -> pl.DataFrame:
+    """A changed metric's rows: each group's value and rank before and after, the delta,
+    sorted by the rank after."""
+    b = _column(before, keys, by_cols, change.name)
+    a = _column(after, keys, by_cols, change.name)
+    rb = competition_ranks(b, change.before.higher_is_better) if change.before else b
+    ra = competition_ranks(a, change.after.higher_is_better) if change.after else a
+    part = keys.with_columns(
+        pl.Series("before", b, dtype=pl.Float64),
+        pl.Series("after", a, dtype=pl.Float64),
+        pl.Series("rank_before", rb, dtype=pl.Int64),
+        pl.Series("rank_after", ra, dtype=pl.Int64),
+    ).with_columns(delta=pl.col("after") - pl.col("before"))
+    return part.select(pl.lit(change.name).alias("metric"), *by_cols, *_ROW_SCHEMA).sort(
+        ["rank_after", "rank_before", *by_cols], nulls_last=True, maintain_order=True
+    )
+
+
+def _ranking_summary(change: MetricChange, part: pl.DataFrame, by_cols: Sequence[str]) -> dict:
+    """A changed metric in one row: Kendall's tau-b between its rankings and the groups whose
+    rank moved."""
+    both = part.filter(pl.col("rank_before").is_not_null() & pl.col("rank_after").is_not_null())
+    tau = (
+        kendall_tau_b(both["rank_before"].to_list(), both["rank_after"].to_list())
+        if change.change == "changed"
+        else None
+    )
+    moved = []
+    if change.change == "changed":
+        for row in part.iter_rows(named=True):
+            if row["rank_before"] != row["rank_after"]:
+                shown = [
+                    "–" if r is None else str(r) for r in (row["rank_before"], row["rank_after"])
+                ]
+                moved.append(f"{group_label(row, by_cols)} {shown[0]}→{shown[1]}")
+    source = (change.after or change.before).source  # type: ignore[union-attr]
+    return {
+        "metric": change.name,
+        "change": change.change,
+        "source": source,
+        "groups": both.height,
+        "kendall_tau_b": tau,
+        "moved": moved,
+    }
+
+
 def rescore(
     out,
     metrics_dir: MetricsSource = None,
@@ -202,46 +254,9 @@ def rescore(
     summary: list[dict] = []
     keys = _keys(before, after, by_cols) if changes else pl.DataFrame()
     for change in changes:
-        b = _column(before, keys, by_cols, change.name)
-        a = _column(after, keys, by_cols, change.name)
-        rb = competition_ranks(b, change.before.higher_is_better) if change.before else b
-        ra = competition_ranks(a, change.after.higher_is_better) if change.after else a
-        part = keys.with_columns(
-            pl.Series("before", b, dtype=pl.Float64),
-            pl.Series("after", a, dtype=pl.Float64),
-            pl.Series("rank_before", rb, dtype=pl.Int64),
-            pl.Series("rank_after", ra, dtype=pl.Int64),
-        ).with_columns(delta=pl.col("after") - pl.col("before"))
-        part = part.select(pl.lit(change.name).alias("metric"), *by_cols, *_ROW_SCHEMA).sort(
-            ["rank_after", "rank_before", *by_cols], nulls_last=True, maintain_order=True
-        )
+        part = _ranked(change, keys, by_cols, before, after)
         parts.append(part)
-        both = part.filter(pl.col("rank_before").is_not_null() & pl.col("rank_after").is_not_null())
-        tau = (
-            kendall_tau_b(both["rank_before"].to_list(), both["rank_after"].to_list())
-            if change.change == "changed"
-            else None
-        )
-        moved = []
-        if change.change == "changed":
-            for row in part.iter_rows(named=True):
-                if row["rank_before"] != row["rank_after"]:
-                    shown = [
-                        "–" if r is None else str(r)
-                        for r in (row["rank_before"], row["rank_after"])
-                    ]
-                    moved.append(f"{group_label(row, by_cols)} {shown[0]}→{shown[1]}")
-        source = (change.after or change.before).source  # type: ignore[union-attr]
-        summary.append(
-            {
-                "metric": change.name,
-                "change": change.change,
-                "source": source,
-                "groups": both.height,
-                "kendall_tau_b": tau,
-                "moved": moved,
-            }
-        )
+        summary.append(_ranking_summary(change, part, by_cols))
     if parts:
         rows = pl.concat(parts, how="vertical_relaxed")
     else:  # nothing changed: the columns, no row
@@ -257,7 +272,6 @@ def rescore(
 
 __all__ = [
     "CHANGES",
-    "DEFAULT_RESCORE_BY",
     "MetricChange",
     "Rescore",
     "group_label",

@@ -3,7 +3,7 @@
 The inputs come from `OUT/manifest.json` (each run's directory, episodes file and benchmark,
 as given to `vge replay`); their sha256 must still match the manifest (a changed log, task
 file or SSM would make the sweep disagree with OUT, so it is refused). Every episode that OUT
-holds for a run is replayed again at each lambda by `replay.replay_lambdas`, in batches of
+holds for a run is replayed again at each lambda by `replay.io.replay_lambdas`, in batches of
 lines run by the executors of `vge replay` (this process, worker processes, or a Ray
 cluster), and the metrics are computed from the resulting episode rows with the registry's
 own SQL.
@@ -34,23 +34,28 @@ the episode.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import duckdb
 import polars as pl
 import pyarrow as pa
 
 import replay
+from replay.io import (
+    EPISODES_TABLE,
+    RUNS_TABLE,
+    manifest_path,
+)
 
-from .._errors import ConfigError, SweepInputError, SweepRefused, UnknownRunError
-from ..metrics import Metric, MetricsSource, compose, metric_set
-from ..store import Store, open_store, resolve_input, run_query
-
-DEFAULT_SWEEP_METRICS: tuple[str, ...] = ("SR", "SSR")
+from .._errors import ConfigError, SweepInputError, SweepRefused
+from ..metrics import Metric, MetricSet, MetricsSource, metric_set
+from ..metrics import metrics as computed_metrics
+from ..store import Store, check_runs, memory_store, open_store, resolve_input, run_query
+from ._defaults import DEFAULT_SWEEP_METRICS
 
 
 def parse_lambdas(value: str | Sequence[float]) -> list[float]:
@@ -82,11 +87,11 @@ class _RunJob:
     episode_ids: frozenset[str]
     lambdas: tuple[float, ...]
 
-    def tasks(self) -> Iterator[replay.LambdaTask]:
+    def tasks(self) -> Iterator[replay.io.LambdaTask]:
         """The run's lines in batches of BATCH_LINES."""
         lines: list[tuple[int, bytes]] = []
         index = 0
-        for item in replay.iter_lines(self.episodes_file):
+        for item in replay.io.iter_lines(self.episodes_file):
             lines.append(item)
             if len(lines) == BATCH_LINES:
                 yield self._task(index, lines)
@@ -94,8 +99,8 @@ class _RunJob:
         if lines:
             yield self._task(index, lines)
 
-    def _task(self, index: int, lines: list[tuple[int, bytes]]) -> replay.LambdaTask:
-        return replay.LambdaTask(
+    def _task(self, index: int, lines: list[tuple[int, bytes]]) -> replay.io.LambdaTask:
+        return replay.io.LambdaTask(
             run_id=self.run_id,
             model=self.model,
             agent_kind=self.agent_kind,
@@ -149,15 +154,13 @@ def _check_unchanged(out: Path | replay.Location, entry, run_id: str) -> None:
 def _jobs(store: Store, run_ids: Sequence[str] | None, lambdas: list[float]) -> list[_RunJob]:
     manifest = replay.read_manifest(store.out)
     if manifest is None:
-        raise SweepInputError(f"{store.out}/manifest.json: not found; the sweep needs it")
+        raise SweepInputError(f"{manifest_path(store.out)}: not found; the sweep needs it")
     entries = {e.run_id: e for e in manifest.runs}
-    known = store.run_ids()
+    known = check_runs(store, run_ids or [])
     wanted = list(run_ids) if run_ids else known
     for run in wanted:
-        if run not in known:
-            raise UnknownRunError(f"unknown run {run!r} in {store.out}; runs: {', '.join(known)}")
         if run not in entries:
-            raise SweepInputError(f"run {run}: not in {store.out}/manifest.json")
+            raise SweepInputError(f"run {run}: not in {manifest_path(store.out)}")
     eps = run_query(
         store,
         "SELECT run_id, episode_id FROM episodes WHERE run_id IN "
@@ -190,7 +193,7 @@ def _replay(jobs: list[_RunJob], executor) -> pa.Table:
     """Episode rows of every run at every lambda, in line order (the first occurrence of an
     episode counts); the first refusal, in run and line order, ends the sweep."""
 
-    def items() -> Iterator[tuple[_RunJob, replay.LambdaTask]]:
+    def items() -> Iterator[tuple[_RunJob, replay.io.LambdaTask]]:
         for job in jobs:
             for task in job.tasks():
                 yield job, task
@@ -198,7 +201,7 @@ def _replay(jobs: list[_RunJob], executor) -> pa.Table:
     tables: list[pa.Table] = []
     seen: dict[str, set[str]] = {job.run_id: set() for job in jobs}
     ahead = 2 * executor.slots
-    for job, _, batch in replay.in_order(executor, replay.replay_lambdas, items(), ahead):
+    for job, _, batch in replay.io.in_order(executor, replay.io.replay_lambdas, items(), ahead):
         keep: list[bool] = []
         for eid, refusal in zip(batch.episode_ids, batch.refusals, strict=True):
             first = eid not in seen[job.run_id]
@@ -211,26 +214,21 @@ def _replay(jobs: list[_RunJob], executor) -> pa.Table:
     return pa.concat_tables(tables) if tables else schema.empty_table()
 
 
-def _metrics_of(episodes: pa.Table, chosen: list[Metric]) -> pl.DataFrame:
-    """Registry metrics per (run_id, model, lambda) over in-memory episode rows."""
-    con = duckdb.connect(":memory:")
-    try:
-        con.from_arrow(episodes).create_view("episodes")
-        for table in ("steps", "goals"):
-            schema = replay.arrow_schema(replay.TABLE_ROWS[table])
-            con.from_arrow(schema.empty_table()).create_view(table)
-        con.sql('SELECT DISTINCT run_id, model, agent_kind, "lambda" FROM episodes').create_view(
-            "runs"
-        )
-        columns = {
-            t: {r[0]: str(r[1]) for r in con.execute(f"DESCRIBE {t}").fetchall()}
-            for t in ("steps", "episodes", "goals", "runs")
-        }
-        store = Store(out=Path("<sweep>"), con=con, columns=columns, manifest={})
-        sql, params = compose(store, ("run_id", "model", "lambda"), chosen)
-        return run_query(store, sql, params)
-    finally:
-        con.close()
+SWEEP_BY: tuple[str, ...] = ("run_id", "model", "lambda")
+"""The groups of a sweep: a run at a lambda."""
+
+
+def _metrics_of(
+    store: Store, episodes: pa.Table, chosen: list[Metric], available: MetricSet
+) -> pl.DataFrame:
+    """Metrics per (run_id, model, lambda) over in-memory episode rows: the registry's SQL on
+    a store of their own (`memory_store`), guarded and limited as a query over OUT is, and
+    named in messages by OUT."""
+    runs = episodes.select(["run_id", "model", "agent_kind", "lambda"])
+    runs = runs.group_by(runs.column_names).aggregate([])  # a run at each lambda, once
+    tables = {EPISODES_TABLE: episodes, RUNS_TABLE: runs}
+    with contextlib.closing(memory_store(tables, label=store.out, limits=store.limits)) as held:
+        return computed_metrics(held, by=SWEEP_BY, metrics=[m.name for m in chosen], metrics_dir=available)
 
 
 def sweep(
@@ -258,21 +256,21 @@ def sweep(
     lams = parse_lambdas(lambdas)
     available = metric_set(metrics_dir)
     chosen = available.resolve(list(metrics) if metrics else list(DEFAULT_SWEEP_METRICS))
-    not_episode = [m.name for m in chosen if m.grain != "episodes"]
+    not_episode = [m.name for m in chosen if m.grain != EPISODES_TABLE]
     if not_episode:
-        usable = ", ".join(m.name for m in available if m.grain == "episodes")
+        usable = ", ".join(m.name for m in available if m.grain == EPISODES_TABLE)
         raise ConfigError(
             f"the sweep computes metrics from episode rows only; {', '.join(not_episode)} "
             f"need steps or goals (episode metrics: {usable})"
         )
     jobs = _jobs(store, runs, lams)
-    executor = replay.make_executor(workers, ray)
+    executor = replay.io.make_executor(workers, ray)
     try:
         episodes = _replay(jobs, executor)
     finally:
         executor.close()
     names = [m.name for m in chosen]
-    df = _metrics_of(episodes, chosen)
+    df = _metrics_of(store, episodes, chosen, available)
     base = df.sort("lambda").group_by("run_id", maintain_order=True).first()
     base = base.select("run_id", *[pl.col(n).alias(f"__base_{n}") for n in names])
     df = df.join(base, on="run_id", how="left")
@@ -293,4 +291,4 @@ def sweep(
     return df.select(order).sort("run_id", "lambda")
 
 
-__all__ = ["DEFAULT_SWEEP_METRICS", "parse_lambdas", "sweep"]
+__all__ = ["SWEEP_BY", "parse_lambdas", "sweep"]

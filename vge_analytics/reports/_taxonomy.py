@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import polars as pl
 
 import replay
+from replay.io import STEPS_TABLE
 
 from ..store import (
     Filters,
@@ -51,7 +52,7 @@ def _scoped(
 ) -> tuple[str, list]:
     """Scored steps counted per group and `column`, with the group key as a struct `__g`."""
     counted, params = grouped_aggregate(
-        store, "steps", by, where, [(count, "n")], extra_keys=[(f"g.{column}", column)]
+        store, STEPS_TABLE, by, where, [(count, "n")], extra_keys=[(f"g.{column}", column)]
     )
     if by:
         key = "struct_pack(" + ", ".join(f"{quote_ident(c)} := c.{quote_ident(c)}" for c in by)
@@ -70,7 +71,7 @@ def _run(
     column: str,
     count: str,
 ) -> pl.DataFrame:
-    check_columns(store, [*by, *(where or {})], ["steps"], "grouping/filter")
+    check_columns(store, [*by, *(where or {})], [STEPS_TABLE], "grouping/filter")
     scoped, scope_params = _scoped(store, by, where, column, count)
     sql = f"WITH scoped AS ({scoped}) SELECT * FROM ({query_text(name)}) AS q"
     df = run_query(store, sql, [*scope_params, *params])

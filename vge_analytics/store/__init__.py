@@ -2,69 +2,87 @@
 Parquet files the manifest lists; the limits of user SQL, queries in a process of their own,
 the read-only guard; filters and groupings; the tables as frames."""
 
-from ._isolated import (
-    SLOT_WAIT,
-    IsolatedResult,
-    default_max_queries,
-    run_isolated,
-    warm_query_processes,
-)
-from ._limits import (
-    APP_MAX_ROWS,
-    APP_TIMEOUT,
-    CLI_MAX_ROWS,
-    CLI_TIMEOUT,
-    MAX_METRIC_FILE,
-    SqlLimits,
-    format_size,
-    process_memory_cap,
-    text_too_large,
-)
-from ._locked import (
-    locked_connection,
-    register_all,
-)
-from ._scope import (
-    DEFAULT_BY,
-    Filters,
-    GroupBy,
-    build_scope,
-    check_columns,
-    groupable_columns,
-    grouped_aggregate,
-    null_safe_join,
-    order_by,
-    parse_by,
-    run_keys_scope,
-)
-from ._sql import (
-    Batches,
-    query_time_limit,
-    run_query,
-    sql,
-    sql_head,
-    stream,
-)
-from ._store import (
-    NUMERIC_TYPES,
-    Store,
-    bench_dir,
-    clear_cache,
-    open_store,
-    quote_ident,
-    resolve_input,
-    run_entry,
-    table_columns,
-)
-from ._tables import (
-    episode_steps,
-    episodes,
-    facets,
-    goals,
-    runs,
-    steps,
-    steps_with_error,
-)
+from typing import TYPE_CHECKING
+
+from replay import lazy_names
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ._isolated import (
+        IsolatedResult,
+        run_isolated,
+        warm_query_processes,
+    )
+    from ._limits import (
+        APP_MAX_ROWS,
+        APP_TIMEOUT,
+        CLI_MAX_ROWS,
+        CLI_TIMEOUT,
+        MAX_METRIC_FILE,
+        SLOT_WAIT,
+        SqlLimits,
+        default_max_queries,
+        format_size,
+        process_memory_cap,
+        text_too_large,
+    )
+    from ._locked import (
+        locked_connection,
+        register_all,
+    )
+    from ._ratios import (
+        Ratio,
+        ratio_query,
+        term_name,
+    )
+    from ._scope import (
+        DEFAULT_BY,
+        Filters,
+        GroupBy,
+        build_scope,
+        check_columns,
+        groupable_columns,
+        grouped_aggregate,
+        null_safe_join,
+        order_by,
+        parse_by,
+        quote_ident,
+        run_keys_scope,
+    )
+    from ._selection import (
+        SelectionCheck,
+        check_runs,
+        check_selection,
+        describe_filters,
+    )
+    from ._sql import (
+        Batches,
+        guarded_cursor,
+        query_time_limit,
+        run_query,
+        sql,
+        sql_head,
+        stream,
+    )
+    from ._store import (
+        NUMERIC_TYPES,
+        Store,
+        bench_dir,
+        clear_cache,
+        memory_store,
+        open_store,
+        resolve_input,
+        run_entry,
+        table_columns,
+    )
+    from ._tables import (
+        episode_steps,
+        episodes,
+        facets,
+        goals,
+        runs,
+        steps,
+        steps_with_error,
+    )
 
 __all__ = [
     "bench_dir",
@@ -73,9 +91,12 @@ __all__ = [
     "APP_MAX_ROWS",
     "APP_TIMEOUT",
     "default_max_queries",
+    "describe_filters",
     "Batches",
     "build_scope",
     "check_columns",
+    "check_runs",
+    "check_selection",
     "clear_cache",
     "CLI_MAX_ROWS",
     "CLI_TIMEOUT",
@@ -89,9 +110,11 @@ __all__ = [
     "groupable_columns",
     "GroupBy",
     "grouped_aggregate",
+    "guarded_cursor",
     "IsolatedResult",
     "locked_connection",
     "MAX_METRIC_FILE",
+    "memory_store",
     "null_safe_join",
     "NUMERIC_TYPES",
     "open_store",
@@ -100,11 +123,14 @@ __all__ = [
     "process_memory_cap",
     "query_time_limit",
     "quote_ident",
+    "Ratio",
+    "ratio_query",
     "register_all",
     "resolve_input",
     "run_isolated",
     "run_keys_scope",
     "run_query",
+    "SelectionCheck",
     "runs",
     "SLOT_WAIT",
     "sql",
@@ -115,5 +141,8 @@ __all__ = [
     "Store",
     "stream",
     "table_columns",
+    "term_name",
     "text_too_large",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

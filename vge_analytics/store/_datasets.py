@@ -30,12 +30,15 @@ import pyarrow.dataset as pads
 import pyarrow.fs as pafs
 
 import replay
-from replay.io import runs_table
+from replay.io import (
+    RUNS_TABLE,
+    TABLE_ROWS,
+    TABLES,
+    manifest_path,
+    runs_table,
+)
 
 from .._errors import OutputDirError
-
-TABLES: tuple[str, ...] = ("steps", "episodes", "goals", "runs")
-PARTITIONED: tuple[str, ...] = ("steps", "episodes", "goals")
 
 SCAN_OPTIONS: Mapping[str, int] = {
     "batch_size": 16_384,
@@ -55,14 +58,15 @@ class _Dataset(pads.FileSystemDataset):
         return super().scanner(*args, **{**SCAN_OPTIONS, **kwargs})
 
 
-def _empty(table: str) -> pa.Table:
-    if table == "runs":  # the fixed columns the replay writes (no meta_* without a run)
+def empty_table(table: str) -> pa.Table:
+    """A table of OUT with no row: the replay's columns."""
+    if table == RUNS_TABLE:  # the fixed columns the replay writes (no meta_* without a run)
         return runs_table([])
-    return replay.arrow_schema(replay.TABLE_ROWS[table]).empty_table()
+    return replay.arrow_schema(TABLE_ROWS[table]).empty_table()
 
 
 def _refuse(out: replay.Location, what: str) -> OutputDirError:
-    return OutputDirError(f"{out / 'manifest.json'}: {what}")
+    return OutputDirError(f"{manifest_path(out)}: {what}")
 
 
 def _checked(out: replay.Location, table: str, name: object, who: str) -> str:
@@ -93,7 +97,7 @@ def _listed(out: replay.Location, manifest: Mapping, table: str) -> list[tuple[s
         names = outputs.get(table) if isinstance(outputs, dict) else None
         if not isinstance(run_id, str) or not isinstance(names, list):
             raise _refuse(out, f"a run without a run_id and its {table} files ({str(run)[:80]})")
-        who = f"{out / 'manifest.json'}: run {run_id!r} lists"
+        who = f"{manifest_path(out)}: run {run_id!r} lists"
         found += [(_checked(out, table, name, who), run_id) for name in names]
     return sorted(found)
 
@@ -102,8 +106,8 @@ def table_files(
     out: replay.Location, manifest: Mapping | None, table: str
 ) -> list[tuple[str, str | None]]:
     """(path relative to OUT, the run whose rows it holds, or None) of each file of a table."""
-    if table == "runs":
-        names = [f"runs/{n}" for n in (out / "runs").names() if n.endswith(".parquet")]
+    if table == RUNS_TABLE:
+        names = [f"{RUNS_TABLE}/{n}" for n in (out / RUNS_TABLE).names() if n.endswith(".parquet")]
     elif manifest is None:  # a local OUT without a manifest: its folders, file by file
         names = [f"{table}/{rel}" for rel in (out / table).files() if rel.endswith(".parquet")]
     else:
@@ -168,8 +172,8 @@ def table_sources(out: replay.Location, manifest: Mapping | None) -> dict[str, o
     sources: dict[str, object] = {}
     for table in TABLES:
         files = table_files(out, manifest, table)
-        sources[table] = _dataset(out, files) if files else _empty(table)
+        sources[table] = _dataset(out, files) if files else empty_table(table)
     return sources
 
 
-__all__ = ["PARTITIONED", "SCAN_OPTIONS", "TABLES", "table_files", "table_sources"]
+__all__ = ["SCAN_OPTIONS", "empty_table", "table_files", "table_sources"]

@@ -32,9 +32,10 @@ import pyarrow as pa
 
 from .._errors import AnalyticsError, OutputDirError, QueryError, QueryLimitError, QueryRefused
 from ._limits import (
+    SLOT_WAIT,
     SqlLimits,
+    default_max_queries,
     format_size,
-    machine_memory,
     memory_headroom,
     process_memory_cap,
 )
@@ -43,9 +44,6 @@ from ._sql import check_size, sql_head
 GRACE = 5.0
 """Seconds the parent waits past the time limit before it kills the child (the child's own
 timer normally ends the query first, with a clearer message)."""
-
-SLOT_WAIT = 5.0
-"""Seconds a query waits for a free process slot before it is refused."""
 
 _CONTEXT = multiprocessing.get_context("forkserver")
 _ERRORS = {
@@ -72,13 +70,6 @@ def warm_query_processes() -> None:
     from multiprocessing import forkserver
 
     forkserver.ensure_running()
-
-
-def default_max_queries(limits: SqlLimits) -> int:
-    """How many query processes fit in this machine's memory, each at its bound (the memory
-    limit and half again, `memory_headroom`); at least 1. With the default limit (a quarter of
-    the machine) that is 2."""
-    return max(1, machine_memory() // memory_headroom(limits))
 
 
 @cache
@@ -189,4 +180,4 @@ def _run_child(out: str | Path, query: str, rows: int, limits: SqlLimits) -> Iso
     )
 
 
-__all__ = ["GRACE", "SLOT_WAIT", "IsolatedResult", "default_max_queries", "run_isolated", "warm_query_processes"]
+__all__ = ["GRACE", "IsolatedResult", "run_isolated", "warm_query_processes"]

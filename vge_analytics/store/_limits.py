@@ -51,6 +51,9 @@ read whole: its expressions are parsed in the process that loads the folder (the
 server too): the costliest 256 KB found peaks at 0.7 GB for the whole process, 1 MB at 1.6
 GB."""
 
+SLOT_WAIT = 5.0
+"""Seconds a query waits for a free process slot before it is refused."""
+
 _UNITS = {"": 1, "B": 1, "K": 1024, "M": 1024**2, "G": 1024**3, "T": 1024**4}
 _SIZE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([KMGT]?)(?:I?B)?\s*$", re.IGNORECASE)
 
@@ -142,6 +145,13 @@ def memory_headroom(limits: SqlLimits) -> int:
     return limits.memory + max(limits.memory // 2, 256 * 1024**2)
 
 
+def default_max_queries(limits: SqlLimits) -> int:
+    """How many query processes fit in this machine's memory, each at its bound (the memory
+    limit and half again, `memory_headroom`); at least 1. With the default limit (a quarter of
+    the machine) that is 2."""
+    return max(1, machine_memory() // memory_headroom(limits))
+
+
 @contextlib.contextmanager
 def process_memory_cap(limits: SqlLimits) -> Iterator[None]:
     """Cap the process's data segment at its current size plus `memory_headroom(limits)`
@@ -173,7 +183,9 @@ __all__ = [
     "CLI_TIMEOUT",
     "MAX_METRIC_FILE",
     "MAX_SQL_TEXT",
+    "SLOT_WAIT",
     "SqlLimits",
+    "default_max_queries",
     "default_memory_limit",
     "format_size",
     "machine_memory",

@@ -15,17 +15,33 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from replay.io import EPISODES_TABLE, GOALS_TABLE, RUNS_TABLE, STEPS_TABLE
 
 from .._errors import UnknownColumnError
-from ._store import Store, quote_ident
+
+if TYPE_CHECKING:
+    from ._store import Store
 
 GroupBy = str | Sequence[str] | None
 Filters = Mapping[str, object] | None
 
 DEFAULT_BY: tuple[str, ...] = ("run_id", "model")
-GRAINS: tuple[str, ...] = ("episodes", "steps", "goals")
 
-_ALIAS = {"grain": "g", "episodes": "e", "runs": "r"}
+_ALIAS = {"grain": "g", EPISODES_TABLE: "e", RUNS_TABLE: "r"}
+
+
+def quote_ident(name: str) -> str:
+    """Quote a column name as a DuckDB identifier.
+
+    Only ever applied to names that were checked to be existing columns (see
+    `Store.check_column`) or to the fixed metric names of the registry. Inside double quotes
+    the parser reads everything up to the next unescaped `"` as one identifier, and every `"`
+    in the name is doubled, so the name cannot end the identifier early: whatever characters a
+    meta facet key holds, the result is one identifier naming that existing column, never SQL.
+    """
+    return '"' + name.replace('"', '""') + '"'
 
 
 def parse_by(by: GroupBy) -> tuple[str, ...]:
@@ -38,9 +54,9 @@ def parse_by(by: GroupBy) -> tuple[str, ...]:
     return tuple(dict.fromkeys(by))
 
 
-def groupable_columns(store: Store, grain: str = "episodes") -> list[str]:
+def groupable_columns(store: Store, grain: str = EPISODES_TABLE) -> list[str]:
     """Scalar columns usable to group or filter a query on `grain`, sorted."""
-    tables = [grain, "episodes", "runs"] if grain != "runs" else ["runs"]
+    tables = [grain, EPISODES_TABLE, RUNS_TABLE] if grain != RUNS_TABLE else [RUNS_TABLE]
     cols: set[str] = set()
     for t in tables:
         cols.update(c for c in store.columns[t] if store.is_scalar(t, c))
@@ -49,7 +65,8 @@ def groupable_columns(store: Store, grain: str = "episodes") -> list[str]:
 
 def source_table(store: Store, grain: str, column: str) -> str | None:
     """Which table a column of a `grain` query comes from (grain, episodes, runs) or None."""
-    order = [grain, "episodes", "runs"] if grain != "episodes" else ["episodes", "runs"]
+    order = [grain] if grain != EPISODES_TABLE else []
+    order += [EPISODES_TABLE, RUNS_TABLE]
     for table in order:
         if store.has_column(table, column):
             return table
@@ -59,9 +76,10 @@ def source_table(store: Store, grain: str, column: str) -> str | None:
 def check_columns(store: Store, columns: Sequence[str], grains: Sequence[str], what: str) -> None:
     """Raise `UnknownColumnError` unless every column resolves (to a scalar) for every grain."""
     for col in columns:
-        anywhere = [t for t in ("runs", "episodes", "goals", "steps") if store.has_column(t, col)]
+        tables = (RUNS_TABLE, EPISODES_TABLE, GOALS_TABLE, STEPS_TABLE)
+        anywhere = [t for t in tables if store.has_column(t, col)]
         if not anywhere:
-            known = ", ".join(groupable_columns(store, "episodes"))
+            known = ", ".join(groupable_columns(store, EPISODES_TABLE))
             raise UnknownColumnError(
                 f"unknown {what} column {col!r}; columns of runs and episodes: {known}"
             )
@@ -138,7 +156,7 @@ def build_scope(
 ) -> Scope:
     """Resolve `by` and `where` for a query on `grain` (columns must have been checked)."""
     where = dict(where or {})
-    needed: dict[str, list[str]] = {"episodes": [], "runs": []}
+    needed: dict[str, list[str]] = {EPISODES_TABLE: [], RUNS_TABLE: []}
     resolved: dict[str, str] = {}
     for col in [*by, *where]:
         table = source_table(store, grain, col)
@@ -153,22 +171,22 @@ def build_scope(
             resolved[col] = f"{alias}.{quote_ident(col)}"
 
     parts = [f"{grain} AS g"]
-    if needed["episodes"]:
-        cols = ", ".join(quote_ident(c) for c in needed["episodes"])
+    if needed[EPISODES_TABLE]:
+        cols = ", ".join(quote_ident(c) for c in needed[EPISODES_TABLE])
         parts.append(
             "JOIN (SELECT run_id AS __run_id, episode_id AS __episode_id, "
             f"{cols} FROM episodes) AS e "
             "ON e.__run_id = g.run_id AND e.__episode_id = g.episode_id"
         )
-    if needed["runs"]:
-        cols = ", ".join(quote_ident(c) for c in needed["runs"])
+    if needed[RUNS_TABLE]:
+        cols = ", ".join(quote_ident(c) for c in needed[RUNS_TABLE])
         parts.append(
             f"LEFT JOIN (SELECT run_id AS __run_id, {cols} FROM runs) AS r ON r.__run_id = g.run_id"
         )
 
     conditions: list[str] = []
     params: list[object] = []
-    if grain == "steps" and scored_only:
+    if grain == STEPS_TABLE and scored_only:
         conditions.append("NOT g.truncated")
     for col, value in where.items():
         table = source_table(store, grain, col)
@@ -189,16 +207,16 @@ def run_keys_scope(store: Store, by: Sequence[str], where: Filters) -> Scope | N
     Used so that a run with no row after filtering still appears, with null metrics (an empty
     group gives null, never a missing row). Only the filters on run columns apply here.
     """
-    if not by or not all(store.has_column("runs", c) for c in by):
+    if not by or not all(store.has_column(RUNS_TABLE, c) for c in by):
         return None
-    run_filters = {c: v for c, v in (where or {}).items() if store.has_column("runs", c)}
+    run_filters = {c: v for c, v in (where or {}).items() if store.has_column(RUNS_TABLE, c)}
     conditions: list[str] = []
     params: list[object] = []
     for col, value in run_filters.items():
-        sql_type = store.columns["runs"][col]
+        sql_type = store.columns[RUNS_TABLE][col]
         conditions.append(_filter_condition(f"g.{quote_ident(col)}", sql_type, value, params))
     return Scope(
-        grain="runs",
+        grain=RUNS_TABLE,
         keys=[(f"g.{quote_ident(c)}", c) for c in by],
         from_sql="runs AS g",
         where_sql=" AND ".join(conditions) if conditions else "TRUE",
@@ -212,11 +230,11 @@ RUN_COPIES: tuple[str, ...] = ("model", "agent_kind")
 
 def _run_level(store: Store, grain: str, column: str) -> bool:
     """A column whose value is fixed per run: taken from `runs`, after aggregation."""
-    if column == "run_id" or not store.has_column("runs", column):
+    if column == "run_id" or not store.has_column(RUNS_TABLE, column):
         return False
     if column in RUN_COPIES:
         return True
-    return source_table(store, grain, column) == "runs"
+    return source_table(store, grain, column) == RUNS_TABLE
 
 
 def grouped_aggregate(
@@ -263,7 +281,7 @@ def grouped_aggregate(
     cols = ", ".join(quote_ident(c) for c in run_cols)
     conditions = []
     for col, value in outer_where.items():
-        sql_type = store.columns["runs"][col]
+        sql_type = store.columns[RUNS_TABLE][col]
         conditions.append(_filter_condition(f"r.{quote_ident(col)}", sql_type, value, params))
     out_keys = [f"r.{quote_ident(c)}" if c in run_cols else f"i.{quote_ident(c)}" for c in by]
     out_sel = [f"{e} AS {quote_ident(c)}" for e, c in zip(out_keys, by, strict=True)]
@@ -300,7 +318,6 @@ def order_by(names: Sequence[str], alias: str = "") -> str:
 __all__ = [
     "DEFAULT_BY",
     "Filters",
-    "GRAINS",
     "GroupBy",
     "Scope",
     "build_scope",
@@ -310,6 +327,7 @@ __all__ = [
     "null_safe_join",
     "order_by",
     "parse_by",
+    "quote_ident",
     "run_keys_scope",
     "source_table",
 ]

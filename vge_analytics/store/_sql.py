@@ -22,6 +22,11 @@ And every query runs within `SqlLimits` (`_limits`): DuckDB's memory and spill l
 connection, a timer that interrupts the query, and a result that is read batch by batch
 (`stream`) so it never has to fit in memory: `sql` collects at most `limits.memory` bytes of
 it, `sql_head` the first rows. A query stopped by a limit raises `QueryLimitError`.
+
+Every statement that may hold SQL a user wrote goes through one door, `guarded_cursor`:
+`vge sql` and the SQL page (`stream`), and every query of the analytics (`run_query`), a
+metric file's expressions and the `--where` filters among them, over an OUT or over the
+tables a sweep holds in memory (`memory_store`).
 """
 
 from __future__ import annotations
@@ -153,29 +158,43 @@ def analytics_timeout() -> float | None:
     return _ANALYTICS_TIMEOUT.get()
 
 
-def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
-    """Run one of the analytics' queries on the store's locked-down connection (files outside
-    OUT unreadable, settings final). It must be one read-only statement, checked as `vge
-    sql` checks a user's: the metric expressions in it may come from a user's files. It is
-    stopped at the time limit of `query_time_limit`, if one is set."""
+@contextlib.contextmanager
+def guarded_cursor(
+    store: Store, sql: str, timeout: float | None
+) -> Iterator[tuple[duckdb.DuckDBPyConnection, Deadline]]:
+    """The one door through which every statement that may hold SQL a user wrote is run: a
+    metric file's expressions, the `--where` filters, `vge sql`, the SQL page, the sweep's
+    metrics. The block gets a cursor of the store's locked connection (no file opened,
+    a read-only catalog, settings final, DuckDB's memory limit) once the statement is checked
+    to be one read-only query, and the deadline that interrupts it after `timeout` seconds
+    (None: never). Running the statement and reading its result is the block's."""
     cursor = store.cursor()
-    timeout = analytics_timeout()
     deadline = Deadline(cursor, timeout)
     try:
         check_read_only(sql, cursor)
-        return cursor.sql(sql, params=list(params)).pl()
-    except duckdb.Error as exc:
-        if deadline.stopped(exc):
-            raise QueryLimitError(
-                f"{store.out}: a query ran past its time limit of {timeout:g} s and was "
-                "stopped (--timeout sets it)",
-                limit="time",
-            ) from None
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise QueryError(f"{store.out}: query failed: {first}") from None
+        yield cursor, deadline
     finally:
         deadline.cancel()
         cursor.close()
+
+
+def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
+    """Run one of the analytics' queries (`guarded_cursor`: the metric expressions in it may
+    come from a user's files), stopped at the time limit of `query_time_limit`, if one is
+    set; the result as a polars DataFrame."""
+    timeout = analytics_timeout()
+    with guarded_cursor(store, sql, timeout) as (cursor, deadline):
+        try:
+            return cursor.sql(sql, params=list(params)).pl()
+        except duckdb.Error as exc:
+            if deadline.stopped(exc):
+                raise QueryLimitError(
+                    f"{store.out}: a query ran past its time limit of {timeout:g} s and was "
+                    "stopped (--timeout sets it)",
+                    limit="time",
+                ) from None
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise QueryError(f"{store.out}: query failed: {first}") from None
 
 
 def _limit_error(exc: BaseException, limits: SqlLimits, deadline: Deadline) -> Exception:
@@ -270,26 +289,23 @@ def stream(
     leaving the block early stops it. Failures raise `QueryRefused`, `QueryLimitError` or
     `QueryError`, each with a one-line message."""
     limits = limits or SqlLimits.make()
-    check_read_only(query)
+    check_size(query)  # before OUT is opened; the whole check is `guarded_cursor`'s
     store = open_store(out, limits)
-    cursor = store.cursor()
-    deadline = Deadline(cursor, limits.timeout)
+    with guarded_cursor(store, query, limits.timeout) as (cursor, deadline):
 
-    def fail(exc: BaseException) -> Exception:
-        return _limit_error(exc, limits, deadline)
+        def fail(exc: BaseException) -> Exception:
+            return _limit_error(exc, limits, deadline)
 
-    reader = None
-    try:
+        reader = None
         try:
-            reader = cursor.sql(query).to_arrow_reader(batch_size=batch_rows)
-        except _FAILURES as exc:
-            raise fail(exc) from None
-        yield Batches(reader, fail)
-    finally:
-        deadline.cancel()
-        if reader is not None:
-            reader.close()
-        cursor.close()
+            try:
+                reader = cursor.sql(query).to_arrow_reader(batch_size=batch_rows)
+            except _FAILURES as exc:
+                raise fail(exc) from None
+            yield Batches(reader, fail)
+        finally:
+            if reader is not None:
+                reader.close()
 
 
 def _collect(
@@ -363,7 +379,9 @@ __all__ = [
     "analytics_timeout",
     "check_read_only",
     "check_size",
+    "guarded_cursor",
     "query_time_limit",
+    "run_query",
     "sql",
     "sql_head",
     "stream",

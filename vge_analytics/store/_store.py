@@ -31,9 +31,10 @@ import duckdb
 import pyarrow as pa
 
 import replay
+from replay.io import MANIFEST, PARTITIONED, RUNS_TABLE, TABLES, manifest_path
 
 from .._errors import OutputDirError, UnknownRunError
-from ._datasets import PARTITIONED, TABLES, table_sources
+from ._datasets import empty_table, table_sources
 from ._limits import SqlLimits
 from ._locked import locked_connection, register_all
 
@@ -55,29 +56,17 @@ NUMERIC_TYPES: tuple[str, ...] = (
 _SCALAR_TYPES = ("BOOLEAN", *NUMERIC_TYPES, "VARCHAR", "DATE", "TIMESTAMP")
 
 
-def quote_ident(name: str) -> str:
-    """Quote a column name as a DuckDB identifier.
-
-    Only ever applied to names that were checked to be existing columns (see
-    `Store.check_column`) or to the fixed metric names of the registry. Inside double quotes
-    the parser reads everything up to the next unescaped `"` as one identifier, and every `"`
-    in the name is doubled, so the name cannot end the identifier early: whatever characters a
-    meta facet key holds, the result is one identifier naming that existing column, never SQL.
-    """
-    return '"' + name.replace('"', '""') + '"'
-
-
 def _signature(out: Path) -> tuple:
     """Cheap fingerprint of OUT: changes when a replay rewrites it."""
     parts = []
-    for name in ("manifest.json", "runs", *PARTITIONED):
+    for name in (MANIFEST, RUNS_TABLE, *PARTITIONED):
         p = out / name
         try:
             st = p.stat()
             parts.append((name, st.st_mtime_ns, st.st_size))
         except OSError:
             parts.append((name, None, None))
-        if p.is_dir() and name != "runs":
+        if p.is_dir() and name != RUNS_TABLE:
             with contextlib.suppress(OSError):
                 parts.append(tuple(sorted(c.name for c in p.iterdir())))
     return tuple(parts)
@@ -94,7 +83,10 @@ class Store:
     """table -> {column: DuckDB type}, in table order."""
     manifest: dict
     sources: Mapping[str, object] = field(default_factory=dict)
-    """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`)."""
+    """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`), or
+    Arrow tables in memory (`memory_store`)."""
+    limits: SqlLimits | None = None
+    """The memory limits its connection was opened with."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
@@ -105,6 +97,10 @@ class Store:
         register_all(cursor, self.sources)
         return cursor
 
+    def close(self) -> None:
+        """Close its connection (a store of `memory_store`; `open_store`'s are cached)."""
+        self.con.close()
+
     def has_column(self, table: str, name: str) -> bool:
         return name in self.columns[table]
 
@@ -114,7 +110,7 @@ class Store:
     @property
     def meta_columns(self) -> list[str]:
         """Run facet columns (`meta_<key>`) of the runs table."""
-        return [c for c in self.columns["runs"] if c.startswith("meta_")]
+        return [c for c in self.columns[RUNS_TABLE] if c.startswith("meta_")]
 
     def run_ids(self) -> list[str]:
         rows = self.cursor().execute("SELECT DISTINCT run_id FROM runs ORDER BY run_id").fetchall()
@@ -164,7 +160,7 @@ def resolve_input(out: str | Path | replay.Location, recorded: str) -> Path | re
 
 def _read_manifest(out: Path | replay.Location) -> dict | None:
     """OUT's manifest; None when it has none."""
-    path = out / "manifest.json"
+    path = manifest_path(out)
     if not path.exists():
         return None
     try:
@@ -178,7 +174,7 @@ def _entry(runs: list, run_id: str, out: object) -> dict:
     for entry in runs:
         if entry.get("run_id") == run_id:
             return entry
-    raise UnknownRunError(f"run {run_id!r} is not in {out}/manifest.json")
+    raise UnknownRunError(f"run {run_id!r} is not in {out}/{MANIFEST}")
 
 
 def run_entry(out: str | Path | replay.Location, run_id: str) -> dict:
@@ -195,7 +191,7 @@ def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Locat
     bench = resolve_input(out, entry["inputs"]["bench"])
     if not bench.is_dir():
         raise OutputDirError(
-            f"benchmark {entry['inputs']['bench']} (recorded in {out}/manifest.json) not found: "
+            f"benchmark {entry['inputs']['bench']} (recorded in {out}/{MANIFEST}) not found: "
             "start the app from the directory `vge replay` ran in"
         )
     return bench
@@ -208,14 +204,40 @@ def _store(out: Path | replay.Location, manifest: dict | None, limits: SqlLimits
     except (OSError, ValueError, pa.ArrowException) as exc:  # pyarrow's ArrowInvalid: both
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise OutputDirError(f"{out}: cannot read the Parquet tables ({first})") from None
+    try:
+        return _opened(out, manifest or {}, sources, limits)
+    except duckdb.Error as exc:
+        raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
+
+
+def _opened(
+    out: Path | replay.Location, manifest: dict, sources: Mapping[str, object], limits: SqlLimits
+) -> Store:
+    """A store over `sources` on a new locked connection within `limits`, its catalogue read."""
     con = _connection(limits)
-    store = Store(out=out, con=con, columns={}, manifest=manifest or {}, sources=sources)
+    store = Store(out=out, con=con, columns={}, manifest=manifest, sources=sources, limits=limits)
     try:
         store.columns = _catalogue(store)
-    except duckdb.Error as exc:
+    except BaseException:
         con.close()
-        raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
+        raise
     return store
+
+
+def memory_store(
+    tables: Mapping[str, pa.Table],
+    *,
+    label: Path | replay.Location,
+    limits: SqlLimits | None = None,
+) -> Store:
+    """A store over Arrow tables held in memory (the episode rows a sweep replays at each
+    lambda), on a locked connection within `limits` (default `SqlLimits.make()`) as an OUT's
+    store is: every query over it, a metric file's expressions included, meets the same guard
+    and limits (`guarded_cursor`). A table not given is empty, with the replay's columns.
+    `label` is how messages name it (the OUT the tables come from). Not cached: the caller
+    closes it (`Store.close`)."""
+    sources = {t: tables[t] if t in tables else empty_table(t) for t in TABLES}
+    return _opened(label, {}, sources, limits or SqlLimits.make())
 
 
 def _open(out: Path, limits: SqlLimits) -> Store:
@@ -232,10 +254,10 @@ def _open(out: Path, limits: SqlLimits) -> Store:
 
 def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:
     try:
-        data = (out / "manifest.json").read_bytes()
+        data = manifest_path(out).read_bytes()
     except FileNotFoundError:
         raise OutputDirError(
-            f"{out}: not a replay output (no manifest.json); run `vge replay ... --out {out}` first"
+            f"{out}: not a replay output (no {MANIFEST}); run `vge replay ... --out {out}` first"
         ) from None
     except OSError as exc:
         raise OutputDirError(f"{out}: cannot read it ({exc})") from None
@@ -264,7 +286,7 @@ def _remote_signature(out: replay.Location) -> tuple:
     """Fingerprint of a remote OUT: its manifest, which the replay writes last, after every
     table file (the commit marker of object storage, docs/SCALE.md)."""
     try:
-        return ("manifest", (out / "manifest.json").read_bytes())
+        return ("manifest", manifest_path(out).read_bytes())
     except OSError:
         return ("manifest", None)
 
@@ -319,12 +341,10 @@ def table_columns(out: str | Path | Store) -> Mapping[str, list[str]]:
 
 __all__ = [
     "NUMERIC_TYPES",
-    "PARTITIONED",
     "resolve_input",
-    "TABLES",
     "Store",
     "clear_cache",
+    "memory_store",
     "open_store",
-    "quote_ident",
     "table_columns",
 ]

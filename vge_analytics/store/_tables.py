@@ -12,11 +12,12 @@ from collections.abc import Sequence
 import polars as pl
 
 import replay
+from replay.io import EPISODES_TABLE, GOALS_TABLE, RUNS_TABLE, STEPS_TABLE
 
 from .._errors import UnknownColumnError, UnknownRunError
-from ._scope import Filters, build_scope, check_columns
+from ._scope import Filters, build_scope, check_columns, quote_ident
 from ._sql import run_query
-from ._store import open_store, quote_ident
+from ._store import open_store
 
 
 def runs(out) -> pl.DataFrame:
@@ -39,7 +40,7 @@ def facets(out) -> dict[str, list]:
     store = open_store(out)
     result: dict[str, list] = {}
     for col in store.meta_columns:
-        if not store.is_scalar("runs", col):
+        if not store.is_scalar(RUNS_TABLE, col):
             continue
         q = quote_ident(col)
         rows = run_query(store, f"SELECT DISTINCT {q} AS v FROM runs ORDER BY v NULLS LAST", [])
@@ -72,18 +73,18 @@ def episodes(out, where: Filters = None, columns: Sequence[str] | None = None) -
     """Episode rows (PROTOCOL §7 columns), filtered by any column of episodes or runs (e.g.
     `{"run_id": [...], "category": "Microwave", "meta_history": 3}`), sorted by run_id,
     episode_id. `columns` limits the columns returned."""
-    return _select(out, "episodes", where, columns, ["run_id", "episode_id"])
+    return _select(out, EPISODES_TABLE, where, columns, ["run_id", "episode_id"])
 
 
 def goals(out, where: Filters = None, columns: Sequence[str] | None = None) -> pl.DataFrame:
     """Goal rows, filtered like `episodes`, sorted by run_id, episode_id, goal_index."""
-    return _select(out, "goals", where, columns, ["run_id", "episode_id", "goal_index"])
+    return _select(out, GOALS_TABLE, where, columns, ["run_id", "episode_id", "goal_index"])
 
 
 def steps(out, where: Filters = None, columns: Sequence[str] | None = None) -> pl.DataFrame:
     """Step rows (truncated ones included, see the `truncated` column), filtered by any column
     of steps, episodes or runs, sorted by run_id, episode_id, step."""
-    return _select(out, "steps", where, columns, ["run_id", "episode_id", "step"])
+    return _select(out, STEPS_TABLE, where, columns, ["run_id", "episode_id", "step"])
 
 
 def episode_steps(out, run_id: str, episode_id: str) -> pl.DataFrame:

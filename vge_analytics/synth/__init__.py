@@ -5,7 +5,17 @@ simulated agents (docs/SYNTHETIC.md).
 """
 
 from ._agent import Agent, AgentStep
-from ._build import SCALES, Scale, Summary, SynthError, generate, plan_devices
+from ._build import (
+    BENCH_DIR,
+    RUNS_DIR,
+    SCALES,
+    SUMMARY,
+    Scale,
+    Summary,
+    SynthError,
+    generate,
+    plan_devices,
+)
 from ._catalog import (
     PAPER_DEVICE_COUNTS,
     Catalog,
@@ -23,14 +33,17 @@ from ._instantiate import (
     scene_of,
 )
 from ._measure import RunMeasures, measure_output
-from ._play import StepPlayer, play_episode
 from ._profiles import PROFILES, Profile
 from ._render import png_bytes, render_view
 from ._runs import RunSpec, agent_rng, run_specs
+from ._step_player import StepPlayer, play_episode
 from ._tasks import TaskRecord, sample_tasks
 from ._views import cache_dir, image_source, synthetic_view, view_image
 
 __all__ = [
+    "BENCH_DIR",
+    "RUNS_DIR",
+    "SUMMARY",
     "PAPER_DEVICE_COUNTS",
     "PROFILES",
     "SCALES",

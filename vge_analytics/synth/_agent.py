@@ -1,7 +1,7 @@
 """A simulated agent: plays one task through the pure simulator (`replay.reset`/`replay.step`)
 and returns the log steps (PROTOCOL §1.4).
 
-The agent knows, as a simulation, which transitions make progress (`replay.progressing`),
+The agent knows, as a simulation, which transitions make progress (`replay.semantics.progressing`),
 and a `Profile` decides how often it acts on that knowledge: whether it finds the view that
 shows the target, picks the right component, action and parameters, aims well, waits when
 a process runs, keeps to the output format, and remembers within its history window what
@@ -18,6 +18,20 @@ from dataclasses import dataclass
 
 import replay
 from replay import AXONOMETRIC_VIEWS, DASHBOARD, INTERACTIONS, SCALE
+from replay.semantics import (
+    FB_INVALID,
+    FB_NULL,
+    FB_OPERATIONAL,
+    FB_TRANSITION,
+    FRONT,
+    GRASP,
+    PRESS,
+    PULL,
+    PUSH,
+    ROTATE,
+    SWITCH_VIEW,
+    TIMED_WAIT,
+)
 
 from ._catalog import Catalog, ComponentSpec
 from ._profiles import Profile
@@ -33,41 +47,41 @@ RESAMPLE = 0.02
 STALE_STATE = 0.85
 """Without history: chance of planning from the state the goal started in, not the current one."""
 KIND_ACTIONS: dict[str, tuple[str, ...]] = {
-    "button": ("press", "push"),
-    "touch_pad": ("press",),
-    "key": ("press",),
-    "trigger": ("press", "pull"),
-    "shutter_button": ("press",),
-    "knob": ("rotate", "press", "pull", "push"),
-    "dial": ("rotate", "press"),
-    "wheel": ("rotate", "push"),
-    "ring": ("rotate",),
-    "crank": ("rotate",),
-    "lens": ("rotate", "push", "pull"),
-    "slider": ("push", "pull"),
-    "switch": ("push", "press"),
-    "rocker": ("press", "push"),
-    "lever": ("push", "pull", "press"),
-    "door": ("pull", "push"),
-    "lid": ("pull", "push", "press"),
-    "cover": ("pull", "push"),
-    "drawer": ("pull", "push"),
-    "basket": ("pull", "push"),
-    "tank": ("pull", "push"),
-    "tray": ("pull", "push"),
-    "cap": ("pull", "push", "rotate"),
-    "head": ("pull", "push", "rotate"),
-    "nozzle": ("pull", "push", "rotate"),
-    "attachment": ("pull", "push"),
-    "port": ("push", "pull"),
-    "plug": ("push", "pull"),
-    "cable": ("push", "pull"),
-    "handle": ("grasp", "pull", "push"),
-    "grip": ("grasp", "press"),
-    "handset": ("grasp", "pull"),
-    "body": ("grasp", "press"),
-    "platform": ("press", "push"),
-    "blade": ("pull", "push"),
+    "button": (PRESS, PUSH),
+    "touch_pad": (PRESS,),
+    "key": (PRESS,),
+    "trigger": (PRESS, PULL),
+    "shutter_button": (PRESS,),
+    "knob": (ROTATE, PRESS, PULL, PUSH),
+    "dial": (ROTATE, PRESS),
+    "wheel": (ROTATE, PUSH),
+    "ring": (ROTATE,),
+    "crank": (ROTATE,),
+    "lens": (ROTATE, PUSH, PULL),
+    "slider": (PUSH, PULL),
+    "switch": (PUSH, PRESS),
+    "rocker": (PRESS, PUSH),
+    "lever": (PUSH, PULL, PRESS),
+    "door": (PULL, PUSH),
+    "lid": (PULL, PUSH, PRESS),
+    "cover": (PULL, PUSH),
+    "drawer": (PULL, PUSH),
+    "basket": (PULL, PUSH),
+    "tank": (PULL, PUSH),
+    "tray": (PULL, PUSH),
+    "cap": (PULL, PUSH, ROTATE),
+    "head": (PULL, PUSH, ROTATE),
+    "nozzle": (PULL, PUSH, ROTATE),
+    "attachment": (PULL, PUSH),
+    "port": (PUSH, PULL),
+    "plug": (PUSH, PULL),
+    "cable": (PUSH, PULL),
+    "handle": (GRASP, PULL, PUSH),
+    "grip": (GRASP, PRESS),
+    "handset": (GRASP, PULL),
+    "body": (GRASP, PRESS),
+    "platform": (PRESS, PUSH),
+    "blade": (PULL, PUSH),
 }
 
 
@@ -154,13 +168,13 @@ class Agent:
                 and e.action.type == action.type
                 and e.action.params == action.params
                 and not e.progress
-                and e.kind in ("null_effect", "operational_error", "transition", "invalid_action")
+                and e.kind in (FB_NULL, FB_OPERATIONAL, FB_TRANSITION, FB_INVALID)
             ):
                 return True
         return False
 
     def _misses(self, recent: list[_Event], comp: str) -> int:
-        return sum(1 for e in recent if e.component == comp and e.kind == "null_effect")
+        return sum(1 for e in recent if e.component == comp and e.kind == FB_NULL)
 
     def _refuted(self, recent: list[_Event], state: int, goal_index: int) -> set[str]:
         """Components the agent has given up on for this goal in this state: they did the
@@ -170,9 +184,9 @@ class Agent:
         for e in recent:
             if e.component is None or e.state != state or e.goal_index != goal_index:
                 continue
-            if e.moved_away or (e.kind == "transition" and not e.progress):
+            if e.moved_away or (e.kind == FB_TRANSITION and not e.progress):
                 out.add(e.component)
-            elif e.kind in ("null_effect", "operational_error") and not e.progress:
+            elif e.kind in (FB_NULL, FB_OPERATIONAL) and not e.progress:
                 fails[e.component] = fails.get(e.component, 0) + 1
                 if fails[e.component] >= 3:
                     out.add(e.component)
@@ -223,25 +237,25 @@ class Agent:
         return action, describe(spec, rect, view), misses
 
     def _params_for(self, action_type: str, rng: random.Random) -> tuple[str, ...]:
-        if action_type == "press":
+        if action_type == PRESS:
             return (rng.choice(("0", "0", "0", "1", "2")),)
-        if action_type == "rotate":
+        if action_type == ROTATE:
             return (rng.choice(("0", "1")), str(rng.choice((1, 1, 2, 3, 4))))
-        if action_type in ("push", "pull"):
+        if action_type in (PUSH, PULL):
             return (rng.choice(("0", "1", "2", "3", "4")),)
-        if action_type == "grasp":
+        if action_type == GRASP:
             return (rng.choice(("0", "0", "1")),)
         return ()
 
     @staticmethod
-    def _concrete(tr: replay.CompiledTransition, rng: random.Random) -> tuple[str, ...]:
+    def _concrete(tr: replay.semantics.CompiledTransition, rng: random.Random) -> tuple[str, ...]:
         if not tr.params:
-            return ("0",) if tr.action in ("press", "grasp") else ()
+            return ("0",) if tr.action in (PRESS, GRASP) else ()
         out = []
         for i, p in enumerate(tr.params):
             if p != "*":
                 out.append(p)
-            elif tr.action == "rotate" and i == 1:
+            elif tr.action == ROTATE and i == 1:
                 out.append(str(rng.choice((1, 2, 3))))
             else:
                 out.append("0")
@@ -265,50 +279,13 @@ class Agent:
             # Without any history the agent cannot tell that its last action changed the
             # device (the pictures look the same): it plans from where the goal began.
             plan_state = start
-        targets = replay.progressing(m, plan_state, goal)
+        targets = replay.semantics.progressing(m, plan_state, goal)
         real = [t for t in targets if t.action is not None]
-        wait_needed = any(t.action is None for t in targets)
-
-        if wait_needed and (not real or rng.random() < 0.75):
-            if rng.random() < p.wait_knowledge:
-                return Decision(
-                    replay.Action("timed_wait"),
-                    f"{intent} The {self.catalog.device_noun} is still working; the process "
-                    "needs time to finish, so I will wait for it to complete.",
-                )
-        elif not wait_needed and rng.random() < p.spurious_wait:
-            return Decision(
-                replay.Action("timed_wait"),
-                f"{intent} The {self.catalog.device_noun} may need a moment to respond to the "
-                "last operation. I will wait.",
-            )
-
+        waited = self._wait(intent, real, any(t.action is None for t in targets))
+        if waited is not None:
+            return waited
         if view in AXONOMETRIC_VIEWS:
-            axo_seen = any(
-                e.kind == "invalid_action" and e.view == view and e.action.type in INTERACTIONS
-                for e in recent
-            )
-            if rng.random() < p.axo_mistake and not (axo_seen and self._remembers()):
-                comps = self._visible_components("front")
-                rect = None
-                comp = None
-                if real and rng.random() < 0.5:
-                    tr = rng.choice(real)
-                    comp = tr.component
-                    rects = self._rects_in(s, next(iter(tr.rects)), comp)
-                    rect = rects[0] if rects else None
-                elif comps:
-                    comp = rng.choice(comps)
-                    rects = self._rects_in(s, "front", comp)
-                    rect = rects[0] if rects else None
-                point = self._aim(rect, 0) if rect else (500.0, 500.0)
-                action = replay.Action("press", point, ("0",))
-                text = (
-                    f"{intent} In this overview I can see {describe(self._spec(comp), None, view)}. "
-                    f"I will {verb_phrase(action)}."
-                )
-                return Decision(action, text, comp)
-            return self._navigate(sim, goal_index, real, recent, intent, reason="axonometric")
+            return self._in_overview(sim, goal_index, real, recent, intent)
 
         visible = [t for t in real if view in t.rects]
         if not visible:
@@ -321,30 +298,14 @@ class Agent:
             options = [v for v in self.switch_views if v != view]
             target = rng.choice(options)
             return Decision(
-                replay.Action("switch_view", None, (target,)),
+                replay.Action(SWITCH_VIEW, None, (target,)),
                 f"{intent} Before acting I want to check the {target.replace('_', ' ')} view "
                 "for other controls.",
             )
 
-        # Hypothesis refinement: the last attempt hit the right component the wrong way.
-        last = recent[-1] if recent else None
-        if (
-            last is not None
-            and last.kind == "operational_error"
-            and last.state == s
-            and last.view == view
-            and last.component is not None
-            and rng.random() < p.feedback_use
-        ):
-            comp = last.component
-            self.beliefs[(goal_index, s)] = comp
-            same = [t for t in visible if t.component == comp]
-            if same:
-                return self._interact(
-                    sim, goal_index, rng.choice(same), recent, intent, refine=True
-                )
-            return self._interact_component(sim, goal_index, comp, recent, intent, refine=True)
-
+        refined = self._refine(sim, goal_index, visible, recent, intent)
+        if refined is not None:
+            return refined
         comp = self._hypothesis(sim, goal_index, visible, recent)
         same = [t for t in visible if t.component == comp]
         if same:
@@ -352,6 +313,91 @@ class Agent:
         if comp is None:
             return self._interact_empty(sim, intent)
         return self._interact_component(sim, goal_index, comp, recent, intent)
+
+    def _wait(self, intent: str, real: list, wait_needed: bool) -> Decision | None:
+        """A timed wait when the goal needs one and the profile knows it (or, by mistake,
+        when it does not), else None."""
+        rng, p = self.rng, self.p
+        if wait_needed and (not real or rng.random() < 0.75):
+            if rng.random() < p.wait_knowledge:
+                return Decision(
+                    replay.Action(TIMED_WAIT),
+                    f"{intent} The {self.catalog.device_noun} is still working; the process "
+                    "needs time to finish, so I will wait for it to complete.",
+                )
+        elif not wait_needed and rng.random() < p.spurious_wait:
+            return Decision(
+                replay.Action(TIMED_WAIT),
+                f"{intent} The {self.catalog.device_noun} may need a moment to respond to the "
+                "last operation. I will wait.",
+            )
+        return None
+
+    def _in_overview(
+        self,
+        sim: replay.SimState,
+        goal_index: int,
+        real: list,
+        recent: list[_Event],
+        intent: str,
+    ) -> Decision:
+        """In an axonometric view: a press there by mistake (unless the agent remembers that
+        it fails), else a switch to a view where the target is."""
+        rng, p, s, view = self.rng, self.p, sim.state, sim.view
+        axo_seen = any(
+            e.kind == FB_INVALID and e.view == view and e.action.type in INTERACTIONS
+            for e in recent
+        )
+        if rng.random() < p.axo_mistake and not (axo_seen and self._remembers()):
+            comps = self._visible_components(FRONT)
+            rect = None
+            comp = None
+            if real and rng.random() < 0.5:
+                tr = rng.choice(real)
+                comp = tr.component
+                rects = self._rects_in(s, next(iter(tr.rects)), comp)
+                rect = rects[0] if rects else None
+            elif comps:
+                comp = rng.choice(comps)
+                rects = self._rects_in(s, FRONT, comp)
+                rect = rects[0] if rects else None
+            point = self._aim(rect, 0) if rect else (500.0, 500.0)
+            action = replay.Action(PRESS, point, ("0",))
+            text = (
+                f"{intent} In this overview I can see {describe(self._spec(comp), None, view)}. "
+                f"I will {verb_phrase(action)}."
+            )
+            return Decision(action, text, comp)
+        return self._navigate(sim, goal_index, real, recent, intent, reason="axonometric")
+
+    def _refine(
+        self,
+        sim: replay.SimState,
+        goal_index: int,
+        visible: list,
+        recent: list[_Event],
+        intent: str,
+    ) -> Decision | None:
+        """Hypothesis refinement: the last attempt hit the right component the wrong way, and
+        the profile uses that feedback; else None."""
+        last = recent[-1] if recent else None
+        if (
+            last is not None
+            and last.kind == FB_OPERATIONAL
+            and last.state == sim.state
+            and last.view == sim.view
+            and last.component is not None
+            and self.rng.random() < self.p.feedback_use
+        ):
+            comp = last.component
+            self.beliefs[(goal_index, sim.state)] = comp
+            same = [t for t in visible if t.component == comp]
+            if same:
+                return self._interact(
+                    sim, goal_index, self.rng.choice(same), recent, intent, refine=True
+                )
+            return self._interact_component(sim, goal_index, comp, recent, intent, refine=True)
+        return None
 
     def _hypothesis(
         self, sim: replay.SimState, goal_index: int, visible: list, recent: list[_Event]
@@ -419,8 +465,8 @@ class Agent:
                 region = self.m.dashboard_regions[view][0]
                 x = rng.random()
                 failed_plain = any(
-                    e.kind == "invalid_action"
-                    and e.action.type == "switch_view"
+                    e.kind == FB_INVALID
+                    and e.action.type == SWITCH_VIEW
                     and e.action.coord is None
                     and e.action.params == (DASHBOARD,)
                     for e in recent
@@ -431,19 +477,19 @@ class Agent:
                 point = self._aim(region, 2)
                 if x < skill:
                     return Decision(
-                        replay.Action("switch_view", point, (DASHBOARD,)),
+                        replay.Action(SWITCH_VIEW, point, (DASHBOARD,)),
                         f"{intent} The control panel is too small to read from here. I will zoom in "
                         "on it by switching to the dashboard view at the panel.",
                     )
                 if x < skill + (1.0 - skill) / 2.0:
-                    action = replay.Action("press", point, ("0",))
+                    action = replay.Action(PRESS, point, ("0",))
                     return Decision(
                         action,
                         f"{intent} The control I need should be on the small panel "
                         f"{_where(region)}. I will press it.",
                     )
                 return Decision(
-                    replay.Action("switch_view", None, (DASHBOARD,)),
+                    replay.Action(SWITCH_VIEW, None, (DASHBOARD,)),
                     f"{intent} The controls are tiny; I will switch to the dashboard view.",
                 )
             if rng.random() < p.nav_skill:
@@ -475,7 +521,7 @@ class Agent:
             else f"The control may be on the {target.replace('_', ' ')} side."
         )
         return Decision(
-            replay.Action("switch_view", None, (target,)),
+            replay.Action(SWITCH_VIEW, None, (target,)),
             f"{lead} {hint} I will switch to the {target.replace('_', ' ')} view.",
         )
 
@@ -483,7 +529,7 @@ class Agent:
         self,
         sim: replay.SimState,
         goal_index: int,
-        tr: replay.CompiledTransition,
+        tr: replay.semantics.CompiledTransition,
         recent: list[_Event],
         intent: str,
         refine: bool = False,
@@ -596,7 +642,7 @@ class Agent:
     def _interact_empty(self, sim: replay.SimState, intent: str) -> Decision:
         rng = self.rng
         point = (float(rng.randint(60, 940)), float(rng.randint(60, 940)))
-        a_type = rng.choice(("press", "press", "rotate", "push", "pull"))
+        a_type = rng.choice((PRESS, PRESS, ROTATE, PUSH, PULL))
         action = replay.Action(a_type, point, self._params_for(a_type, rng))
         return Decision(
             action,
@@ -617,7 +663,7 @@ class Agent:
         goal: int,
         completed: int,
     ) -> None:
-        dist = replay.distances(self.m, goal)
+        dist = replay.semantics.distances(self.m, goal)
         progress = completed > 0 or dist[after.state] < dist[before.state]
         moved_away = outcome.dangerous or dist[after.state] > dist[before.state]
         # A format slip says nothing about the action the agent meant.

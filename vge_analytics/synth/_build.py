@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,17 +32,21 @@ from pathlib import Path
 import msgspec
 
 import replay
-from replay.io import RunDirectory
+from replay.io import SSM_DIR, SSM_SUFFIX, UCSM_DIR, RunDirectory, ssm_path, tasks_path
 
-from ._catalog import PAPER_DEVICE_COUNTS, UCSM_DIR, available_categories, load_catalog
+from ._catalog import PAPER_DEVICE_COUNTS, UCSM_TEMPLATES, available_categories, load_catalog
 from ._instantiate import dashboard_probability, dump_ssm, instantiate_device
-from ._play import play_episode
+from ._profiles import device_difficulty
 from ._rng import rng_for
-from ._runs import LAMBDA, RunSpec, agent_rng, episode_line, in_run, run_specs
+from ._runs import LAMBDA, RunSpec, agent_rng, choose_runs, episode_line, in_run, run_specs
+from ._step_player import play_episode
 from ._tasks import sample_tasks
 
 SYNTH_VERSION = 1
 """Bumped whenever the same seed and scale would produce different files."""
+MAX_AGENT_SEEDS = 100
+MAX_DEVICE_SPREAD = 5.0
+"""Bounds of `--seeds` and `--device-spread` (5 logits moves a 50% chance to 1% or 99%)."""
 PAPER_SINGLE = 4948
 PAPER_MULTI = 10005
 _TINY_CATEGORIES = ("ElectricKettle", "Microwave", "Lamp", "WashingMachine")
@@ -99,6 +104,9 @@ class Summary:
     categories: list[str]
     statistics: dict[str, int] = field(default_factory=dict)
     runs: dict[str, int] = field(default_factory=dict)
+    options: dict[str, object] = field(default_factory=dict)
+    """The options that change the runs (`agent_seeds`, `device_spread`, `runs`), only
+    those not at their default (so a default output stays as it was)."""
 
     def to_json(self) -> dict:
         return {
@@ -106,6 +114,7 @@ class Summary:
             "synth_version": SYNTH_VERSION,
             "scale": self.scale,
             "seed": self.seed,
+            **self.options,
             "categories": self.categories,
             "statistics": self.statistics,
             "runs": self.runs,
@@ -153,6 +162,7 @@ class _Context:
     seed: int
     dashboard_p: float
     runs: tuple[RunSpec, ...]
+    device_spread: float = 0.0
 
 
 def build_device(job: DeviceJob, ctx: _Context) -> DeviceResult:
@@ -161,7 +171,7 @@ def build_device(job: DeviceJob, ctx: _Context) -> DeviceResult:
     text = dump_ssm(device.ssm)
     ssm = msgspec.json.decode(text.encode("utf-8"), type=replay.StateMachine)
     machine = replay.compile_machine(
-        ssm, device_id=job.device_id, source=f"ssm/{job.device_id}.json"
+        ssm, device_id=job.device_id, source=f"{SSM_DIR}/{job.device_id}{SSM_SUFFIX}"
     )
     tasks = sample_tasks(
         machine, job.category, job.n_single, job.n_multi, rng_for(ctx.seed, "tasks", job.device_id)
@@ -169,13 +179,17 @@ def build_device(job: DeviceJob, ctx: _Context) -> DeviceResult:
     catalog = load_catalog(job.category)
     run_lines: dict[str, list[bytes]] = {}
     for spec in ctx.runs:
+        difficulty = device_difficulty(
+            ctx.seed, job.device_id, spec.profile.name, ctx.device_spread
+        )
+        profile = spec.profile.on_device(difficulty)
         lines = []
         for task in tasks:
             if not in_run(spec, ctx.seed, task.episode_id):
                 continue
-            rng = agent_rng(ctx.seed, spec.run_id, task.episode_id)
-            steps = play_episode(machine, catalog, spec.profile, task, rng, LAMBDA)
-            lines.append(episode_line(task.episode_id, steps, spec.profile, ctx.seed, spec.run_id))
+            rng = agent_rng(ctx.seed, spec.base, task.episode_id, spec.agent_seed)
+            steps = play_episode(machine, catalog, profile, task, rng, LAMBDA)
+            lines.append(episode_line(task.episode_id, steps, profile, ctx.seed, spec.run_id))
         run_lines[spec.run_id] = lines
     task_lines = [
         json.dumps(t.to_json(), ensure_ascii=False, separators=(",", ":")).encode("utf-8") + b"\n"
@@ -231,6 +245,31 @@ def _results(jobs: list[DeviceJob], ctx: _Context, workers: int) -> Iterator[Dev
         yield from pool.map(_build_star, [(job, ctx) for job in jobs], chunksize=2)
 
 
+def _chosen_runs(
+    sc: Scale, agent_seeds: int, device_spread: float, only_runs: Sequence[str] | None
+) -> tuple[tuple[RunSpec, ...], dict[str, object]]:
+    """(the runs to play, the options synth.json records: those not at their default)."""
+    if not math.isfinite(device_spread) or not 0.0 <= device_spread <= MAX_DEVICE_SPREAD:
+        raise SynthError(
+            f"--device-spread must be between 0 and {MAX_DEVICE_SPREAD:g}, not {device_spread:g}"
+        )
+    if agent_seeds > MAX_AGENT_SEEDS:
+        raise SynthError(f"--seeds must be at most {MAX_AGENT_SEEDS}, not {agent_seeds}")
+    specs = run_specs(human_fraction=sc.human_fraction, history_fraction=sc.history_fraction)
+    try:
+        runs = choose_runs(specs, only_runs, agent_seeds)
+    except ValueError as exc:
+        raise SynthError(str(exc)) from None
+    options: dict[str, object] = {}
+    if agent_seeds != 1:
+        options["agent_seeds"] = agent_seeds
+    if device_spread:
+        options["device_spread"] = float(device_spread)
+    if only_runs is not None:
+        options["only_runs"] = [s.run_id for s in runs if s.agent_seed == 0]
+    return runs, options
+
+
 def generate(
     out: Path,
     *,
@@ -239,9 +278,19 @@ def generate(
     workers: int | None = None,
     images: bool = False,
     progress: Callable[[int, int], None] | None = None,
+    agent_seeds: int = 1,
+    device_spread: float = 0.0,
+    only_runs: Sequence[str] | None = None,
 ) -> Summary:
     """Write a synthetic benchmark and its simulated runs into `out` (replacing an earlier
-    synthetic output there)."""
+    synthetic output there).
+
+    `agent_seeds`: each run also played with seeds 1..N-1 (runs `<run_id>-seed<k>`, the
+    same episodes, other random choices; run.json's `meta.seed` says k). `device_spread`:
+    devices differ in difficulty by that many logits (a standard deviation), shared by every
+    profile for the most part and partly each profile's own (`Profile.on_device`); 0 keeps
+    every device as hard as its logic makes it. `only_runs`: these simulated runs only.
+    The defaults give the output of earlier versions, byte for byte."""
     if scale not in SCALES:
         raise SynthError(f"unknown scale {scale!r} (choose from {', '.join(SCALES)})")
     sc = SCALES[scale]
@@ -250,31 +299,32 @@ def generate(
     jobs = plan_devices(sc, seed)
     if not jobs:
         raise SynthError("no device categories available under vge_analytics/synth/data")
-    runs = run_specs(human_fraction=sc.human_fraction, history_fraction=sc.history_fraction)
-    ctx = _Context(seed, dashboard_probability(), runs)
+    runs, options = _chosen_runs(sc, agent_seeds, device_spread, only_runs)
+    ctx = _Context(seed, dashboard_probability(), runs, float(device_spread))
     if workers is None:
         workers = os.cpu_count() or 1
     categories = sorted({j.category for j in jobs})
-    summary = Summary(scale, seed, categories)
+    summary = Summary(scale, seed, categories, options=options)
 
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".synth-", dir=out))
     try:
-        bench = tmp / "bench"
-        (bench / "ssm").mkdir(parents=True)
-        (bench / "ucsm").mkdir()
+        bench = tmp / BENCH_DIR
+        (bench / SSM_DIR).mkdir(parents=True)
+        (bench / UCSM_DIR).mkdir()
         for cat in categories:
-            shutil.copyfile(UCSM_DIR / f"{cat}.json", bench / "ucsm" / f"{cat}.json")
+            name = f"{cat}{SSM_SUFFIX}"
+            shutil.copyfile(UCSM_TEMPLATES / name, bench / UCSM_DIR / name)
         stats: dict[str, int] = {}
         with contextlib.ExitStack() as stack:
             writers = {}
             for spec in runs:
-                run_dir = RunDirectory(tmp / "runs" / spec.run_id)
+                run_dir = RunDirectory(tmp / RUNS_DIR / spec.run_id)
                 writers[spec.run_id] = stack.enter_context(run_dir.stream(compress=True))
-                run_dir.write_header(spec.header(seed, scale))
-            tasks_fh = stack.enter_context(open(bench / "tasks.jsonl", "wb"))
+                run_dir.write_header(spec.header(seed, scale, ctx.device_spread))
+            tasks_fh = stack.enter_context(open(tasks_path(bench), "wb"))
             for k, res in enumerate(_results(jobs, ctx, workers), start=1):
-                (bench / "ssm" / f"{res.device_id}.json").write_text(res.ssm_text, encoding="utf-8")
+                ssm_path(bench, res.device_id).write_text(res.ssm_text, encoding="utf-8")
                 tasks_fh.writelines(res.task_lines)
                 for run_id, lines in res.run_lines.items():
                     writers[run_id].writelines(lines)
@@ -284,7 +334,7 @@ def generate(
                 if progress is not None:
                     progress(k, len(jobs))
         summary.statistics = stats
-        (tmp / "synth.json").write_text(
+        (tmp / SUMMARY).write_text(
             json.dumps(summary.to_json(), indent=2, sort_keys=False) + "\n", encoding="utf-8"
         )
         if images:
@@ -298,7 +348,13 @@ def generate(
     return summary
 
 
-_OURS = ("bench", "runs", "synth.json")
+BENCH_DIR = "bench"
+"""`OUT/bench`: the benchmark (PROTOCOL §1.1)."""
+RUNS_DIR = "runs"
+"""`OUT/runs/<run_id>`: one run directory per simulated run (PROTOCOL §1.4)."""
+SUMMARY = "synth.json"
+"""`OUT/synth.json`: what was generated."""
+_OURS = (BENCH_DIR, RUNS_DIR, SUMMARY)
 
 
 def _check_target(out: Path) -> None:
@@ -306,10 +362,10 @@ def _check_target(out: Path) -> None:
         return
     if not out.is_dir():
         raise SynthError(f"{out}: not a directory")
-    present = [name for name in ("bench", "runs") if (out / name).exists()]
-    if present and not (out / "synth.json").exists():
+    present = [name for name in (BENCH_DIR, RUNS_DIR) if (out / name).exists()]
+    if present and not (out / SUMMARY).exists():
         raise SynthError(
-            f"{out}: holds {', '.join(present)} not written by `vge synth` (no synth.json); "
+            f"{out}: holds {', '.join(present)} not written by `vge synth` (no {SUMMARY}); "
             "choose another --out"
         )
 

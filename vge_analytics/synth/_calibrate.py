@@ -11,6 +11,8 @@ the dashboard probability, as `instantiate_device` does.
 
 from __future__ import annotations
 
+from replay.semantics import IMMEDIATE
+
 from ._catalog import PAPER_DEVICE_COUNTS, available_categories, load_catalog
 from ._instantiate import dashboard_probability
 from ._logic import instantiate_logic
@@ -67,7 +69,7 @@ def measure(category: str, keep: float, drop: float, n: int = 50) -> tuple[float
         )
         for sdef in logic.machine["states"].values():
             for comp, trans in sdef["on"].items():
-                if comp != "immediate":
+                if comp != IMMEDIATE:
                     actions += len(trans)
         components += len(logic.components)
     return actions / n, components / n

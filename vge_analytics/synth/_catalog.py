@@ -15,8 +15,11 @@ from pathlib import Path
 
 import msgspec
 
+from replay.io import UCSM_DIR
+
 DATA_DIR = Path(__file__).resolve().parent / "data"
-UCSM_DIR = DATA_DIR / "ucsm"
+UCSM_TEMPLATES = DATA_DIR / UCSM_DIR
+"""The category templates, laid out as a benchmark's `ucsm/` folder."""
 CATALOG_DIR = DATA_DIR / "catalog"
 
 PAPER_DEVICE_COUNTS: dict[str, int] = {
@@ -88,7 +91,7 @@ _catalog_decoder = msgspec.json.Decoder(Catalog)
 
 def available_categories() -> tuple[str, ...]:
     """Categories with both a UCSM and a catalog file, sorted by name."""
-    ucsms = {p.stem for p in UCSM_DIR.glob("*.json")}
+    ucsms = {p.stem for p in UCSM_TEMPLATES.glob("*.json")}
     catalogs = {p.stem for p in CATALOG_DIR.glob("*.json")}
     return tuple(sorted(ucsms & catalogs))
 
@@ -101,7 +104,7 @@ def load_catalog(category: str) -> Catalog:
 
 @functools.cache
 def _ucsm_text(category: str) -> str:
-    return (UCSM_DIR / f"{category}.json").read_text(encoding="utf-8")
+    return (UCSM_TEMPLATES / f"{category}.json").read_text(encoding="utf-8")
 
 
 def load_ucsm(category: str) -> dict:
@@ -114,11 +117,12 @@ def data_digest(category: str) -> str:
     import hashlib
 
     h = hashlib.sha256()
-    h.update((UCSM_DIR / f"{category}.json").read_bytes())
+    h.update((UCSM_TEMPLATES / f"{category}.json").read_bytes())
     h.update(b"\0")
     h.update((CATALOG_DIR / f"{category}.json").read_bytes())
     return h.hexdigest()
 
 
 def is_known_category(category: str) -> bool:
-    return (UCSM_DIR / f"{category}.json").exists() and (CATALOG_DIR / f"{category}.json").exists()
+    name = f"{category}.json"
+    return (UCSM_TEMPLATES / name).exists() and (CATALOG_DIR / name).exists()

@@ -8,6 +8,7 @@ from PIL import Image, ImageDraw
 
 from replay import AXONOMETRIC_VIEWS as AXO
 from replay import DASHBOARD
+from replay.semantics import BACK_BOTTOM, FRONT, ORTHOGRAPHIC_VIEWS
 
 from ._catalog import ComponentSpec, load_catalog
 from ._geometry import (
@@ -56,7 +57,7 @@ def _spec_for(category: str, component: str) -> ComponentSpec:
     if spec is not None:
         return spec
     kind = next((k for token, k in _GUESS if token in component), "button")
-    return ComponentSpec(kind=kind, label="", faces=("front",), required=True, size="small")
+    return ComponentSpec(kind=kind, label="", faces=(FRONT,), required=True, size="small")
 
 
 def _view_boxes(ssm, view: str) -> tuple[tuple[int, int] | None, dict[str, list[float]]]:
@@ -75,7 +76,7 @@ def _view_boxes(ssm, view: str) -> tuple[tuple[int, int] | None, dict[str, list[
 
 
 def _sibling_size(ssm) -> tuple[int, int]:
-    for view in ("front", "back", "left", "right", "top", "bottom"):
+    for view in ORTHOGRAPHIC_VIEWS:
         size, _ = _view_boxes(ssm, view)
         if size:
             return size
@@ -140,7 +141,7 @@ def _generic_box(d: ImageDraw.ImageDraw, W: int, H: int, view: str) -> None:
     left = [(cx - s, cy - s * 0.6), (cx, cy - s * 0.2), (cx, cy + s), (cx - s, cy + s * 0.6)]
     right = [(cx, cy - s * 0.2), (cx + s, cy - s * 0.6), (cx + s, cy + s * 0.6), (cx, cy + s)]
     body = _PALETTE.body
-    if view == "back_bottom":
+    if view == BACK_BOTTOM:
         top = [(x, H - y) for x, y in top]
         left = [(x, H - y) for x, y in left]
         right = [(x, H - y) for x, y in right]

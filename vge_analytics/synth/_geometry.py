@@ -26,43 +26,44 @@ import math
 from dataclasses import dataclass
 
 from replay import AXONOMETRIC_VIEWS, DASHBOARD
+from replay.semantics import BACK, BOTTOM, FRONT, LEFT, RIGHT, TOP
 
 from ._catalog import ComponentSpec
 
 # Outward normal of each face.
 FACE_NORMALS: dict[str, tuple[int, int, int]] = {
-    "front": (0, -1, 0),
-    "back": (0, 1, 0),
-    "left": (-1, 0, 0),
-    "right": (1, 0, 0),
-    "top": (0, 0, 1),
-    "bottom": (0, 0, -1),
+    FRONT: (0, -1, 0),
+    BACK: (0, 1, 0),
+    LEFT: (-1, 0, 0),
+    RIGHT: (1, 0, 0),
+    TOP: (0, 0, 1),
+    BOTTOM: (0, 0, -1),
 }
-FACE_AXIS = {"front": 1, "back": 1, "left": 0, "right": 0, "top": 2, "bottom": 2}
+FACE_AXIS = {FRONT: 1, BACK: 1, LEFT: 0, RIGHT: 0, TOP: 2, BOTTOM: 2}
 FACE_IS_MAX = {
-    "front": False,
-    "back": True,
-    "left": False,
-    "right": True,
-    "top": True,
-    "bottom": False,
+    FRONT: False,
+    BACK: True,
+    LEFT: False,
+    RIGHT: True,
+    TOP: True,
+    BOTTOM: False,
 }
 OPPOSITE = {
-    "front": "back",
-    "back": "front",
-    "left": "right",
-    "right": "left",
-    "top": "bottom",
-    "bottom": "top",
+    FRONT: BACK,
+    BACK: FRONT,
+    LEFT: RIGHT,
+    RIGHT: LEFT,
+    TOP: BOTTOM,
+    BOTTOM: TOP,
 }
 # (axis of u, axis of v) of each orthographic view.
 VIEW_AXES = {
-    "front": (0, 2),
-    "back": (0, 2),
-    "left": (1, 2),
-    "right": (1, 2),
-    "top": (0, 1),
-    "bottom": (0, 1),
+    FRONT: (0, 2),
+    BACK: (0, 2),
+    LEFT: (1, 2),
+    RIGHT: (1, 2),
+    TOP: (0, 1),
+    BOTTOM: (0, 1),
 }
 
 Dims = tuple[float, float, float]
@@ -94,17 +95,17 @@ def project_ortho(view: str, dims: Dims, p: tuple[float, float, float]) -> tuple
     """A 3D point to `(u, v)` units of an orthographic view (table above)."""
     X, Y, Z = dims
     x, y, z = p
-    if view == "front":
+    if view == FRONT:
         return x, Z - z
-    if view == "back":
+    if view == BACK:
         return X - x, Z - z
-    if view == "left":
+    if view == LEFT:
         return Y - y, Z - z
-    if view == "right":
+    if view == RIGHT:
         return y, Z - z
-    if view == "top":
+    if view == TOP:
         return x, Y - y
-    if view == "bottom":
+    if view == BOTTOM:
         return x, y
     raise ValueError(f"not an orthographic view: {view}")
 

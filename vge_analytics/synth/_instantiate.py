@@ -14,6 +14,7 @@ import random
 from dataclasses import dataclass
 
 from replay import DASHBOARD, STANDARD_VIEWS
+from replay.semantics import BACK, FRONT, LEFT, RIGHT, VIEWS
 
 from ._catalog import PAPER_DEVICE_COUNTS, available_categories, load_catalog
 from ._geometry import (
@@ -31,12 +32,14 @@ CURVED_SIDE_SHARE = 0.8
 """On a cylindrical body, chance that a control listed on one side sits off-centre, where the
 curved surface shows it in the neighbouring side view too (and is annotated there)."""
 _NEXT_SIDE = {
-    "front": ("right", "left"),
-    "right": ("back", "front"),
-    "back": ("left", "right"),
-    "left": ("front", "back"),
+    FRONT: (RIGHT, LEFT),
+    RIGHT: (BACK, FRONT),
+    BACK: (LEFT, RIGHT),
+    LEFT: (FRONT, BACK),
 }
-_VIEW_RANK = {v: i for i, v in enumerate(STANDARD_VIEWS + (DASHBOARD,))}
+_LISTED_RANK = {v: i for i, v in enumerate(VIEWS)}
+"""A component's boxes are written in the order of `VIEWS` (the planner's `VIEW_ORDER` puts the
+dashboard before the axonometric views: another concept)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -158,7 +161,7 @@ def _assemble(logic: DeviceLogic, geometry: Geometry) -> dict:
                     item["bbox"] = [
                         {"coordinate": coord, "view": view}
                         for view, coord in sorted(
-                            bboxes[comp].items(), key=lambda kv: _VIEW_RANK[kv[0]]
+                            bboxes[comp].items(), key=lambda kv: _LISTED_RANK[kv[0]]
                         )
                     ]
                     item["atomic_action"] = t["atomic_action"]

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from replay import AXONOMETRIC_VIEWS as AXO
 from replay import DASHBOARD
 from replay import ORTHOGRAPHIC_VIEWS as ORTHO
+from replay.semantics import BACK, BOTTOM, FRONT, LEFT, PULL, PUSH, RIGHT, TOP
 
 from ._catalog import Catalog, ComponentSpec, load_catalog
 from ._geometry import (
@@ -64,7 +65,7 @@ GAP = 8
 MIN_BOX = 18
 """Minimum width and height of a box, in pixels."""
 _SIZE_ORDER = {"large": 0, "medium": 1, "small": 2, "tiny": 3}
-_HORIZONTAL_FACE_ANGLE = {"front": 0.0, "right": 90.0, "back": 180.0, "left": 270.0}
+_HORIZONTAL_FACE_ANGLE = {FRONT: 0.0, RIGHT: 90.0, BACK: 180.0, LEFT: 270.0}
 
 
 class LayoutError(Exception):
@@ -304,7 +305,7 @@ def _orientation(name: str, spec: ComponentSpec, machine: dict, rng: random.Rand
     dirs = set()
     for sdef in machine["states"].values():
         for t in sdef["on"].get(name, ()):
-            if t.get("atomic_action") in ("push", "pull") and t.get("parameter"):
+            if t.get("atomic_action") in (PUSH, PULL) and t.get("parameter"):
                 dirs.add(t["parameter"][0])
     draw = rng.random()
     if dirs & {"0", "1"} and not dirs & {"2", "3"}:
@@ -418,7 +419,7 @@ class _Placer:
                 cx = sum(math.cos(math.radians(a)) for a in angles)
                 theta = math.degrees(math.atan2(sx, cx))
             t = math.radians(theta)
-            on_top = any(f in ("top", "bottom") for f in faces)
+            on_top = any(f in (TOP, BOTTOM) for f in faces)
             inset = 0.88 if on_top else 1.0
             px = r + r * inset * math.sin(t)
             py = r - r * inset * math.cos(t)
@@ -517,9 +518,9 @@ def _on_pistol(dims: Dims, box: Box3) -> bool:
 
 
 def _face_plane_axes(face: str) -> tuple[int, int]:
-    if face in ("front", "back"):
+    if face in (FRONT, BACK):
         return 0, 2
-    if face in ("left", "right"):
+    if face in (LEFT, RIGHT):
         return 1, 2
     return 0, 1
 
@@ -545,12 +546,12 @@ def _place_panel(
         for c in catalog.components
         if catalog.components[c].on_dashboard
     ]
-    face = max(sorted(set(faces)), key=faces.count) if faces else "front"
+    face = max(sorted(set(faces)), key=faces.count) if faces else FRONT
     fw, fh = silhouette_size(face, placer.dims)
     n = max(1, len(on_panel))
     region_faces: tuple[str, ...] = (face,)
-    if face in ("front", "back", "left", "right") and rng.random() < 0.35:
-        region_faces = (face, "top")
+    if face in (FRONT, BACK, LEFT, RIGHT) and rng.random() < 0.35:
+        region_faces = (face, TOP)
     w = fw * rng.uniform(0.3, 0.44) * (1.0 + 0.04 * max(0, n - 4))
     h = fh * rng.uniform(0.17, 0.27)
     w, h = min(w, fw * 0.75), min(h, fh * 0.4)
@@ -589,36 +590,48 @@ def _place_panel(
     for name in on_panel:
         spec = catalog.components[name]
         orientation = _orientation(name, spec, machine, rng)
-        frac = {"tiny": 0.3, "small": 0.34, "medium": 0.4, "large": 0.5}.get(spec.size, 0.34)
-        s = base * frac * rng.uniform(0.9, 1.1)
-        aspect = KIND_PROPORTION.get(spec.kind, 1.0)
-        if spec.kind in ORIENTED_KINDS and orientation == "v":
-            aspect = 1.0 / aspect
-        if spec.kind == "button" and rng.random() < 0.5:
-            aspect = 1.6
-        pw, ph = s * math.sqrt(aspect), s / math.sqrt(aspect)
-        rect = None
-        for attempt in range(600):
-            if attempt and attempt % 50 == 0:
-                pw, ph = pw * 0.88, ph * 0.88
-            x = rng.uniform(inner[0] + pad, max(inner[0] + pad, inner[2] - pad - pw))
-            y = rng.uniform(inner[1] + pad, max(inner[1] + pad, inner[3] - pad - ph))
-            cand = (round(x), round(y), round(x + pw), round(y + ph))
-            if cand[2] > inner[2] or cand[3] > inner[3]:
-                continue
-            if cand[2] - cand[0] < MIN_BOX or cand[3] - cand[1] < MIN_BOX:
-                continue
-            if all(not _overlap(cand, o, 14) for o in occupied):
-                rect = cand
-                break
-        if rect is None:
-            raise LayoutError(f"cannot place {name} on the dashboard", name)
+        rect = _dashboard_rect(name, spec, orientation, base, inner, pad, occupied, rng)
         occupied.append(rect)
         pbox = _panel_part_box(placer.dims, face, panel_stub, rect)
         style = Style(rng.choice(ACCENT_COLORS), rng.randrange(4))
         parts.append(Part(name, spec, (DASHBOARD,), pbox, style, orientation, rect))
     panel = Panel(face, box, region_faces, width, height, (pu0, pv0, pu1, pv1), display)
     return panel, parts
+
+
+def _dashboard_rect(
+    name: str,
+    spec: ComponentSpec,
+    orientation: str,
+    base: float,
+    inner: PixelRect,
+    pad: int,
+    occupied: list[PixelRect],
+    rng: random.Random,
+) -> PixelRect:
+    """Where a part goes on the dashboard image: sized by its kind and size, placed at random
+    inside `inner` (less `pad`) clear of the `occupied` rects, shrunk a little every 50 tries."""
+    frac = {"tiny": 0.3, "small": 0.34, "medium": 0.4, "large": 0.5}.get(spec.size, 0.34)
+    s = base * frac * rng.uniform(0.9, 1.1)
+    aspect = KIND_PROPORTION.get(spec.kind, 1.0)
+    if spec.kind in ORIENTED_KINDS and orientation == "v":
+        aspect = 1.0 / aspect
+    if spec.kind == "button" and rng.random() < 0.5:
+        aspect = 1.6
+    pw, ph = s * math.sqrt(aspect), s / math.sqrt(aspect)
+    for attempt in range(600):
+        if attempt and attempt % 50 == 0:
+            pw, ph = pw * 0.88, ph * 0.88
+        x = rng.uniform(inner[0] + pad, max(inner[0] + pad, inner[2] - pad - pw))
+        y = rng.uniform(inner[1] + pad, max(inner[1] + pad, inner[3] - pad - ph))
+        cand = (round(x), round(y), round(x + pw), round(y + ph))
+        if cand[2] > inner[2] or cand[3] > inner[3]:
+            continue
+        if cand[2] - cand[0] < MIN_BOX or cand[3] - cand[1] < MIN_BOX:
+            continue
+        if all(not _overlap(cand, o, 14) for o in occupied):
+            return cand
+    raise LayoutError(f"cannot place {name} on the dashboard", name)
 
 
 def _panel_part_box(dims: Dims, face: str, panel: Panel, rect: PixelRect) -> Box3:
@@ -633,14 +646,14 @@ def _panel_part_box(dims: Dims, face: str, panel: Panel, rect: PixelRect) -> Box
         (surface - t, surface + t * 0.5) if FACE_IS_MAX[face] else (surface - t * 0.5, surface + t)
     )
     # Invert the face view's projection (see the table in _geometry).
-    if face == "front":
+    if face == FRONT:
         return Box3((u0, n0, Z - v1), (u1, n1, Z - v0))
-    if face == "back":
+    if face == BACK:
         return Box3((X - u1, n0, Z - v1), (X - u0, n1, Z - v0))
-    if face == "left":
+    if face == LEFT:
         return Box3((n0, Y - u1, Z - v1), (n1, Y - u0, Z - v0))
-    if face == "right":
+    if face == RIGHT:
         return Box3((n0, u0, Z - v1), (n1, u1, Z - v0))
-    if face == "top":
+    if face == TOP:
         return Box3((u0, Y - v1, n0), (u1, Y - v0, n1))
     return Box3((u0, v0, n0), (u1, v1, n1))

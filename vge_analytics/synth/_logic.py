@@ -13,9 +13,11 @@ import random
 from collections import deque
 from dataclasses import dataclass
 
+from replay.semantics import IMMEDIATE, PRESS, PULL, PUSH, ROTATE, TIMED_WAIT
+
 from ._catalog import load_catalog, load_ucsm
 
-NON_COMPONENTS = ("immediate", "timed_wait")
+NON_COMPONENTS = (IMMEDIATE, TIMED_WAIT)
 
 OPTIONAL_KEEP = 0.3
 """Default chance that a device has a given optional component."""
@@ -134,7 +136,7 @@ def _without(states: dict[str, dict], drop: set[str], initial: str) -> dict[str,
         for sname, sdef in states.items():
             if sname in drop:
                 continue
-            imm = sdef["on"].get("immediate")
+            imm = sdef["on"].get(IMMEDIATE)
             if imm and imm[0]["next_state"] in drop:
                 more.add(sname)
         if not more:
@@ -213,7 +215,7 @@ def _passes_on(states: dict[str, dict], name: str) -> bool:
     of the transitions that enter it, not a function of its own. A settling state that
     returns the device to where it came from (a setting nudged, a confirmation chirp) is an
     optional function like any other."""
-    imm = states[name]["on"].get("immediate")
+    imm = states[name]["on"].get(IMMEDIATE)
     if not imm:
         return False
     rest = imm[0]["next_state"]
@@ -257,17 +259,17 @@ def _choose_variation(ucsm: dict, component: str, rng: random.Random) -> dict | 
     actions = {a for a, _ in uses}
     draws = [rng.random() for _ in range(4)]
     variation: dict[str, dict[int, dict[str, str]]] = {}
-    if "rotate" in actions:
+    if ROTATE in actions:
         rot: dict[int, dict[str, str]] = {}
         if draws[0] < 0.25:
             rot[0] = _DIR_SWAP
         if rot:
-            variation["rotate"] = rot
-    presses = {tuple(p) for a, p in uses if a == "press"}
-    if actions == {"press"} and presses == {("0",)} and draws[2] < 0.2:
-        variation["press"] = {0: _PRESS_SWAP}  # this instance needs a long press
-    if actions & {"push", "pull"}:
-        dirs = {p[0] for a, p in uses if a in ("push", "pull") and p}
+            variation[ROTATE] = rot
+    presses = {tuple(p) for a, p in uses if a == PRESS}
+    if actions == {PRESS} and presses == {("0",)} and draws[2] < 0.2:
+        variation[PRESS] = {0: _PRESS_SWAP}  # this instance needs a long press
+    if actions & {PUSH, PULL}:
+        dirs = {p[0] for a, p in uses if a in (PUSH, PULL) and p}
         if dirs and dirs <= {"0", "1", "2", "3"}:
             if draws[3] < 0.25:
                 mapping = _PUSH_TURN
@@ -276,8 +278,8 @@ def _choose_variation(ucsm: dict, component: str, rng: random.Random) -> dict | 
             else:
                 mapping = None
             if mapping is not None:
-                variation["push"] = {0: mapping}
-                variation["pull"] = {0: mapping}
+                variation[PUSH] = {0: mapping}
+                variation[PULL] = {0: mapping}
     return variation or None
 
 

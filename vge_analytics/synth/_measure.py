@@ -17,6 +17,7 @@ import replay
 from ..metrics import metrics
 from ..reports import error_distribution, error_groups
 from ..store import sql
+from ._build import BENCH_DIR, RUNS_DIR
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,9 +48,9 @@ class RunMeasures:
 def measure_output(out_dir: Path, lam: float | None = None) -> dict[str, RunMeasures]:
     """Every run under `out_dir/runs`, replayed against `out_dir/bench` (λ by the replay's
     rule unless `lam` is given), by run id."""
-    runs = sorted(p for p in (Path(out_dir) / "runs").iterdir() if p.is_dir())
+    runs = sorted(p for p in (Path(out_dir) / RUNS_DIR).iterdir() if p.is_dir())
     with tempfile.TemporaryDirectory(prefix="vge-measure-") as tmp:
-        replay.replay_runs(runs, Path(out_dir) / "bench", tmp, lam=lam, progress=False)
+        replay.replay_runs(runs, Path(out_dir) / BENCH_DIR, tmp, lam=lam, progress=False)
         return _measures(Path(tmp))
 
 

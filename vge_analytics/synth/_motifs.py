@@ -9,6 +9,8 @@ from collections.abc import Callable
 
 from PIL import ImageDraw
 
+from replay.semantics import BACK, FRONT, LEFT, RIGHT, TOP
+
 from ._shapes import darker, lighter
 from ._strokes import radial_ticks
 
@@ -197,66 +199,66 @@ PAINTERS: dict[str, Callable] = {
 }
 
 MOTIFS: dict[str, tuple[Motif, ...]] = {
-    "AirFryer": (("front", (0.2, 0.12, 0.8, 0.3), "lcd"), ("top", (0.2, 0.2, 0.8, 0.8), "slots")),
+    "AirFryer": ((FRONT, (0.2, 0.12, 0.8, 0.3), "lcd"), (TOP, (0.2, 0.2, 0.8, 0.8), "slots")),
     "AirPurifier": (
-        ("front", (0.15, 0.35, 0.85, 0.9), "dots"),
-        ("top", (0.15, 0.15, 0.85, 0.85), "slots"),
+        (FRONT, (0.15, 0.35, 0.85, 0.9), "dots"),
+        (TOP, (0.15, 0.15, 0.85, 0.85), "slots"),
     ),
-    "CarKey": (("front", (0.35, 0.03, 0.65, 0.16), "ring_hole"),),
+    "CarKey": ((FRONT, (0.35, 0.03, 0.65, 0.16), "ring_hole"),),
     "CoffeeMachine": (
-        ("front", (0.25, 0.45, 0.75, 0.92), "cup_bay"),
-        ("front", (0.3, 0.1, 0.7, 0.28), "lcd"),
+        (FRONT, (0.25, 0.45, 0.75, 0.92), "cup_bay"),
+        (FRONT, (0.3, 0.1, 0.7, 0.28), "lcd"),
     ),
     "DigitalAlarmClock": (
-        ("front", (0.12, 0.15, 0.88, 0.7), "lcd"),
-        ("back", (0.2, 0.2, 0.8, 0.6), "dots"),
+        (FRONT, (0.12, 0.15, 0.88, 0.7), "lcd"),
+        (BACK, (0.2, 0.2, 0.8, 0.6), "dots"),
     ),
     "DigitalCamera": (
-        ("front", (0.3, 0.2, 0.7, 0.8), "lens"),
-        ("back", (0.1, 0.15, 0.65, 0.85), "screen"),
+        (FRONT, (0.3, 0.2, 0.7, 0.8), "lens"),
+        (BACK, (0.1, 0.15, 0.65, 0.85), "screen"),
     ),
     "ElectricFan": (
-        ("front", (0.1, 0.05, 0.9, 0.6), "grille_round"),
-        ("back", (0.1, 0.05, 0.9, 0.6), "grille_round"),
+        (FRONT, (0.1, 0.05, 0.9, 0.6), "grille_round"),
+        (BACK, (0.1, 0.05, 0.9, 0.6), "grille_round"),
     ),
-    "ElectricKettle": (("top", (0.25, 0.25, 0.75, 0.75), "slots"),),
+    "ElectricKettle": ((TOP, (0.25, 0.25, 0.75, 0.75), "slots"),),
     "ElectricToothbrush": (
-        ("top", (0.2, 0.2, 0.8, 0.8), "head"),
-        ("front", (0.3, 0.02, 0.7, 0.22), "head"),
+        (TOP, (0.2, 0.2, 0.8, 0.8), "head"),
+        (FRONT, (0.3, 0.02, 0.7, 0.22), "head"),
     ),
     "FilmCamera": (
-        ("front", (0.3, 0.2, 0.7, 0.85), "lens"),
-        ("back", (0.12, 0.1, 0.35, 0.3), "screen"),
+        (FRONT, (0.3, 0.2, 0.7, 0.85), "lens"),
+        (BACK, (0.12, 0.1, 0.35, 0.3), "screen"),
     ),
-    "Flashlight": (("top", (0.1, 0.1, 0.9, 0.9), "lens"),),
+    "Flashlight": ((TOP, (0.1, 0.1, 0.9, 0.9), "lens"),),
     "HairDryer": (
-        ("left", (0.1, 0.05, 0.9, 0.4), "grille_round"),
-        ("right", (0.1, 0.05, 0.9, 0.4), "grille_round"),
+        (LEFT, (0.1, 0.05, 0.9, 0.4), "grille_round"),
+        (RIGHT, (0.1, 0.05, 0.9, 0.4), "grille_round"),
     ),
-    "Heater": (("front", (0.1, 0.3, 0.9, 0.9), "slots"),),
+    "Heater": ((FRONT, (0.1, 0.3, 0.9, 0.9), "slots"),),
     "Humidifier": (
-        ("top", (0.3, 0.3, 0.7, 0.7), "grille_round"),
-        ("front", (0.2, 0.1, 0.8, 0.35), "leds"),
+        (TOP, (0.3, 0.3, 0.7, 0.7), "grille_round"),
+        (FRONT, (0.2, 0.1, 0.8, 0.35), "leds"),
     ),
-    "Lamp": (("top", (0.15, 0.15, 0.85, 0.85), "grille_round"),),
-    "Landline": (("top", (0.35, 0.3, 0.9, 0.95), "keypad"), ("top", (0.05, 0.08, 0.3, 0.3), "lcd")),
-    "Lighter": (("top", (0.25, 0.2, 0.75, 0.8), "dots"),),
-    "MechanicalAlarmClock": (("front", (0.08, 0.15, 0.92, 0.85), "clock_face"),),
-    "Microwave": (("front", (0.7, 0.08, 0.95, 0.22), "lcd"),),
-    "PowerBank": (("front", (0.25, 0.75, 0.75, 0.82), "leds"),),
-    "Razor": (("top", (0.1, 0.1, 0.9, 0.9), "head"), ("front", (0.15, 0.02, 0.85, 0.2), "head")),
+    "Lamp": ((TOP, (0.15, 0.15, 0.85, 0.85), "grille_round"),),
+    "Landline": ((TOP, (0.35, 0.3, 0.9, 0.95), "keypad"), (TOP, (0.05, 0.08, 0.3, 0.3), "lcd")),
+    "Lighter": ((TOP, (0.25, 0.2, 0.75, 0.8), "dots"),),
+    "MechanicalAlarmClock": ((FRONT, (0.08, 0.15, 0.92, 0.85), "clock_face"),),
+    "Microwave": ((FRONT, (0.7, 0.08, 0.95, 0.22), "lcd"),),
+    "PowerBank": ((FRONT, (0.25, 0.75, 0.75, 0.82), "leds"),),
+    "Razor": ((TOP, (0.1, 0.1, 0.9, 0.9), "head"), (FRONT, (0.15, 0.02, 0.85, 0.2), "head")),
     "RiceCooker": (
-        ("front", (0.3, 0.45, 0.7, 0.62), "lcd"),
-        ("top", (0.35, 0.35, 0.65, 0.65), "slots"),
+        (FRONT, (0.3, 0.45, 0.7, 0.62), "lcd"),
+        (TOP, (0.35, 0.35, 0.65, 0.65), "slots"),
     ),
     "ThermometerGun": (
-        ("back", (0.15, 0.1, 0.85, 0.35), "lcd"),
-        ("front", (0.2, 0.08, 0.8, 0.3), "lens"),
+        (BACK, (0.15, 0.1, 0.85, 0.35), "lcd"),
+        (FRONT, (0.2, 0.08, 0.8, 0.3), "lens"),
     ),
-    "Vacuum": (("front", (0.25, 0.35, 0.75, 0.6), "dots"),),
+    "Vacuum": ((FRONT, (0.25, 0.35, 0.75, 0.6), "dots"),),
     "WashingMachine": (
-        ("front", (0.15, 0.3, 0.85, 0.9), "porthole"),
-        ("front", (0.55, 0.05, 0.9, 0.16), "lcd"),
+        (FRONT, (0.15, 0.3, 0.85, 0.9), "porthole"),
+        (FRONT, (0.55, 0.05, 0.9, 0.16), "lcd"),
     ),
-    "WeighingScale": (("top", (0.3, 0.08, 0.7, 0.24), "lcd"),),
+    "WeighingScale": ((TOP, (0.3, 0.08, 0.7, 0.24), "lcd"),),
 }

@@ -6,6 +6,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import replay
+from replay.io import IMAGES_DIR, SSM_DIR, SSM_SUFFIX
 
 from ._foreign import render_foreign
 from ._instantiate import scene_of
@@ -33,8 +34,8 @@ def _job(args: tuple[Path, Path]) -> int:
 
 def prerender_images(bench: Path, *, workers: int = 1) -> int:
     """Render all views of all SSMs of a benchmark directory; returns the number of images."""
-    paths = sorted((bench / "ssm").glob("*.json"))
-    out_dir = bench / "images"
+    paths = sorted((bench / SSM_DIR).glob(f"*{SSM_SUFFIX}"))
+    out_dir = bench / IMAGES_DIR
     jobs = [(p, out_dir) for p in paths]
     if workers <= 1:
         return sum(_job(j) for j in jobs)

@@ -8,7 +8,10 @@ the paper's (docs/SYNTHETIC.md has the measured values).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
+
+from ._rng import rng_for
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,6 +75,50 @@ class Profile:
 
     def with_history(self, history_length: int | None) -> Profile:
         return replace(self, history_length=history_length)
+
+    def on_device(self, difficulty: float) -> Profile:
+        """The profile on a device `difficulty` logits harder (easier when negative): every
+        skill's chance moved by that much on the logit scale, and the click scatter
+        multiplied by exp(difficulty / 2). A chance of exactly 0 or 1 stays."""
+        if difficulty == 0.0:
+            return self
+        moved = {name: _shift(getattr(self, name), -difficulty) for name in SKILLS}
+        return replace(self, sigma=self.sigma * math.exp(difficulty / 2.0), **moved)
+
+
+SKILLS: tuple[str, ...] = (
+    "component_knowledge",
+    "action_knowledge",
+    "param_knowledge",
+    "wait_knowledge",
+    "nav_skill",
+    "dashboard_skill",
+    "memory",
+    "feedback_use",
+)
+"""The chances a device's difficulty moves (`Profile.on_device`)."""
+OWN_SHARE = 0.25
+"""The share of a device's difficulty (in variance) that is the profile's own: the rest is
+shared by every profile (a device hard for one is hard for all), this part makes profiles
+differ by device."""
+
+
+def _shift(p: float, logits: float) -> float:
+    if p <= 0.0 or p >= 1.0:
+        return p
+    return 1.0 / (1.0 + math.exp(-(math.log(p / (1.0 - p)) + logits)))
+
+
+def device_difficulty(seed: int, device_id: str, profile: str, spread: float) -> float:
+    """How much harder a device is for a profile, in logits: `spread` times a standard
+    normal mixing the device's shared difficulty and the profile's own on it
+    (`OWN_SHARE`); seeded by the device (and the profile), so every run of a profile, its
+    history variants and repetitions alike, meets the same difficulty. 0 when spread is 0."""
+    if spread == 0.0:
+        return 0.0
+    shared = rng_for(seed, "difficulty", device_id).gauss(0.0, 1.0)
+    own = rng_for(seed, "difficulty", device_id, profile).gauss(0.0, 1.0)
+    return spread * (math.sqrt(1.0 - OWN_SHARE) * shared + math.sqrt(OWN_SHARE) * own)
 
 
 PROFILES: tuple[Profile, ...] = (

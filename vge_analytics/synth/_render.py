@@ -16,6 +16,7 @@ from PIL import Image, ImageDraw
 from replay import AXONOMETRIC_VIEWS as AXO
 from replay import DASHBOARD
 from replay import ORTHOGRAPHIC_VIEWS as ORTHO
+from replay.semantics import BACK, BOTTOM, FRONT, FRONT_TOP, LEFT, RIGHT, TOP
 
 from ._geometry import (
     FACE_NORMALS,
@@ -125,15 +126,15 @@ def _ortho(g: Geometry, view: str, omit: frozenset[str]) -> Image.Image:
     x1, y1 = frame.to_px(a, b)
     body = (x0 * SS, y0 * SS, x1 * SS, y1 * SS)
     bw, bh = body[2] - body[0], body[3] - body[1]
-    if view not in ("top", "bottom"):
+    if view not in (TOP, BOTTOM):
         d.ellipse(
             (body[0] - bw * 0.04, body[3] - bh * 0.02, body[2] + bw * 0.04, body[3] + bh * 0.05),
             fill=darker(pal.background, 0.12),
         )
-    round_top = g.body == "cylinder" and view in ("top", "bottom")
+    round_top = g.body == "cylinder" and view in (TOP, BOTTOM)
     outline = darker(pal.body, 0.4)
     lw = max(2, round(min(bw, bh) * 0.006))
-    if g.body == "pistol" and view not in ("top", "bottom"):
+    if g.body == "pistol" and view not in (TOP, BOTTOM):
         _pistol_silhouette(d, g, view, outline, lw)
     elif round_top:
         d.ellipse(body, fill=pal.body, outline=outline, width=lw * 2)
@@ -232,8 +233,8 @@ def _decorate(canvas: Image.Image, g: Geometry, view: str, body, occupied) -> No
     dark = darker(g.palette.body, 0.3)
     free = lambda r: all(not _overlaps(r, o) for o in occupied)  # noqa: E731
     cyl = g.body == "cylinder"
-    if view == "bottom" or (cyl and view == "top"):
-        if view == "bottom":
+    if view == BOTTOM or (cyl and view == TOP):
+        if view == BOTTOM:
             r = min(bw, bh) * 0.05
             for fx, fy in ((0.12, 0.12), (0.88, 0.12), (0.12, 0.88), (0.88, 0.88)):
                 if cyl:
@@ -245,16 +246,16 @@ def _decorate(canvas: Image.Image, g: Geometry, view: str, body, occupied) -> No
         return
     if cyl:
         return
-    if view in ("back", "left", "right"):
+    if view in (BACK, LEFT, RIGHT):
         slot_w, slot_h = bw * 0.035, bh * 0.16
-        top = y0 + bh * (0.14 if view == "back" else 0.1)
-        start = x0 + bw * (0.55 if view != "left" else 0.12)
+        top = y0 + bh * (0.14 if view == BACK else 0.1)
+        start = x0 + bw * (0.55 if view != LEFT else 0.12)
         for k in range(7):
             sx = start + k * slot_w * 1.9
             rect = (sx, top, sx + slot_w, top + slot_h)
             if rect[2] < x1 - bw * 0.05 and free(rect):
                 d.rounded_rectangle(rect, radius=slot_w * 0.45, fill=dark)
-    if view == "back":
+    if view == BACK:
         pw, ph = bw * 0.22, bh * 0.1
         for fx, fy in ((0.1, 0.75), (0.66, 0.75), (0.1, 0.45)):
             rect = (x0 + bw * fx, y0 + bh * fy, x0 + bw * fx + pw, y0 + bh * fy + ph)
@@ -294,7 +295,7 @@ def _shade_sides(canvas: Image.Image, body, radius: float, cylindrical: bool) ->
 
 def _body_print(canvas: Image.Image, g: Geometry, view: str, body, occupied) -> None:
     """The model name on the front (a printed logo) where nothing else is."""
-    if view != "front":
+    if view != FRONT:
         return
     d = ImageDraw.Draw(canvas)
     bw, bh = body[2] - body[0], body[3] - body[1]
@@ -314,16 +315,6 @@ def _body_print(canvas: Image.Image, g: Geometry, view: str, body, occupied) -> 
         d.text((cx, cy), text, font=f, fill=darker(g.palette.body, 0.35), anchor="mm")
         occupied.append(rect)
         return
-
-
-def _labels_beside(canvas: Image.Image, g: Geometry, view: str, body, occupied) -> None:
-    """Printed labels under (or over) knobs, dials, sliders, ports... when there is room."""
-    d = ImageDraw.Draw(canvas)
-    ink = ink_on(g.palette.body)
-    for part in g.parts:
-        if view not in part.views or part.spec.kind not in _LABEL_BESIDE or not part.spec.label:
-            continue
-        _label_near(d, part, _scaled(g.part_rect(part, view)), body, occupied, ink, g.palette.body)
 
 
 def _label_near(d, part: Part, rect, bounds, occupied, ink, bg) -> None:
@@ -458,37 +449,37 @@ def _shade(color, normal, toward) -> tuple[int, int, int]:
 
 
 _FACE_CORNERS = {
-    "front": lambda lo, hi: [
+    FRONT: lambda lo, hi: [
         (lo[0], lo[1], lo[2]),
         (hi[0], lo[1], lo[2]),
         (hi[0], lo[1], hi[2]),
         (lo[0], lo[1], hi[2]),
     ],
-    "back": lambda lo, hi: [
+    BACK: lambda lo, hi: [
         (lo[0], hi[1], lo[2]),
         (hi[0], hi[1], lo[2]),
         (hi[0], hi[1], hi[2]),
         (lo[0], hi[1], hi[2]),
     ],
-    "left": lambda lo, hi: [
+    LEFT: lambda lo, hi: [
         (lo[0], lo[1], lo[2]),
         (lo[0], hi[1], lo[2]),
         (lo[0], hi[1], hi[2]),
         (lo[0], lo[1], hi[2]),
     ],
-    "right": lambda lo, hi: [
+    RIGHT: lambda lo, hi: [
         (hi[0], lo[1], lo[2]),
         (hi[0], hi[1], lo[2]),
         (hi[0], hi[1], hi[2]),
         (hi[0], lo[1], hi[2]),
     ],
-    "top": lambda lo, hi: [
+    TOP: lambda lo, hi: [
         (lo[0], lo[1], hi[2]),
         (hi[0], lo[1], hi[2]),
         (hi[0], hi[1], hi[2]),
         (lo[0], hi[1], hi[2]),
     ],
-    "bottom": lambda lo, hi: [
+    BOTTOM: lambda lo, hi: [
         (lo[0], lo[1], lo[2]),
         (hi[0], lo[1], lo[2]),
         (hi[0], hi[1], lo[2]),
@@ -544,7 +535,7 @@ def _axo(g: Geometry, frame: AxoFrame, omit: frozenset[str]) -> Image.Image:
     X, Y, Z = g.dims
     # Floor shadow: the footprint projected.
     foot = [px((x, y, 0.0)) for x, y, _ in body_outline_points(g.body, g.dims) if _ == 0.0]
-    if frame.view == "front_top":
+    if frame.view == FRONT_TOP:
         hull = _convex_hull(foot)
         if len(hull) >= 3:
             d.polygon(
@@ -558,14 +549,14 @@ def _axo(g: Geometry, frame: AxoFrame, omit: frozenset[str]) -> Image.Image:
             fill=_shade(pal.body, (0.4, -0.9, 0.0), frame.toward),
             outline=outline,
         )
-        cap_z = Z if frame.view == "front_top" else 0.0
+        cap_z = Z if frame.view == FRONT_TOP else 0.0
         cap = [px(p) for p in body_outline_points(g.body, g.dims, 72) if p[2] == cap_z]
         normal = (0.0, 0.0, 1.0 if cap_z else -1.0)
         d.polygon(_convex_hull(cap), fill=_shade(pal.body, normal, frame.toward), outline=outline)
     else:
         if g.body == "pistol":
             barrel, grip = pistol_solids(g.dims)
-            boxes = [grip, barrel] if frame.view == "front_top" else [barrel, grip]
+            boxes = [grip, barrel] if frame.view == FRONT_TOP else [barrel, grip]
         else:
             boxes = [Box3((0.0, 0.0, 0.0), (X, Y, Z))]
         for box in boxes:

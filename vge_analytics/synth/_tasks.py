@@ -3,7 +3,7 @@ transition paths from the initial state, phrased with the catalog's goal phrases
 
 Single-turn tasks have one goal; multi-turn ones 2-4 goals, each reachable from where the
 previous one leaves the device, with no goal repeated (returning to the initial state is
-allowed only as the last goal). Every task is checked with `replay.setup_episode` (so it is
+allowed only as the last goal). Every task is checked with `replay.semantics.setup_episode` (so it is
 plannable) and carries the planner's `c_opt`. Instructions never name a component: they are
 the catalog's phrases, with light connectives between the goals of a multi-turn task.
 """
@@ -14,6 +14,7 @@ import random
 from dataclasses import dataclass
 
 import replay
+from replay.semantics import BACK, FRONT, FRONT_TOP, LEFT, RIGHT, TOP
 
 from ._catalog import Catalog, load_catalog
 
@@ -22,7 +23,7 @@ _DISTANCE_WEIGHT = {1: 1.0, 2: 0.45, 3: 0.15}
 _GOAL_COUNTS = ((2, 0.58), (3, 0.3), (4, 0.12))
 _CONNECTIVES = ("Then", "Next,", "Now", "After that,", "Once that's done,", "When that's done,")
 _LAST_CONNECTIVES = ("Finally,", "Lastly,", "To finish,")
-_OTHER_START_VIEWS = ("back", "left", "right", "top")
+_OTHER_START_VIEWS = (BACK, LEFT, RIGHT, TOP)
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,7 +78,7 @@ def _pick_goal(
     for g in candidates:
         if g == start or g in exclude:
             continue
-        d = replay.distances(machine, g)[start]
+        d = replay.semantics.distances(machine, g)[start]
         w = _DISTANCE_WEIGHT.get(d, 0.0) if d < INF else 0.0
         if w > 0:
             options.append((g, w))
@@ -123,10 +124,10 @@ def sample_goals(
 def _initial_view(rng: random.Random) -> str:
     x = rng.random()
     if x < 0.78:
-        return "front"
+        return FRONT
     if x < 0.9:
         return rng.choice(_OTHER_START_VIEWS)
-    return "front_top"
+    return FRONT_TOP
 
 
 def _lower_first(text: str) -> str:
@@ -193,7 +194,7 @@ def sample_tasks(
                 initial_view=view,
             )
             try:
-                setup = replay.setup_episode(machine, task)
+                setup = replay.semantics.setup_episode(machine, task)
             except replay.TaskError:
                 continue
             seen.add(key)

@@ -11,6 +11,16 @@ from __future__ import annotations
 import random
 
 import replay
+from replay.semantics import (
+    GRASP,
+    PRESS,
+    PULL,
+    PUSH,
+    ROTATE,
+    ROTATE_DIRECTIONS,
+    SWITCH_VIEW,
+    TIMED_WAIT,
+)
 
 from ._catalog import ComponentSpec
 
@@ -94,22 +104,22 @@ def position_words(rect: tuple[float, ...]) -> str:
 def verb_phrase(action: replay.Action) -> str:
     """'turn it clockwise by 2 steps', 'press and hold it', 'pull it out'."""
     p = action.params
-    if action.type == "press":
+    if action.type == PRESS:
         return {"1": "press and hold it", "2": "double-press it"}.get(
             p[0] if p else "0", "press it"
         )
-    if action.type == "rotate":
-        direction = "clockwise" if (p[:1] or ("0",))[0] == "0" else "counter-clockwise"
+    if action.type == ROTATE:
+        direction = ROTATE_DIRECTIONS[0 if (p[:1] or ("0",))[0] == "0" else 1]
         extent = p[1] if len(p) > 1 else "*"
         if extent in ("*", ""):
             return f"turn it {direction}"
         unit = "step" if extent == "1" else "steps"
         return f"turn it {direction} by {extent} {unit}"
-    if action.type == "push":
+    if action.type == PUSH:
         return f"push it {_DIRECTIONS.get(p[0] if p else '4', 'in')}"
-    if action.type == "pull":
+    if action.type == PULL:
         return f"pull it {_PULL_DIRECTIONS.get(p[0] if p else '4', 'out')}"
-    if action.type == "grasp":
+    if action.type == GRASP:
         return "let go of it" if p[:1] == ("1",) else "pick it up"
     return "operate it"
 
@@ -143,7 +153,7 @@ def slip_text(kind: str, thinking: str, action: replay.Action, alternative: repl
     coord = action.coord or (500.0, 500.0)
     x, y = round(coord[0]), round(coord[1])
     if kind == "unknown_action":
-        name = "Click" if action.type in ("press", "switch_view", "timed_wait") else "Tap"
+        name = "Click" if action.type in (PRESS, SWITCH_VIEW, TIMED_WAIT) else "Tap"
         return f"Thinking: {thinking}\nAction: {name}(coord=[{x}, {y}])"
     if kind == "multiple_actions":
         return f"Thinking: {thinking}\nAction: {alternative.to_text()}\nAction: {action.to_text()}"

@@ -14,7 +14,6 @@ from __future__ import annotations
 import hashlib
 import io
 import os
-import tempfile
 import threading
 from pathlib import Path
 
@@ -23,6 +22,7 @@ from PIL import Image
 
 import replay
 from replay import ViewImage
+from replay.io import write_atomic
 
 from ._catalog import data_digest, is_known_category
 from ._foreign import render_foreign
@@ -62,7 +62,7 @@ def synthetic_view(machine: replay.Machine, view: str) -> ViewImage | None:
     key = _cache_key(machine)
     path = cache_dir() / "views" / key[:2] / key / f"{view}.png"
     if path.is_file():
-        found = replay.decode_view_image(path.read_bytes())
+        found = replay.io.decode_view_image(path.read_bytes())
         if found is not None:
             return found
     data = _render_png(machine, view, key)
@@ -116,17 +116,11 @@ def _render_png(machine: replay.Machine, view: str, key: str) -> bytes:
 
 
 def _store(path: Path, data: bytes) -> None:
-    """Write atomically; a cache that cannot be written is simply skipped."""
+    """Write atomically (a cache: not synced); a cache that cannot be written is simply
+    skipped."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".png", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        write_atomic(path, data, sync=False)
     except OSError:
         return
 

@@ -56,7 +56,7 @@ def test_the_optimal_plan_completes_every_goal_in_exactly_c_opt_steps(
     env = _make(sample)
     obs, info = env.reset(options={"episode_id": episode_id})
     task = env.unwrapped.session.task
-    plan = replay.setup_episode(env.unwrapped.machine, task).plan
+    plan = replay.semantics.setup_episode(env.unwrapped.machine, task).plan
     assert info["c_opt"] == list(plan.c_opt)
     assert obs["step"] == 0 and obs["goal_index"] == 0 and obs["feedback"] == ""
     reward = 0.0

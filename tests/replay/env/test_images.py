@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from replay.env._images import ViewImages
-from replay.semantics._machine import Machine
+from replay.semantics import Machine
 
 
 class _Device:

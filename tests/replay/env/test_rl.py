@@ -26,7 +26,7 @@ from replay.env import (
     log_step_of,
     no_images,
 )
-from replay.semantics._vocab import DISPLAY_NAMES, normalize_params
+from replay.semantics import DISPLAY_NAMES, normalize_params
 
 from ...bounded import run_bounded
 from ..conftest import Sample

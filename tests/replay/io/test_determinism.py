@@ -25,7 +25,7 @@ def _digests(out: Path) -> dict[str, str]:
 
 @pytest.fixture
 def small_boundaries(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 5)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 5)
     monkeypatch.setattr("replay.io._files.ROW_GROUP_ROWS", 40)
 
 
@@ -75,7 +75,7 @@ def test_batch_size_changes_only_the_part_layout(
     rows, their order, the quarantine and the counts stay the same."""
     outs = []
     for size in (1, 7, 1000):
-        monkeypatch.setattr("replay.io._runner.BATCH_LINES", size)
+        monkeypatch.setattr("replay.io._job.BATCH_LINES", size)
         out = tmp_path / str(size)
         replay.replay_runs(sample.runs, sample.bench, out, progress=False)
         outs.append(out)

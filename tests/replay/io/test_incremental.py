@@ -10,7 +10,7 @@ import duckdb
 import pytest
 
 import replay
-from replay.io import _worker
+from replay.io import _batch
 
 from ..conftest import Sample
 from .conftest import fail_after
@@ -98,9 +98,9 @@ def test_other_runs_stay_complete(copy_sample: Sample, tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("target", "name", "n"),
     [
-        (_worker, "replay_kernel", 2),  # mid-run, in the compiled replay
-        (_worker, "replay_episode", 20),  # mid-run, in the reference replay loop
-        (_worker, "write_part", 2),  # mid-run, while writing a Parquet part
+        (_batch, "replay_kernel", 2),  # mid-run, in the compiled replay
+        (_batch, "replay_episode", 20),  # mid-run, in the reference replay loop
+        (_batch, "write_part", 2),  # mid-run, while writing a Parquet part
     ],
 )
 def test_interrupted_replay_leaves_previous_output_intact(
@@ -113,8 +113,8 @@ def test_interrupted_replay_leaves_previous_output_intact(
 ) -> None:
     s, out = copy_sample, tmp_path / "out"
     if name == "replay_episode":
-        monkeypatch.setattr("replay.io._worker.KERNEL", False)  # the reference engine
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 4)
+        monkeypatch.setattr("replay.io._batch.KERNEL", False)  # the reference engine
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 4)
     monkeypatch.setattr("replay.io._files.ROW_GROUP_ROWS", 16)
     replay.replay_runs([s.vlm], s.bench, out, progress=False)
     before = _state(out)

@@ -14,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 import replay
-from vge_analytics.commands.replay import image_source
+from vge_analytics.synth import image_source
 
 LOGS = Path(__file__).resolve().parents[3] / "logs"
 RUNS = sorted(p for p in (LOGS / "runs").iterdir() if p.is_dir())
@@ -126,10 +126,10 @@ def test_run_header_bytes_writes_run_json_as_the_sample_has_it() -> None:
     # A document's keys in the order given: the sample's run.json files, byte for byte.
     for run in RUNS:
         data = (run / "run.json").read_bytes()
-        assert replay.run_header_bytes(json.loads(data)) == data, run.name
+        assert replay.io.run_header_bytes(json.loads(data)) == data, run.name
     # A RunHeader: its fields in their declared order, its meta's keys sorted.
     header = replay.RunHeader(run_id="r", model="m", agent_kind="human", meta={"b": 1, "a": 0.5})
-    assert replay.run_header_bytes(header) == (
+    assert replay.io.run_header_bytes(header) == (
         b'{\n  "run_id": "r",\n  "model": "m",\n  "agent_kind": "human",\n  "lambda": null,\n'
         b'  "meta": {\n    "a": 0.5,\n    "b": 1\n  },\n  "schema_version": 1\n}\n'
     )

@@ -12,7 +12,7 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap.reader import make_reader
 
 import replay
-from replay import safe_file_name
+from replay.io import safe_file_name
 
 from ..conftest import IMAGE_SIZE, Sample
 
@@ -149,3 +149,29 @@ def test_mcap_episodes_limits_files(sample: Sample, tmp_path: Path) -> None:
     # without --mcap the run's MCAP directory goes away on the next replay
     replay.replay_runs([sample.vlm], sample.bench, tmp_path, progress=False)
     assert not (tmp_path / "mcap" / "vlm-a").exists()
+
+
+def test_the_files_from_the_kernels_rows_are_the_references(
+    sample: Sample, tmp_path: Path, monkeypatch
+) -> None:
+    """Every MCAP file of the sample, written from the kernel's rows read back three
+    episodes at a time, is byte for byte the file the reference's own rows give (the runner
+    with `VGE_REPLAY_ENGINE=reference` writes from them)."""
+    images = replay.BenchImages(str(sample.bench))
+    monkeypatch.setattr("replay.io._batch.MCAP_ROWS_AT_ONCE", 3)
+    replay.replay_runs(
+        sample.runs, sample.bench, tmp_path / "kernel", mcap=True, progress=False,
+        image_source=images,
+    )  # fmt: skip
+    monkeypatch.setattr("replay.io._batch.KERNEL", False)
+    replay.replay_runs(
+        sample.runs, sample.bench, tmp_path / "reference", mcap=True, progress=False,
+        image_source=images,
+    )  # fmt: skip
+    kernel = sorted((tmp_path / "kernel" / "mcap").rglob("*.mcap"))
+    reference = sorted((tmp_path / "reference" / "mcap").rglob("*.mcap"))
+    names = [p.relative_to(tmp_path / "kernel") for p in kernel]
+    assert names == [p.relative_to(tmp_path / "reference") for p in reference]
+    assert len(kernel) > 2 * 3  # several reads of three episodes in a run
+    for a, b in zip(kernel, reference, strict=True):
+        assert a.read_bytes() == b.read_bytes(), a.name

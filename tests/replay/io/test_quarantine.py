@@ -100,9 +100,9 @@ def test_duplicates_across_batches(
     """Duplicates are decided in the main process, whatever the batch they fall in."""
     s = copy_sample
     expected, n_good = _broken_copy(s)
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 4)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 4)
     small = replay.replay_runs([s.vlm], s.bench, tmp_path / "small", progress=False)
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 1000)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 1000)
     one = replay.replay_runs([s.vlm], s.bench, tmp_path / "one", progress=False)
     assert small.exit_code == one.exit_code == 2
     quarantine = [(tmp_path / d / "quarantine.jsonl").read_bytes() for d in ("small", "one")]
@@ -165,6 +165,21 @@ def test_fatal_errors_are_one_line(
         assert err.count("\n") == 1 and named in err and "Traceback" not in err
 
 
-def test_clean_run_exits_zero(vge, sample: Sample, tmp_path: Path) -> None:
+def test_clean_run_exits_zero(
+    vge, sample: Sample, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     argv = ["replay", str(sample.human), "--bench", str(sample.bench), "--out", str(tmp_path)]
     assert vge([*argv, "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    assert "quarantine.jsonl" not in printed
+    # The human run holds each of the 13 hand-worked cases once (conftest): 80 logged steps
+    # (the 12 cases of test_metrics_hand.py have 77, the overlap case 3), 4 truncated
+    # (kettle b's and d's 2 each), 22 goals (kettle 13, oven 8, overlap 1), nothing recorded
+    # to diverge and nothing quarantined: an empty quarantine file.
+    (entry,) = replay.read_manifest(tmp_path).runs
+    c = entry.counts
+    assert (c.lines_read, c.replayed, c.quarantined, c.steps) == (13, 13, 0, 80)
+    assert (c.truncated_steps, c.diverged_steps, c.goals, c.mcap_files) == (4, 0, 22, 0)
+    assert entry.quarantine == {} and (tmp_path / "quarantine.jsonl").read_bytes() == b""
+    ids = pq.read_table(tmp_path / "episodes", partitioning=None)["episode_id"].to_pylist()
+    assert sorted(ids) == sorted(sample.episode_ids[:13])

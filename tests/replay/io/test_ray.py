@@ -68,7 +68,7 @@ def _digests(out: Path) -> dict[str, str]:
 def local_out(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("local") / "out"
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr("replay.io._runner.BATCH_LINES", 64)
+        mp.setattr("replay.io._job.BATCH_LINES", 64)
         replay.replay_runs(RUNS, LOGS / "bench", out, progress=False)
     return out
 
@@ -76,7 +76,7 @@ def local_out(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_replay_on_two_nodes_is_byte_identical(
     cluster, local_out: Path, crash_marker: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 64)  # many tasks: both nodes busy
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 64)  # many tasks: both nodes busy
     out = tmp_path / "out"
     manifest = replay.replay_runs(RUNS, LOGS / "bench", out, ray="auto", progress=False)
     assert _digests(out) == _digests(local_out)
@@ -94,7 +94,7 @@ def test_replay_on_two_nodes_into_object_storage(
 ) -> None:
     """OUT in an S3 bucket (moto on 127.0.0.1): every node writes its parts there; the
     bucket then holds the same files as the local replay."""
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 64)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 64)
     fs, query = s3_server
     manifest = replay.replay_runs(
         RUNS, LOGS / "bench", f"s3://vge/ray-out?{query}", ray="auto", progress=False

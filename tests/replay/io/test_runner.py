@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -14,7 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 
 import replay
-from replay.io._load import episode_decoder
+from replay.io import episode_decoder
 
 from ..conftest import COPIES, Sample
 
@@ -149,7 +150,13 @@ def test_manifest_records_inputs(replayed, sample: Sample) -> None:
     assert vlm.inputs.episodes.path == str(sample.vlm / "episodes.jsonl")
     assert manifest.run("human-1").inputs.episodes.path.endswith("episodes.jsonl.gz")
     assert set(vlm.inputs.ssm) == {p.stem for p in (sample.bench / "ssm").glob("*.json")}
-    assert all(len(ref.sha256 or "") == 64 for ref in vlm.inputs.ssm.values())
+    for name, ref in vlm.inputs.ssm.items():  # each file's own digest
+        assert ref.path == str(sample.bench / "ssm" / f"{name}.json")
+        assert ref.sha256 == hashlib.sha256(Path(ref.path).read_bytes()).hexdigest(), name
+    assert (
+        vlm.inputs.episodes.sha256
+        == hashlib.sha256((sample.vlm / "episodes.jsonl").read_bytes()).hexdigest()
+    )
     text = (out / "manifest.json").read_text()
     assert replay.read_manifest(out) == manifest.content
     for clock_word in ("time", "date", "elapsed"):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import jsonschema
 
-from replay import schema_documents
+from replay.io import schema_documents
 
 SCHEMAS = Path(__file__).resolve().parents[3] / "schemas"
 DATA = Path(__file__).resolve().parents[2] / "data"

@@ -17,7 +17,7 @@ import pytest
 
 import replay
 import vge_analytics as va
-from replay.io import _files, _fs, _worker
+from replay.io import _batch, _files, _fs
 
 from ..conftest import Sample
 from .conftest import fail_after
@@ -51,7 +51,7 @@ def _replay(runs, bench, out, **options) -> replay.Manifest:
 @pytest.fixture
 def small_batches(monkeypatch: pytest.MonkeyPatch) -> None:
     """Many parts per run, so that commits move and delete several files."""
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 4)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 4)
 
 
 # --------------------------------------------------------------------------- file://
@@ -148,7 +148,7 @@ def test_object_store_interrupted_mid_run_keeps_the_previous_output(
     _replay(s.runs, s.bench, no_rename(out))
     before = _digests(out)
     with monkeypatch.context() as patch:
-        fail_after(patch, _worker, "write_part", 5)
+        fail_after(patch, _batch, "write_part", 5)
         with pytest.raises(replay.InputError, match="simulated crash"):
             _replay(s.runs, s.bench, no_rename(out), force=True)
     assert _digests(out) == before  # nothing a reader sees has changed

@@ -63,7 +63,7 @@ def test_usage_columns_and_completeness(tmp_path: Path, monkeypatch: pytest.Monk
     plain = _run(tmp_path, "plain", {"profile": "x"}, usage=False)
     files = {}
     for engine in ("reference", "kernel"):
-        monkeypatch.setattr("replay.io._worker.KERNEL", engine == "kernel")
+        monkeypatch.setattr("replay.io._batch.KERNEL", engine == "kernel")
         out = tmp_path / engine
         replay.replay_runs([priced, plain], bench, out, progress=False)
         files[engine] = {str(p.relative_to(out)): p.read_bytes() for p in out.rglob("*.parquet")}

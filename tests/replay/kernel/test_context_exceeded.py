@@ -17,7 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import replay
-from replay.kernel._batch import EpisodeInput, replay_kernel
+from replay.kernel import EpisodeInput, replay_kernel
 
 from .test_kernel import CASES, _episodes, check_batch, episode, machine_of
 

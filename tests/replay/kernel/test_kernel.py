@@ -22,16 +22,18 @@ import pyarrow.parquet as pq
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from replay.kernel._text import parse_fields
 
 import replay
-from replay.io._load import episode_decoder
-from replay.kernel._batch import EpisodeInput, replay_kernel
-from replay.semantics._episode import setup_episode
-from replay.semantics._parse import parse_action
-from replay.semantics._rows import EpisodeRow, GoalRow, StepRow
-from replay.semantics._tables import rows_to_table
-from replay.semantics._vocab import ACTION_NAMES, FEEDBACK_KINDS, STANDARD_VIEWS, normalize_param
+from replay.io import episode_decoder, reference_tables
+from replay.kernel import EpisodeInput, parse_fields, replay_kernel
+from replay.semantics import (
+    ACTION_NAMES,
+    FEEDBACK_KINDS,
+    STANDARD_VIEWS,
+    normalize_param,
+    parse_action,
+    setup_episode,
+)
 
 ROOT = Path(__file__).resolve().parents[3]
 DATA = ROOT / "tests" / "data"
@@ -64,7 +66,13 @@ def assert_same(got: pa.Table, want: pa.Table, what: str) -> None:
 
 
 def scalar_tables(episodes: list[EpisodeInput], head=("run", "model", "vlm")):
-    results = [
+    return reference_tables(scalar_results(episodes, head))
+
+
+def scalar_results(
+    episodes: list[EpisodeInput], head=("run", "model", "vlm")
+) -> list[replay.EpisodeResult]:
+    return [
         replay.replay_episode(
             e.machine,
             e.task,
@@ -77,23 +85,27 @@ def scalar_tables(episodes: list[EpisodeInput], head=("run", "model", "vlm")):
         )
         for e in episodes
     ]
-    return (
-        rows_to_table([t for r in results for t in r.step_tuples], StepRow),
-        rows_to_table([r.episode for r in results], EpisodeRow),
-        rows_to_table([g for r in results for g in r.goals], GoalRow),
-        [len(r.step_tuples) for r in results],
-        [len(r.goals) for r in results],
-    )
 
 
 def check_batch(episodes: list[EpisodeInput]) -> None:
-    """The kernel's tables of a batch equal the reference ones, row counts included."""
-    steps, eps, goals, step_counts, goal_counts = scalar_tables(episodes)
+    """The kernel's tables of a batch equal the reference ones, row counts included, and
+    its rows read back per episode (what the MCAP writer gets) encode to the reference's
+    JSON, byte for byte (an int where a float is due would show)."""
+    results = scalar_results(episodes)
+    steps, eps, goals, step_counts, goal_counts = reference_tables(results)
     got = replay_kernel(episodes, run_id="run", model="model", agent_kind="vlm")
     assert_same(got.steps, steps, "steps")
     assert_same(got.episodes, eps, "episodes")
     assert_same(got.goals, goals, "goals")
     assert list(got.step_counts) == step_counts and list(got.goal_counts) == goal_counts
+    mine = got.episode_results(list(range(len(episodes))))
+    for j, (a, b) in enumerate(zip(mine, results, strict=True)):
+        assert _json(a) == _json(b), f"episode {j}: rows read back differ from the reference's"
+
+
+def _json(result: replay.EpisodeResult) -> list[bytes]:
+    encode = msgspec.json.encode
+    return [encode(result.episode), *map(encode, result.steps), *map(encode, result.goals)]
 
 
 @cache
@@ -391,11 +403,11 @@ def test_runner_files_identical_with_either_engine(
         return real(*args, data_page_size=4096, **kwargs)
 
     monkeypatch.setattr("replay.io._files.pq.write_table", small_pages)
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 64)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 64)
     runs = sorted(str(p) for p in (LOGS / "runs").iterdir())[:3]
     outs = {}
     for engine in ("reference", "kernel"):
-        monkeypatch.setattr("replay.io._worker.KERNEL", engine == "kernel")
+        monkeypatch.setattr("replay.io._batch.KERNEL", engine == "kernel")
         replay.replay_runs(runs, LOGS / "bench", tmp_path / engine, progress=False)
         outs[engine] = _digests(tmp_path / engine)
     assert outs["reference"] == outs["kernel"]
@@ -405,7 +417,7 @@ def test_runner_files_identical_with_either_engine(
 def test_runner_files_identical_with_any_number_of_workers(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("replay.io._runner.BATCH_LINES", 64)
+    monkeypatch.setattr("replay.io._job.BATCH_LINES", 64)
     runs = sorted(str(p) for p in (LOGS / "runs").iterdir())[:3]
     outs = []
     for workers in (1, 2):

@@ -9,7 +9,7 @@ import json
 import msgspec
 
 import replay
-from replay.semantics._episode import setup_episode
+from replay.semantics import setup_episode
 
 from .test_kernel import CASES, check_batch, episode, machine_of
 

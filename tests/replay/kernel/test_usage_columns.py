@@ -11,10 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import replay
-from replay.kernel._batch import EpisodeInput, replay_kernel
-from replay.semantics._rows import EpisodeRow, GoalRow, StepRow
-from replay.semantics._tables import rows_to_table
-from replay.semantics._usage import Prices
+from replay.kernel import EpisodeInput, replay_kernel
+from replay.semantics import EpisodeRow, GoalRow, Prices, StepRow, rows_to_table
 
 from .test_context_exceeded import _case
 from .test_kernel import _episodes, assert_same, episode
@@ -61,7 +59,7 @@ def test_usage_and_origin_worked_by_hand() -> None:
     log = msgspec.convert(
         {"episode_id": task.episode_id, "steps": steps, "continuation": cont}, replay.EpisodeLog
     )
-    e = EpisodeInput(machine, task, replay.setup_episode(machine, task), log, float(lam))
+    e = EpisodeInput(machine, task, replay.semantics.setup_episode(machine, task), log, float(lam))
     result = replay.replay_episode(
         machine, task, log, lam=e.lam, run_id="r", model="m", agent_kind="vlm", prices=PRICES
     )

@@ -14,11 +14,11 @@ from replay import (
     SSMError,
     StateMachine,
     compile_machine,
-    decode_state_machine,
     load_machine,
     load_ssm,
-    validate_machine,
 )
+from replay.io import decode_state_machine
+from replay.semantics import validate_machine
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 KETTLE = json.loads((DATA / "kettle_ssm.json").read_text())

@@ -6,7 +6,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from replay import Action, action_from_record, parse_action
+from replay import Action, parse_action
+from replay.semantics import action_from_record
 
 OK = "ok"
 

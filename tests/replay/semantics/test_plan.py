@@ -7,13 +7,10 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from replay import (
-    Task,
-    TaskError,
+from replay import Task, TaskError, load_machine, next_optimal_step
+from replay.semantics import (
     c_opt_dynamic,
     distances,
-    load_machine,
-    next_optimal_step,
     plan_goals,
     setup_episode,
     target_components,

@@ -14,8 +14,8 @@ from replay import (
     arrow_schema,
     load_machine,
     replay_episode,
-    rows_to_table,
 )
+from replay.semantics import rows_to_table
 
 KETTLE = load_machine(Path(__file__).resolve().parents[2] / "data" / "kettle_ssm.json", "kettle")
 

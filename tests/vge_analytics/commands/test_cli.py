@@ -123,13 +123,19 @@ def test_sweep_and_sql_commands(capsys, hand_out: Path) -> None:
 
 @pytest.mark.parametrize("fmt", ["table", "json", "csv", "markdown", "latex"])
 def test_every_format_everywhere(capsys, hand_out: Path, pair_out: Path, fmt: str) -> None:
-    for args in (
-        ("metrics", str(hand_out)),
-        ("errors", str(hand_out)),
-        ("compare", str(pair_out), "A", "B", "--resamples", "20"),
-        ("sweep", str(hand_out), "--lambdas", "3"),
-        ("sql", str(hand_out), "SELECT run_id, model FROM runs"),
+    # Each command prints a value known by hand, in the format's own way: two decimals where
+    # a person reads the table, every digit where a program reads the data.
+    for args, value in (
+        (("metrics", str(hand_out)), 100 * 4 / 7),  # kettle SR: 4 of 7
+        (("errors", str(hand_out)), 37.5),  # oven action_error: 6 of its 16 errors
+        (("compare", str(pair_out), "A", "B", "--resamples", "20"), 60.0),  # B's SR: 6 of 10
+        # Kettle SR at λ 3: c (its own λ is 2), f (B_global 6, success at its 5th step) and g
+        # (one step) succeed; a and d run out of B_local, b hits its budget, e's log ends.
+        (("sweep", str(hand_out), "--lambdas", "3"), 100 * 3 / 7),
+        (("sql", str(hand_out), "SELECT run_id, model FROM runs"), "model-o"),
     ):
         code, out, err = run(capsys, *args, "--format", fmt)
         assert code == 0, (args, err)
-        assert out.strip()
+        if isinstance(value, float):
+            value = f"{value:.2f}" if fmt in ("table", "markdown", "latex") else repr(value)
+        assert value in out, (args[0], value)

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from vge_analytics.cli import main
+from vge_analytics.commands.demo import command_name
 
 LOGS = Path(__file__).resolve().parents[3] / "logs"
 
@@ -29,3 +30,25 @@ def test_demo_replays_the_sample_and_prints_the_table(tmp_path: Path, capsys, mo
     before = (out / "manifest.json").read_bytes()
     assert main(["demo", "--out", str(out)]) == 0
     assert (out / "manifest.json").read_bytes() == before
+
+
+def test_the_closing_hint_is_a_command_the_shell_runs(tmp_path: Path, monkeypatch) -> None:
+    """`vge` when PATH finds the program that runs, else the path it was started by: after
+    `.venv/bin/vge demo` in a shell without the venv activated, `.venv/bin/vge app ...`."""
+    bin_dir = tmp_path / ".venv" / "bin"
+    bin_dir.mkdir(parents=True)
+    script = bin_dir / "vge"
+    script.write_text("#!/bin/sh\n")
+    script.chmod(0o755)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("PATH", "/usr/bin:/bin")
+    assert command_name(".venv/bin/vge") == ".venv/bin/vge"
+    assert command_name(str(script)) == str(script)
+    monkeypatch.setenv("PATH", f"{bin_dir}:/usr/bin:/bin")  # activated
+    assert command_name(".venv/bin/vge") == "vge"
+    assert command_name(str(script)) == "vge"
+    odd = tmp_path / "my venv" / "bin"
+    odd.mkdir(parents=True)
+    (odd / "vge").write_text("#!/bin/sh\n")
+    assert command_name(str(odd / "vge")) == f"'{odd / 'vge'}'"  # quoted for the shell
+    assert command_name("/usr/bin/python3") == "vge"  # `python -m`, a test: the plain name

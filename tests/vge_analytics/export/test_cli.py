@@ -46,11 +46,14 @@ def test_writes_and_says_where(hand_out, tmp_path, capsys):
         ),
         (
             ["--episodes", "hw_dash_a,nope"],
-            "error: unknown episode(s) 'nope' in the selected runs of {out}",
+            "error: unknown episode(s) 'nope' in the selected runs of {out}; 12 episodes, "
+            "none alike",
         ),
         (
             ["--runs", "kettle-vlm", "--episodes", "hw_dash_a"],
-            "error: unknown episode(s) 'hw_dash_a' in the selected runs of {out}",
+            "error: unknown episode(s) 'hw_dash_a' in the selected runs of {out}; episodes: "
+            "hw_kettle_a, hw_kettle_b, hw_kettle_c, hw_kettle_d, hw_kettle_e, hw_kettle_f, "
+            "hw_kettle_g",
         ),
         (["--images", "some"], "error: --images must be one of embed, none, not 'some'"),
         (["--format", "html"], "error: --format must be one of inspect, atif, not 'html'"),

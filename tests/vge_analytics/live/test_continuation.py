@@ -220,7 +220,7 @@ def test_both_engines_replay_a_continuation_to_the_same_files(
     assert _continue(kettle_bench, source, cont, "after_fix", "--at", "first-error", "--fix") == 0
     files = {}
     for engine in ("reference", "kernel"):
-        monkeypatch.setattr("replay.io._worker.KERNEL", engine == "kernel")
+        monkeypatch.setattr("replay.io._batch.KERNEL", engine == "kernel")
         out = tmp_path / engine
         replay.replay_runs([cont], kettle_bench, out, progress=False)
         files[engine] = {str(p.relative_to(out)): p.read_bytes() for p in out.rglob("*.parquet")}

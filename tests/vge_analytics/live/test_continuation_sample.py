@@ -95,7 +95,7 @@ def test_every_fix_is_the_planners_step_and_operating_fixes_made_progress(
     }
     logs = {
         log.episode_id: log
-        for _, line in replay.iter_lines(replay.episodes_file(LOGS / "runs" / "sim-vlm-a"))
+        for _, line in replay.io.iter_lines(replay.episodes_file(LOGS / "runs" / "sim-vlm-a"))
         for log in [msgspec.json.decode(line, type=replay.EpisodeLog)]
     }
     for f in fixes[::13]:  # a sample of them: each replays its prefix

@@ -77,7 +77,7 @@ def test_vge_run_defaults_are_the_clients() -> None:
     options = inspect.signature(run_command).parameters
     defaults = ClientSettings()
     for name in ("timeout", "max_response_bytes", "retries", "retry_wait"):
-        assert options[name].default.default == getattr(defaults, name), name
+        assert options[name].default == getattr(defaults, name), name
     assert defaults.max_response_bytes == 4 * 1024 * 1024
 
 

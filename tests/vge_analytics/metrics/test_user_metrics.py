@@ -209,7 +209,21 @@ def test_sweep_uses_the_folder(hand, mine: Path) -> None:
     # The sweep's SR is the folder's SR: SSR's definition, at every lambda.
     df = va.sweep(hand["out"], [2, 5], metrics=["SR", "SSR", "SR-multi"], metrics_dir=mine)
     assert df["SR"].to_list() == df["SSR"].to_list()
-    assert df["SR-multi"].null_count() == 0
+    # SR-multi, by hand from the case files' notes (PROTOCOL §3.5: B_global = λ·L_opt,
+    # B_local from λ·C_opt of the current goal, refilled on completion; success first).
+    # Kettle, multi-goal a, c, d, e, f. At λ 2 only c (its own λ) succeeds: a runs out of
+    # B_local = 4 at step 3, d of 4 at step 3, f of B_global = 4 at step 3, e's log ends.
+    # At λ 5: a (its own λ), c, f, and d, whose Timed_wait at step 6 (truncated at λ 3)
+    # reaches Standby with B_local 3 left; e's log still ends first: 4 of 5.
+    # Oven, multi-goal a, c, d. At λ 2 each runs out of B_local (a at step 4, c and d at
+    # step 1). At λ 5 a (its own λ) and c (goal 1 at step 2, B_local refilled to 10)
+    # succeed; d spends B_local = 5 before its goal 1 at step 6 (it needed λ 8): 2 of 3.
+    assert df.select("run_id", "lambda", "SR-multi").rows() == [
+        ("kettle-vlm", 2.0, 20.0),
+        ("kettle-vlm", 5.0, 80.0),
+        ("oven-human", 2.0, 0.0),
+        ("oven-human", 5.0, pytest.approx(100 * 2 / 3)),
+    ]
     builtin = va.sweep(hand["out"], [2, 5], metrics=["SR"])
     assert builtin["SR"].to_list() != df["SR"].to_list()
     with pytest.raises(ConfigError, match="episode metrics: SR, SSR, .*SR-multi"):

@@ -36,7 +36,7 @@ def structured(a: replay.Action) -> dict:
 
 def optimal_actions(run: play.HumanRun, episode_id: str) -> list[dict]:
     task = run.bench.tasks[episode_id].task
-    plan = replay.setup_episode(run.bench.machine(task.device_id), task).plan
+    plan = replay.semantics.setup_episode(run.bench.machine(task.device_id), task).plan
     return [structured(s.action) for s in plan.steps]
 
 

@@ -47,7 +47,7 @@ def test_sweep_at_recorded_lambdas_matches_the_replay(hand_out: Path) -> None:
     # for every episode except none (all succeed) -> SR 100 as in `metrics`.
     sw = va.sweep(hand_out, [8], runs=["oven-human"])
     m = va.metrics(hand_out, where={"run_id": "oven-human"}, metrics=["SR", "SSR"])
-    assert sw["SR"].to_list() == m["SR"].to_list()
+    assert sw["SR"].to_list() == m["SR"].to_list() == [100.0]
 
 
 @pytest.fixture(scope="module")
@@ -124,4 +124,10 @@ def test_sweep_finds_inputs_next_to_out_from_another_directory(tmp_path, monkeyp
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)
     table = sweep(work / "out", lambdas=[2, 5])
-    assert sorted(table["lambda"].to_list()) == [2.0, 5.0]
+    # The logs read are the ones replayed: no task of the sample has its own lambda, so at
+    # the run's lambda 5 the sweep gives the SR that `metrics` reads from OUT ...
+    assert table["lambda"].to_list() == [2.0, 5.0]
+    assert table["SR"][1] == va.metrics(work / "out", metrics=["SR"])["SR"][0]
+    # ... and at every lambda what the same sweep gives run from where the paths were given.
+    monkeypatch.chdir(work)
+    assert table.equals(sweep("out", lambdas=[2, 5]))

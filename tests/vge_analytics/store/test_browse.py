@@ -59,10 +59,14 @@ def test_out_dir_errors(tmp_path: Path) -> None:
         va.metrics(tmp_path)
 
 
-def test_empty_out_dir(tmp_path: Path) -> None:
+def test_empty_out_dir(tmp_path: Path, hand_out: Path) -> None:
     for table in ("steps", "episodes", "goals", "runs"):
         (tmp_path / table).mkdir()
     df = va.metrics(tmp_path)
     assert df.height == 0 and df.columns == ["run_id", "model", *va.METRIC_NAMES]
-    assert va.error_distribution(tmp_path).height == 0
-    assert isinstance(va.runs(tmp_path), pl.DataFrame)
+    errors = va.error_distribution(tmp_path)
+    assert errors.height == 0 and errors.schema == va.error_distribution(hand_out).schema
+    # No run: no row, and the columns (and types) of an OUT with runs, less its facets.
+    runs, filled = va.runs(tmp_path), va.runs(hand_out)
+    assert runs.height == 0
+    assert runs.schema == filled.drop(pl.selectors.starts_with("meta_")).schema

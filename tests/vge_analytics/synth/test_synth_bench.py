@@ -28,16 +28,16 @@ def _ssm_paths(out: Path) -> list[Path]:
 def _tasks(out: Path) -> list[replay.Task]:
     return [
         msgspec.json.decode(line, type=replay.Task)
-        for _, line in replay.iter_lines(out / "bench" / "tasks.jsonl")
+        for _, line in replay.io.iter_lines(out / "bench" / "tasks.jsonl")
     ]
 
 
 def test_every_ssm_validates_with_no_problem(synth_tiny):
     paths = _ssm_paths(synth_tiny)
-    assert len(paths) >= 4
+    assert len(paths) == 8  # the tiny scale: 4 categories of 2 devices
     for path in paths:
-        ssm = replay.decode_state_machine(path)
-        assert replay.validate_machine(ssm, str(path)) == [], path.name
+        ssm = replay.io.decode_state_machine(path)
+        assert replay.semantics.validate_machine(ssm, str(path)) == [], path.name
     assert replay.validate_benchmark(synth_tiny / "bench") == []
 
 
@@ -107,7 +107,7 @@ def test_image_sizes_like_the_real_data(synth_tiny):
                 assert 700 <= w <= 1420 and 700 <= h <= 1420, (path.stem, view, w, h)
 
 
-def _oracle_log(setup: replay.EpisodeSetup, episode_id: str) -> replay.EpisodeLog:
+def _oracle_log(setup: replay.semantics.EpisodeSetup, episode_id: str) -> replay.EpisodeLog:
     steps = [
         replay.LogStep(output=f"Thinking: follow the plan.\nAction: {s.action.to_text()}")
         for s in setup.plan.steps
@@ -118,10 +118,10 @@ def _oracle_log(setup: replay.EpisodeSetup, episode_id: str) -> replay.EpisodeLo
 def test_oracle_reaches_every_goal_at_exactly_c_opt(synth_tiny):
     bench = replay.Benchmark.open(synth_tiny / "bench")
     tasks = _tasks(synth_tiny)
-    assert len(tasks) >= 12
+    assert len(tasks) == 24  # 8 devices, 1 single-goal and 2 multi-goal tasks each
     for task in tasks:
         machine = bench.machine(task.device_id)
-        setup = replay.setup_episode(machine, task)
+        setup = replay.semantics.setup_episode(machine, task)
         assert list(setup.plan.c_opt) == list(task.c_opt), task.episode_id
         res = replay.replay_episode(
             machine,
@@ -207,9 +207,17 @@ def test_replaying_simulated_logs_matches_the_simulation(synth_tiny, scale):
     from vge_analytics.synth import measure_output
 
     measures = measure_output(synth_tiny)
-    assert len(measures) >= 9
+    # The tiny scale: 4 categories of 2 devices, 1 single-goal and 2 multi-goal tasks each
+    # = 24 episodes, all played by every run (human and history fractions 1.0): the six
+    # profiles, the human-like run and two history-length variants of sim-vlm-f.
+    assert sorted(measures) == [
+        "sim-human",
+        *(f"sim-vlm-{p}" for p in "abcdef"),
+        "sim-vlm-f-hist0",
+        "sim-vlm-f-hist3",
+    ]
     for m in measures.values():
-        assert m.episodes > 0
+        assert m.episodes == 24
         assert m.truncated_steps == 0
         assert m.diverged_steps == 0
         assert "log_ended" not in m.terminations
@@ -240,6 +248,6 @@ def test_run_headers_say_they_are_simulated():
         assert meta["instruction_generator"]
         assert header.lam == 5.0
         if header.agent_kind == "human":
-            first = next(replay.iter_lines(replay.episodes_file(run_dir)))[1]
+            first = next(replay.io.iter_lines(replay.episodes_file(run_dir)))[1]
             step = json.loads(first)["steps"][0]
             assert "action" in step and "output" not in step

@@ -31,8 +31,12 @@ def test_vge_synth_tiny(tmp_path):
     assert main(["synth", "--out", str(foreign), "--scale", "tiny"]) == 1
 
 
-def test_unknown_scale_is_a_clear_error(tmp_path):
+def test_unknown_scale_is_a_clear_error(tmp_path, capsys):
     assert main(["synth", "--out", str(tmp_path / "x"), "--scale", "huge"]) == 1
+    assert (
+        capsys.readouterr().err == "error: --scale must be one of tiny, sample, full, not 'huge'\n"
+    )
+    assert not (tmp_path / "x").exists()  # refused before anything is written
 
 
 def test_full_scale_plan_matches_the_paper():

@@ -3,11 +3,15 @@ gives the full benchmark against the paper's Table "Data statistics"."""
 
 from __future__ import annotations
 
+import json
 import random
+from pathlib import Path
 
-from vge_analytics.synth import SCALES, device_logic, instantiate_device, plan_devices
+from vge_analytics.synth import SCALES, device_logic, plan_devices
 from vge_analytics.synth._instantiate import dashboard_probability
 from vge_analytics.synth._logic import _drop_functions
+
+SAMPLE_SSM = Path(__file__).resolve().parents[3] / "logs" / "bench" / "ssm"
 
 
 def _t(next_state: str) -> dict:
@@ -38,12 +42,42 @@ def test_a_settling_state_on_the_way_is_never_dropped_as_a_function():
     assert kept["Washing"]["on"] == {"start": [_t("Off")]}
 
 
-def test_device_logic_is_the_logic_of_the_built_device():
+def _without_geometry(ssm: dict) -> dict:
+    """An SSM file as `DeviceLogic.machine` states it: no bboxes, views or dashboard."""
+
+    def state(sdef: dict) -> dict:
+        on = {
+            comp: [{k: v for k, v in t.items() if k != "bbox"} for t in trans]
+            for comp, trans in sdef["on"].items()
+        }
+        return {**sdef, "on": on}
+
+    return {
+        "name": ssm["name"],
+        "initial_state": ssm["initial_state"],
+        "states": {name: state(sdef) for name, sdef in ssm["states"].items()},
+    }
+
+
+def test_device_logic_is_the_logic_of_the_written_ssm():
+    # logs/ is `vge synth --scale sample --seed 0` byte for byte (test_synth_bench.py): its
+    # SSM files are what the whole pipeline (logic, layout and its retries, assembly) wrote.
+    # device_logic, which skips the layout, must give each file's states and transitions,
+    # and as components exactly those the file gives boxes to.
     p = dashboard_probability()
-    for job in plan_devices(SCALES["sample"], 0)[::9]:
+    jobs = plan_devices(SCALES["sample"], 0)
+    assert sorted(j.device_id for j in jobs) == sorted(f.stem for f in SAMPLE_SSM.glob("*.json"))
+    for job in jobs:
+        written = json.loads((SAMPLE_SSM / f"{job.device_id}.json").read_text(encoding="utf-8"))
         logic = device_logic(job.category, job.device_id, 0, dashboard_p=p)
-        built = instantiate_device(job.category, job.device_id, 0, dashboard_p=p).logic
-        assert logic == built, job.device_id
+        assert json.loads(json.dumps(logic.machine)) == _without_geometry(written), job.device_id
+        boxed = {
+            comp
+            for sdef in written["states"].values()
+            for comp, trans in sdef["on"].items()
+            if any("bbox" in t for t in trans)
+        }
+        assert set(logic.components) == boxed, job.device_id
 
 
 # The paper's Table "Data statistics" and atomic action table (operable = every transition

@@ -3,9 +3,13 @@ the SSM's size, and the image lookup order of `vge_analytics.synth.view_image`."
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
+import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -31,12 +35,50 @@ def _devices():
     return out
 
 
-def test_rendering_is_deterministic():
+RENDERED = {
+    "front": "00575aab85b7636012cbcb758d2fa052c59143d8b133336edd0dfb4c9e346e86",
+    "front_top": "8c1e16ec7f172fd0b711b0831c81712cbf27342a9ea39fe92541d336980975cc",
+    "dashboard": "f4583029cfa920ffbb68d3001b0b78b48aab624c3a77f21588e82036038f8bfb",
+}
+"""sha256 of the PNG bytes of three views of Microwave_001 (seed 0), the first microwave with
+a dashboard. The MCAP digest of tests/replay/io/test_sample_digest.py holds these pictures
+too; a deliberate change of the drawing records both again, with the reason in the commit."""
+
+
+def rendered_digests() -> dict[str, str]:
+    """The digests of `RENDERED`, computed in this process."""
     device = _devices()[0]
-    for view in ("front", "front_top", "dashboard"):
-        a = png_bytes(render_view(device.geometry, view))
-        b = png_bytes(render_view(device.geometry, view))
-        assert a == b
+    assert device.device_id == "Microwave_001"
+    return {
+        view: hashlib.sha256(png_bytes(render_view(device.geometry, view))).hexdigest()
+        for view in RENDERED
+    }
+
+
+def test_rendering_gives_the_recorded_bytes():
+    assert rendered_digests() == RENDERED
+
+
+@pytest.mark.parametrize("hash_seed", ["0", "4242"])
+def test_rendering_gives_the_recorded_bytes_in_another_process(hash_seed):
+    # A fresh interpreter with another string-hash seed: no set or dict order, no state left
+    # by this process, can reach the pictures.
+    code = (
+        "import json\n"
+        "from tests.vge_analytics.synth.test_synth_render import rendered_digests\n"
+        "print(json.dumps(rendered_digests()))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        env={**os.environ, "PYTHONHASHSEED": hash_seed},
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout) == RENDERED
 
 
 def test_every_view_has_the_ssm_size():

@@ -5,17 +5,16 @@ read as a finished run's."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
-import polars as pl
 import typer
 
-from ..reports import (
-    RunCompleteness,
-    completeness,
-    mark_incomplete,
-    mark_rows,
-    with_complete_column,
-)
+from .. import reports
+
+if TYPE_CHECKING:
+    import polars as pl
+
+    from ..reports import RunCompleteness
 
 PEOPLE_FORMATS = ("table", "markdown", "latex")
 
@@ -23,7 +22,7 @@ PEOPLE_FORMATS = ("table", "markdown", "latex")
 def warn_incomplete(out: str, run_ids: Sequence[str] | None = None) -> list[RunCompleteness]:
     """One warning line on stderr per incomplete run of OUT (or of `run_ids`); every run's
     completeness, for marking the rows."""
-    runs = completeness(out, run_ids)
+    runs = reports.completeness(out, run_ids)
     for run in runs:
         if run.incomplete:
             typer.echo(run.warning(), err=True)
@@ -41,13 +40,13 @@ def marked(
     if not incomplete or "run_id" not in df.columns:
         return df
     if fmt in PEOPLE_FORMATS:
-        return mark_incomplete(df, "run_id", incomplete)
-    return with_complete_column(df, runs, after=[c for c in groups if c in df.columns][-1])
+        return reports.mark_incomplete(df, "run_id", incomplete)
+    return reports.with_complete_column(df, runs, after=[c for c in groups if c in df.columns][-1])
 
 
 def marked_rows(df: pl.DataFrame, label: str, flags: pl.Series) -> pl.DataFrame:
     """`df` with the rows of `flags` marked on `label` (a table whose run_id was dropped)."""
-    return mark_rows(df, label, flags) if flags.any() else df
+    return reports.mark_rows(df, label, flags) if flags.any() else df
 
 
 __all__ = ["PEOPLE_FORMATS", "marked", "marked_rows", "warn_incomplete"]

@@ -7,6 +7,7 @@ from __future__ import annotations
 import random
 
 import replay
+from replay.semantics import LEFT, RIGHT, SWITCH_VIEW, TOP
 
 from ._agent import Agent, AgentStep, Decision
 from ._catalog import Catalog
@@ -61,7 +62,7 @@ def play_episode(
     replay will use (`replay.episode_lambda`) and the replay's own budget rules
     (`replay.Budget`), so the replay of the log ends exactly at its last step."""
     plain = task.to_task()
-    setup = replay.setup_episode(machine, plain)
+    setup = replay.semantics.setup_episode(machine, plain)
     sim, _ = replay.reset(machine, setup.initial_state, setup.initial_view)
     budget = replay.Budget(setup.plan.c_opt, replay.episode_lambda(plain, run_lambda))
     player = StepPlayer(Agent(machine, catalog, profile, task, rng))
@@ -92,11 +93,11 @@ def _format(
             "coord": [round(action.coord[0]), round(action.coord[1])] if action.coord else None,
             "params": list(action.params),
         }
-        parsed = replay.action_from_record(record["type"], record["coord"], record["params"])
+        parsed = replay.semantics.action_from_record(record["type"], record["coord"], record["params"])
         return None, record, parsed
     if rng.random() < profile.slip:
         kind = rng.choice(SLIP_KINDS)
-        alternative = replay.Action("switch_view", None, (rng.choice(("left", "right", "top")),))
+        alternative = replay.Action(SWITCH_VIEW, None, (rng.choice((LEFT, RIGHT, TOP)),))
         text = slip_text(kind, decision.thinking, action, alternative)
     else:
         text = f"Thinking: {decision.thinking}\n{action_text(action, rng, profile.decorated)}"

@@ -7,38 +7,21 @@ import hashlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-
-import polars as pl
+from typing import TYPE_CHECKING
 
 import replay
+from replay.io import EPISODES_TABLE, MANIFEST, RUNS_TABLE, TABLES, manifest_path
 
+from .. import store
 from .._errors import OutputDirError
-from ..store import (
-    check_columns,
-    open_store,
-    quote_ident,
-)
+
+if TYPE_CHECKING:
+    import polars as pl
 
 DEFAULT_OUT = "logs-replayed"
 """Where `vge demo` writes the replayed bundled sample; `vge app` opens it by default."""
 OUT_ENV = "VGE_APP_OUT"
 """Environment variable naming OUT for the app (set by `vge app`; `--out` wins)."""
-
-
-def app_script() -> Path:
-    """The Streamlit entry file `app/streamlit_app.py` (next to the package in the repo)."""
-    here = Path(__file__).resolve().parents[2] / "app" / "streamlit_app.py"
-    if here.is_file():
-        return here
-    import importlib.util
-
-    spec = importlib.util.find_spec("app")
-    if spec is not None and spec.submodule_search_locations:
-        for base in spec.submodule_search_locations:
-            candidate = Path(base) / "streamlit_app.py"
-            if candidate.is_file():
-                return candidate
-    raise OutputDirError("the dashboard files (app/streamlit_app.py) are not installed")
 
 
 def check_out(out: str | Path) -> Path:
@@ -62,9 +45,9 @@ def check_out(out: str | Path) -> Path:
             else f"run `vge demo`, or `vge replay RUN... --bench BENCH --out {shown}`, first"
         )
         raise OutputDirError(f"No replay output at {shown}: {hint}")
-    missing = [t for t in ("steps", "episodes", "goals", "runs") if not (path / t).is_dir()]
-    if missing or not (path / "manifest.json").is_file():
-        what = ", ".join(f"{m}/" for m in missing) or "manifest.json"
+    missing = [t for t in TABLES if not (path / t).is_dir()]
+    if missing or not manifest_path(path).is_file():
+        what = ", ".join(f"{m}/" for m in missing) or MANIFEST
         raise OutputDirError(
             f"{shown} is not a replay output directory (no {what}): run `vge replay RUN... "
             f"--bench BENCH --out {shown}` first"
@@ -78,7 +61,7 @@ def out_version(out: str | Path) -> str:
     A replay rewrites the manifest (input hashes, counts, engine version), so any change of
     the tables changes this value.
     """
-    path = Path(out) / "manifest.json"
+    path = manifest_path(Path(out))
     try:
         data = path.read_bytes()
     except OSError:
@@ -101,7 +84,7 @@ class OutSummary:
 
 def out_summary(out: str | Path) -> OutSummary:
     """Counts and provenance of OUT from its manifest."""
-    manifest = open_store(out).manifest
+    manifest = store.open_store(out).manifest
     totals = manifest.get("totals") or {}
     benches = sorted({r["inputs"]["bench"] for r in manifest.get("runs", []) if "inputs" in r})
     return OutSummary(
@@ -117,22 +100,20 @@ def out_summary(out: str | Path) -> OutSummary:
 
 def column_values(out: str | Path, table: str, column: str) -> list:
     """Distinct non-null values of a scalar column of runs/episodes, sorted."""
-    store = open_store(out)
-    if table not in ("runs", "episodes"):
+    opened = store.open_store(out)
+    if table not in (RUNS_TABLE, EPISODES_TABLE):
         raise OutputDirError(f"no value list for table {table!r}")
-    check_columns(store, [column], [table], "filter")
-    col = quote_ident(column)
-    rows = (
-        store.cursor()
-        .execute(f"SELECT DISTINCT {col} FROM {table} WHERE {col} IS NOT NULL ORDER BY 1")
-        .fetchall()
-    )
-    return [r[0] for r in rows]
+    store.check_columns(opened, [column], [table], "filter")
+    col = store.quote_ident(column)
+    sql = f"SELECT DISTINCT {col} AS v FROM {table} WHERE {col} IS NOT NULL ORDER BY 1"
+    return store.run_query(opened, sql, [])["v"].to_list()
 
 
 def runs_matching(runs: pl.DataFrame, filters: Mapping[str, Sequence[object]]) -> list[str]:
     """Run ids of a `runs` table whose columns take one of the filter values (run columns
     only; a filter on another column is ignored here)."""
+    import polars as pl
+
     mask = pl.lit(True)
     for column, values in filters.items():
         if column in runs.columns and values:

@@ -1,20 +1,42 @@
-"""One run, as the main process sees it: batch reports taken in line order (duplicates
-decided here, where every line of the run is seen in order), quarantine records written,
-counts added up; then the staged parts are committed into OUT (`OUT/.replay/staging/<run_id>/`
--> `OUT/<table>/run_id=<run_id>/`, `_files.commit_dir`)."""
+"""The job, one run as the main process of `vge replay` sees it: its lines read in batches
+(`_reading.LineReader`), one `BatchTask` per batch, the batch reports taken in line order
+(duplicates decided here, where every line of the run is seen in order), quarantine records
+written, counts added up; then the staged parts are committed into OUT
+(`OUT/.replay/staging/<run_id>/` -> `OUT/<table>/run_id=<run_id>/`, `_files.commit_dir`)
+and the run's manifest entry made."""
 
 from __future__ import annotations
 
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 from .._errors import InputError, RecordTooLarge
 from .._version import ENGINE_VERSION
-from ..semantics._tables import TABLE_ROWS, arrow_schema
+from ..semantics import arrow_schema
+from ._batch import (
+    SKIPPED,
+    BatchCounts,
+    BatchFailure,
+    BatchReport,
+    BatchTask,
+    RunContext,
+)
+from ._file_names import part_name
 from ._files import STATE_DIR, commit_dir, remove_dir, write_part
 from ._fs import Location
 from ._images import ImageSource
+from ._layout import (
+    EPISODES_TABLE,
+    GOALS_TABLE,
+    MCAP_DIR,
+    STEPS_TABLE,
+    TABLE_ROWS,
+    listed_mcap,
+    listed_part,
+    mcap_dir,
+    partition_dir,
+)
 from ._load import Benchmark
 from ._manifest import (
     Divergence,
@@ -27,24 +49,27 @@ from ._manifest import (
 )
 from ._mcap import mcap_file_name
 from ._quarantine import QuarantineRecord, encode_record
-from ._reading import RunInput
-from ._task import (
-    SKIPPED,
-    BatchCounts,
-    BatchFailure,
-    BatchReport,
-    BatchTask,
-    RunContext,
-    part_name,
-)
+from ._reading import LineReader, RunInput
 
+BATCH_LINES = 4096
+"""Episode lines per batch: the unit of work of a worker and of a Parquet part (fixed,
+whatever the workers)."""
+BATCH_BYTES = 32 << 20
+"""A batch ends early once its lines hold this many bytes, so the batches read ahead and in
+flight stay bounded in memory however long the lines are. Twice the largest batch of the
+full synthetic benchmark (15 MB): its batches, and the sample's, are cut by lines only."""
 DIVERGENCE_FIELDS = ("feedback", "state", "view")
 QUARANTINE_SPOOL = 8 << 20
 """Bytes of a run's quarantine records kept in memory before they spill to a temporary file."""
 
 
 class RunJob:
-    """Replays one run into a staging directory, then swaps it into OUT."""
+    """Replays one run into a staging directory, then swaps it into OUT: `batches()` are
+    its tasks, `take` accounts for each report in order, `finish_reading` and `commit` end
+    it (`entry` is then its manifest entry), `abort` drops it."""
+
+    reader: LineReader
+    entry: RunEntry
 
     def __init__(
         self,
@@ -67,7 +92,7 @@ class RunJob:
         for name in TABLE_ROWS:
             (self.staging / name).mkdir()
         if options.mcap:
-            (self.staging / "mcap").mkdir()
+            (self.staging / MCAP_DIR).mkdir()
         h = run.header
         self.ctx = RunContext(
             run_id=h.run_id,
@@ -95,8 +120,14 @@ class RunJob:
         # the run's records, moved to OUT/.replay/quarantine/<run_id>.jsonl at the commit
         self._quarantine = tempfile.SpooledTemporaryFile(QUARANTINE_SPOOL)  # noqa: SIM115
 
-    def task(self, index: int, lines: list[tuple[int, bytes]]) -> BatchTask:
-        return BatchTask(self.ctx, self.bench_given, index, tuple(lines))
+    def batches(self) -> Iterator[BatchTask]:
+        """The run's lines, read in batches of `BATCH_LINES` (or fewer: `BATCH_BYTES`), as
+        tasks for `replay_batch`."""
+        self.reader = LineReader(
+            self.run.episodes, BATCH_LINES, BATCH_BYTES, self.options.max_record_bytes
+        )
+        for index, lines in enumerate(self.reader.batches()):
+            yield BatchTask(self.ctx, self.bench_given, index, tuple(lines))
 
     def quarantine(self, line: int, episode_id: str | None, kind: str, reason: str) -> None:
         record = QuarantineRecord(
@@ -149,7 +180,7 @@ class RunJob:
                     "only the first occurrence is replayed",
                 )
                 if mcap_of.get(o.line) is not None:
-                    (self.staging / "mcap" / mcap_of[o.line]).unlink(missing_ok=True)
+                    (self.staging / MCAP_DIR / mcap_of[o.line]).unlink(missing_ok=True)
                 continue
             if o.decoded and o.episode_id is not None:
                 entry = self.bench.tasks.get(o.episode_id)
@@ -159,8 +190,8 @@ class RunJob:
                 self.replayed += 1
                 if o.mcap_tmp is not None:
                     self.counts.mcap_files += 1
-                    (self.staging / "mcap" / o.mcap_tmp).replace(
-                        self.staging / "mcap" / mcap_file_name(o.episode_id or "")
+                    (self.staging / MCAP_DIR / o.mcap_tmp).replace(
+                        self.staging / MCAP_DIR / mcap_file_name(o.episode_id or "")
                     )
             else:
                 self.quarantine(o.line, o.episode_id, o.kind, o.reason or "")
@@ -178,9 +209,10 @@ class RunJob:
             )
         return result
 
-    def finish_reading(self, last_line: int, error: InputError | None) -> None:
+    def finish_reading(self) -> None:
         """What ends a file early is one record: `record_too_large` at the line too long,
         or `truncated_file` at the first line that could not be read."""
+        last_line, error = self.reader.last_line, self.reader.error
         if error is None:
             return
         self.lines_read += 1
@@ -198,8 +230,18 @@ class RunJob:
         self._quarantine.close()
         self.staging.rmtree()
 
+    def _listed(self, table: str) -> list[str]:
+        """The run's parts of a table as the manifest lists them, sorted."""
+        return [listed_part(table, self.ctx.run_id, f) for f in sorted(self.parts[table])]
+
     def commit(self, inputs: RunInputs) -> RunEntry:
-        """Commit the run's partitions and quarantine records into OUT."""
+        """Commit the run's partitions and quarantine records into OUT; its manifest entry
+        (also kept as `entry`)."""
+        self._commit_files()
+        self.entry = self._entry(inputs)
+        return self.entry
+
+    def _commit_files(self) -> None:
         run_id = self.ctx.run_id
         for name, row_type in TABLE_ROWS.items():
             if not self.parts[name]:  # every run has at least one (empty) part per table
@@ -208,11 +250,11 @@ class RunJob:
                 self.parts[name].append(part_name(0))
         trash = self.state_dir / "trash"
         for name in TABLE_ROWS:
-            commit_dir(self.staging / name, self.out / name / f"run_id={run_id}", trash)
+            commit_dir(self.staging / name, partition_dir(self.out, name, run_id), trash)
         if self.options.mcap:
-            commit_dir(self.staging / "mcap", self.out / "mcap" / run_id, trash)
+            commit_dir(self.staging / MCAP_DIR, mcap_dir(self.out, run_id), trash)
         else:
-            remove_dir(self.out / "mcap" / run_id, trash)
+            remove_dir(mcap_dir(self.out, run_id), trash)
         qdir = self.state_dir / "quarantine"
         qdir.mkdir()
         self._quarantine.seek(0)
@@ -220,6 +262,9 @@ class RunJob:
             shutil.copyfileobj(self._quarantine, fh)
         self._quarantine.close()
         self.staging.rmtree()
+
+    def _entry(self, inputs: RunInputs) -> RunEntry:
+        run_id = self.ctx.run_id
         c = self.counts
         h = self.run.header
         return RunEntry(
@@ -246,9 +291,9 @@ class RunJob:
                 by_field={f: c.by_field.get(f, 0) for f in DIVERGENCE_FIELDS},
             ),
             outputs=RunOutputs(
-                steps=[f"steps/run_id={run_id}/{f}" for f in sorted(self.parts["steps"])],
-                episodes=[f"episodes/run_id={run_id}/{f}" for f in sorted(self.parts["episodes"])],
-                goals=[f"goals/run_id={run_id}/{f}" for f in sorted(self.parts["goals"])],
-                mcap=f"mcap/{run_id}" if self.options.mcap else None,
+                steps=self._listed(STEPS_TABLE),
+                episodes=self._listed(EPISODES_TABLE),
+                goals=self._listed(GOALS_TABLE),
+                mcap=listed_mcap(run_id) if self.options.mcap else None,
             ),
         )

@@ -1,0 +1,397 @@
+"""The batch, the unit of work of `vge replay`: a run's lines with the context of their run
+(`BatchTask`, `RunContext`), the one function that replays them and writes their parts
+(`replay_batch`), and what it reports back (`BatchReport`, `BatchFailure`).
+
+The runner calls `replay_batch` in this process (`workers=1`), in worker processes, or in
+Ray tasks: the task and the report are plain picklable data, the function reads only its
+task and its process's caches (`_worker.WorkerState`: the benchmark opened once, episode
+setups and MCAP inputs, all bounded) and writes only files named by its task, so the output
+cannot depend on where or how often it ran.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import socket
+import traceback
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, NamedTuple
+
+import msgspec
+import pyarrow.compute as pc
+
+from .._errors import TaskError, VGEError
+from ..kernel import BatchTables, EpisodeInput, replay_kernel
+from ..semantics import (
+    NO_PRICES,
+    EpisodeResult,
+    EpisodeRow,
+    GoalRow,
+    Machine,
+    Prices,
+    StepRow,
+    episode_lambda,
+    replay_episode,
+    rows_to_table,
+)
+from ._decode import decode
+from ._file_names import part_name
+from ._files import write_part
+from ._fs import location
+from ._images import ViewImage
+from ._layout import MCAP_DIR, SSM_DIR, SSM_SUFFIX, TABLE_ROWS, TASKS
+from ._load import episode_decoder
+from ._mcap import mcap_file_name, write_episode_mcap
+from ._quarantine import classify_decode_error, one_line
+from ._worker import WorkerState, worker_state
+
+if TYPE_CHECKING:
+    from ._images import ImageSource
+
+KERNEL = os.environ.get("VGE_REPLAY_ENGINE", "kernel") != "reference"
+"""Replay with the compiled kernel (default) or, with `VGE_REPLAY_ENGINE=reference`,
+episode by episode with `replay_episode` (the readable reference; same files, slower)."""
+
+
+@dataclass(frozen=True)
+class RunContext:
+    """What a batch needs to know about its run (the same for every batch of the run)."""
+
+    run_id: str
+    model: str
+    agent_kind: str
+    run_lambda: float | None
+    option_lambda: float | None
+    file: str  # the episodes file, as given (quarantine records name it)
+    staging: str  # the run's staging directory: <table>/part-NNNNN.parquet, mcap/
+    row_group_rows: int
+    mcap: bool = False
+    mcap_episodes: frozenset[str] | None = None
+    image_source: ImageSource | None = None
+    prices: Prices = NO_PRICES  # the run's, for the cost columns (PROTOCOL §1.4)
+
+    def wants_mcap(self, episode_id: str) -> bool:
+        return self.mcap and (self.mcap_episodes is None or episode_id in self.mcap_episodes)
+
+
+@dataclass(frozen=True)
+class BatchTask:
+    """Lines `lines` (numbered from 1 in their file, blank ones left out) of one run, batch
+    number `index` of that run. `skip` holds lines the main process found to repeat an
+    earlier episode: they are not replayed (see `RunJob.take`)."""
+
+    ctx: RunContext
+    bench: str
+    index: int
+    lines: tuple[tuple[int, bytes], ...]
+    skip: frozenset[int] = frozenset()
+
+    def skipping(self, lines: frozenset[int]) -> BatchTask:
+        return replace(self, skip=lines)
+
+
+class LineOutcome(NamedTuple):
+    """What happened to one line: replayed (`kind` None), quarantined, or `skipped`."""
+
+    line: int
+    episode_id: str | None
+    decoded: bool  # a well-formed episode record (takes part in the duplicate check)
+    kind: str | None
+    reason: str | None
+    n_steps: int = 0
+    n_goals: int = 0
+    mcap_tmp: str | None = None  # file name in the run's staging mcap/ directory
+
+
+SKIPPED = "skipped"
+"""Outcome kind of a line in `BatchTask.skip` (the main process records why)."""
+
+
+@dataclass
+class BatchCounts:
+    """Counts of the rows a batch wrote (the manifest's per-run counts add them up)."""
+
+    steps: int = 0
+    truncated: int = 0
+    diverged: int = 0
+    compared: int = 0
+    episodes_diverged: int = 0
+    goals: int = 0
+    mcap_files: int = 0  # counted by the main process as it publishes them
+    by_field: dict[str, int] = field(default_factory=dict)
+
+    def add(self, other: BatchCounts) -> None:
+        for name in ("steps", "truncated", "diverged", "compared", "episodes_diverged", "goals"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        for key, value in other.by_field.items():
+            self.by_field[key] = self.by_field.get(key, 0) + value
+
+
+@dataclass
+class BatchReport:
+    """What a replayed batch did: per line outcomes, the part files it wrote (table ->
+    rows; no file when a table has no row), its counts, and where it ran."""
+
+    index: int
+    outcomes: list[LineOutcome]
+    parts: dict[str, int]
+    counts: BatchCounts
+    node: str = ""
+
+
+@dataclass(frozen=True)
+class BatchFailure:
+    """An unexpected error inside a batch, carried back as plain data."""
+
+    index: int
+    line: int | None
+    message: str
+    details: str
+    node: str = ""
+
+
+def replay_batch(task: BatchTask) -> BatchReport | BatchFailure:
+    """Replay a batch and write its parts; every error comes back as data."""
+    try:
+        return _replay(worker_state(task.bench), task)
+    except Exception as exc:  # a bug or an I/O error: fatal, reported by the main process
+        return BatchFailure(
+            task.index,
+            getattr(exc, "vge_line", None),
+            one_line(f"replay failed: {type(exc).__name__}: {exc}"),
+            traceback.format_exc(),
+            socket.gethostname(),
+        )
+
+
+_Todo = list[tuple[int, int, EpisodeInput]]
+"""The episodes of a batch to replay: (outcome index, line number, episode)."""
+
+
+def _replay(state: WorkerState, task: BatchTask) -> BatchReport:
+    """Decode and check each line, replay the replayable ones together, write the parts
+    (and the MCAP files, from the same rows).
+
+    The cyclic garbage collector is paused for the batch: what it builds is acyclic, and
+    the collector's scans of the growing batch would cost a large share of the time. What
+    outlives the batch (compiled machines, plans, kernel tables: caches that only grow) is
+    then frozen, so later collections do not scan it again and again (a tenth of the time
+    of a replay otherwise)."""
+    ctx = task.ctx
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        outcomes, todo = _prepare_lines(state, task)
+        tables, results = _replay_episodes(task, todo)
+        mcap = _write_mcaps(state, ctx, todo, tables, results)
+        for j, (at, number, e) in enumerate(todo):
+            outcomes[at] = LineOutcome(
+                number,
+                e.task.episode_id,
+                True,
+                None,
+                None,
+                int(tables.step_counts[j]),
+                int(tables.goal_counts[j]),
+                mcap.get(j),
+            )
+        parts = _write_parts(task, tables)
+        return BatchReport(
+            task.index,
+            [o for o in outcomes if o is not None],
+            parts,
+            _counts(tables),
+            socket.gethostname(),
+        )
+    finally:
+        if was_enabled:
+            gc.freeze()
+            gc.enable()
+
+
+def _prepare_lines(state: WorkerState, task: BatchTask) -> tuple[list[LineOutcome | None], _Todo]:
+    """Each line decoded and checked: its outcome when it is quarantined or skipped, else a
+    place for its outcome (None, filled after the replay) and an episode to replay."""
+    outcomes: list[LineOutcome | None] = []
+    todo: _Todo = []
+    for number, raw in task.lines:
+        if number in task.skip:
+            outcomes.append(LineOutcome(number, None, False, SKIPPED, None))
+            continue
+        try:
+            _prepare_line(state, task.ctx, number, raw, outcomes, todo)
+        except Exception as exc:
+            exc.vge_line = number  # type: ignore[attr-defined]
+            raise
+    return outcomes, todo
+
+
+def _replay_episodes(task: BatchTask, todo: _Todo) -> tuple[BatchTables, dict[int, EpisodeResult]]:
+    """The batch's tables, from the kernel (or the reference with `VGE_REPLAY_ENGINE`), and
+    the reference's results by episode when the reference replayed them."""
+    ctx = task.ctx
+    if not KERNEL:
+        results = {j: _replay_reference(ctx, n, e) for j, (_, n, e) in enumerate(todo)}
+        return reference_tables([results[j] for j in range(len(todo))]), results
+    try:
+        tables = replay_kernel(
+            [e for _, _, e in todo],
+            run_id=ctx.run_id,
+            model=ctx.model,
+            agent_kind=ctx.agent_kind,
+            prices=ctx.prices,
+        )
+    except Exception as exc:
+        for _, number, e in todo:  # an episode at fault raises, naming its line
+            _replay_reference(ctx, number, e)
+        exc.vge_line = task.lines[0][0] if task.lines else None  # type: ignore[attr-defined]
+        raise
+    return tables, {}
+
+
+MCAP_ROWS_AT_ONCE = 256
+"""Episodes whose rows are read back from the tables together for their MCAP files: bounds
+the Python objects held at once, whatever the size of the batch."""
+
+
+def _write_mcaps(
+    state: WorkerState,
+    ctx: RunContext,
+    todo: _Todo,
+    tables: BatchTables,
+    results: dict[int, EpisodeResult],
+) -> dict[int, str]:
+    """The MCAP file of each episode that wants one, written from the rows of the replay
+    that made the tables (no second replay): episode index -> its temporary file name."""
+    wanted = [j for j, (_, _, e) in enumerate(todo) if ctx.wants_mcap(e.task.episode_id)]
+    mcap = {}
+    for start in range(0, len(wanted), MCAP_ROWS_AT_ONCE):
+        chunk = wanted[start : start + MCAP_ROWS_AT_ONCE]
+        missing = [j for j in chunk if j not in results]
+        read_back = dict(zip(missing, tables.episode_results(missing), strict=True))
+        for j in chunk:
+            _, number, e = todo[j]
+            result = results[j] if j in results else read_back[j]
+            mcap[j] = _write_mcap(state, ctx, number, e.machine, result)
+    return mcap
+
+
+def _write_parts(task: BatchTask, tables: BatchTables) -> dict[str, int]:
+    """One Parquet part per table with rows (table name -> rows)."""
+    parts = {}
+    for name, table in zip(TABLE_ROWS, tables[:3], strict=True):
+        parts[name] = table.num_rows
+        path = location(task.ctx.staging) / name / part_name(task.index)
+        if table.num_rows:
+            write_part(table, path, task.ctx.row_group_rows)
+        else:
+            path.unlink(missing_ok=True)  # a redone batch may have lost its last rows
+    return parts
+
+
+def reference_tables(results: list[EpisodeResult]) -> BatchTables:
+    """The tables of reference replays, as the kernel returns them."""
+    return BatchTables(
+        rows_to_table([t for r in results for t in r.step_tuples], StepRow),
+        rows_to_table([r.episode for r in results], EpisodeRow),
+        rows_to_table([g for r in results for g in r.goals], GoalRow),
+        [len(r.step_tuples) for r in results],
+        [len(r.goals) for r in results],
+    )
+
+
+def _counts(tables: BatchTables) -> BatchCounts:
+    steps, episodes = tables.steps, tables.episodes
+    counts = BatchCounts(steps=steps.num_rows, goals=tables.goals.num_rows)
+    if steps.num_rows:
+        counts.truncated = pc.sum(steps["truncated"]).as_py() or 0
+        diverged = steps["diverged"]
+        counts.compared = len(diverged) - diverged.null_count
+        counts.diverged = pc.sum(diverged).as_py() or 0
+        flat = pc.list_flatten(steps["diverged_fields"])
+        if len(flat):
+            for item in pc.value_counts(flat).to_pylist():
+                counts.by_field[item["values"]] = item["counts"]
+    if episodes.num_rows:
+        counts.episodes_diverged = pc.sum(pc.greater(episodes["diverged_steps"], 0)).as_py() or 0
+    return counts
+
+
+def _replay_reference(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeResult:
+    try:
+        return replay_episode(
+            e.machine,
+            e.task,
+            e.log,
+            lam=e.lam,
+            run_id=ctx.run_id,
+            model=ctx.model,
+            agent_kind=ctx.agent_kind,
+            setup=e.setup,
+            prices=ctx.prices,
+        )
+    except Exception as exc:
+        exc.vge_line = number  # type: ignore[attr-defined]
+        raise
+
+
+def _write_mcap(
+    state: WorkerState, ctx: RunContext, number: int, machine: Machine, result: EpisodeResult
+) -> str:
+    mcap_tmp = f"{mcap_file_name(result.episode.episode_id)}.L{number}.tmp"
+    source = ctx.image_source
+
+    def image(view: str, m: Machine = machine) -> ViewImage | None:
+        return None if source is None else state.image(source, m, view)
+
+    with (location(ctx.staging) / MCAP_DIR / mcap_tmp).writer(sync=False) as fh:
+        write_episode_mcap(fh, machine, result, ssm_bytes=state.ssm(machine), image=image)
+    return mcap_tmp
+
+
+def _prepare_line(
+    state: WorkerState,
+    ctx: RunContext,
+    number: int,
+    raw: bytes,
+    outcomes: list[LineOutcome | None],
+    todo: _Todo,
+) -> None:
+    """Decode and check one line: a quarantine outcome, or an episode to replay (its
+    outcome is filled in after the replay)."""
+    bench = state.bench
+    try:
+        log = decode(episode_decoder, raw)
+    except msgspec.DecodeError as exc:
+        kind, reason, episode_id = classify_decode_error(raw, exc)
+        outcomes.append(LineOutcome(number, episode_id, False, kind, reason))
+        return
+    eid = log.episode_id
+    entry = bench.tasks.get(eid)
+    if entry is None:
+        reason = f"episode {eid!r} is not in {bench.tasks_path.name}"
+        outcomes.append(LineOutcome(number, eid, True, "unknown_episode", reason))
+        return
+    task = entry.task
+    device = task.device_id
+    if device not in bench.ssm_paths:
+        where = f"{SSM_DIR}/{device}{SSM_SUFFIX}"
+        reason = f"device {device!r} ({TASKS} line {entry.line}) has no SSM file {where}"
+        outcomes.append(LineOutcome(number, eid, True, "unknown_device", reason))
+        return
+    try:
+        machine = bench.machine(device)
+    except VGEError as exc:
+        reason = one_line(f"SSM of device {device!r} does not load: {exc}")
+        outcomes.append(LineOutcome(number, eid, True, "invalid_ssm", reason))
+        return
+    try:
+        setup = state.setup(machine, task)
+    except TaskError as exc:
+        reason = one_line(f"{exc} ({TASKS} line {entry.line})")
+        outcomes.append(LineOutcome(number, eid, True, "task_error", reason))
+        return
+    lam = episode_lambda(task, ctx.run_lambda, ctx.option_lambda)
+    todo.append((len(outcomes), number, EpisodeInput(machine, task, setup, log, lam)))
+    outcomes.append(None)

@@ -1,0 +1,66 @@
+"""`vge` starts at once: importing the command line, registering every command and printing
+any command's help import none of the heavy libraries (docs/PERFORMANCE.md, "Start-up").
+Each command imports what it uses when it runs. Measured in a fresh interpreter (a test
+process has imported everything already); timings are in benchmarks/bench_startup.py."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+HEAVY = (
+    "pandas",
+    "pyarrow.dataset",
+    "duckdb",
+    "polars",
+    "ray",
+    "streamlit",
+    "inspect_ai",
+    "replay.kernel",
+)
+"""What `vge --help` must not wait for (each costs a tenth of a second or more to import)."""
+
+PROBE = """
+import json, sys
+{body}
+heavy = {heavy!r}
+print(json.dumps(sorted({{h for m in sys.modules for h in heavy if m == h or m.startswith(h + ".")}})))
+"""
+
+
+def _imported(body: str) -> list[str]:
+    """The heavy modules a fresh interpreter has imported after running `body`."""
+    code = PROBE.format(body=body, heavy=HEAVY)
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def test_importing_the_command_line_imports_nothing_heavy() -> None:
+    assert _imported("import vge_analytics.cli") == []
+
+
+def test_every_commands_help_imports_nothing_heavy() -> None:
+    body = """
+import contextlib, io
+from vge_analytics import cli
+cli._register_all()
+names = [c.name for c in cli.app.registered_commands]
+assert len(names) >= 15, names
+for args in ([], *([name] for name in names)):
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert cli.main([*args, "--help"]) == 0, args
+"""
+    assert _imported(body) == []
+
+
+def test_the_probe_sees_a_heavy_import() -> None:
+    # The same probe, after the metrics are computed from a name: the libraries are there.
+    assert _imported("import vge_analytics as va; va.metrics") == [
+        "duckdb",
+        "pandas",
+        "polars",
+        "pyarrow.dataset",
+    ]

@@ -1,0 +1,101 @@
+"""The cluster bootstrap and the clustered (CR1) SE of a paired difference of pooled metrics,
+checked against statsmodels' cluster-robust OLS and WLS (and by hand in test_compare.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import statsmodels.api as sm
+
+from vge_analytics.reports.inference import (
+    bootstrap_totals,
+    cluster_codes,
+    cluster_sums,
+    cr1_variance,
+    linearized,
+    paired_difference,
+)
+
+
+def test_cluster_codes_follow_sorted_labels() -> None:
+    codes, names = cluster_codes(["b", "a", "c", "a"])
+    assert names == ["a", "b", "c"] and codes.tolist() == [1, 0, 2, 0]
+    codes, names = cluster_codes([])
+    assert names == [] and codes.tolist() == []
+
+
+def test_cluster_sums() -> None:
+    values = np.array([[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]])
+    assert cluster_sums(values, np.array([1, 0, 1]), 2).tolist() == [[3.0, 4.0], [6.0, 8.0]]
+
+
+def test_bootstrap_draws_are_seeded_and_shared_by_cluster_count() -> None:
+    rng = np.random.default_rng(5)
+    a, b, c = rng.random((7, 4)), rng.random((7, 4)), rng.random((9, 4))
+    first = bootstrap_totals([a, b, c], seed=3, resamples=600)
+    again = bootstrap_totals([a, c], seed=3, resamples=600)
+    assert np.array_equal(first[0], again[0]) and np.array_equal(first[2], again[1])
+    # a and b (7 clusters each) got the same draws: their totals differ by the draws of a - b
+    counts = np.random.default_rng(3).multinomial(7, np.full(7, 1 / 7), size=250)
+    assert np.allclose(first[0][:250] - first[1][:250], counts @ (a - b))
+    other = bootstrap_totals([a], seed=4, resamples=600)[0]
+    assert not np.array_equal(other, first[0])
+
+
+def _ratio_pair(rng: np.random.Generator, n: int, g: int) -> tuple[np.ndarray, np.ndarray]:
+    """(n x 4) episode terms of one metric (A num, A den, B num, B den) and the clusters."""
+    den_a = rng.integers(0, 4, n).astype(float)
+    den_b = rng.integers(0, 4, n).astype(float)
+    num_a = rng.binomial(den_a.astype(int), 0.4).astype(float)
+    num_b = rng.binomial(den_b.astype(int), 0.6).astype(float)
+    return np.column_stack([num_a, den_a, num_b, den_b]), rng.integers(0, g, n)
+
+
+def test_paired_ratio_se_equals_stacked_cluster_robust_wls() -> None:
+    """For a ratio metric (sum num / sum den per run), B - A and its clustered SE equal the
+    difference of the two coefficients of a WLS of num/den on run indicators, weights den,
+    cluster-robust by cluster; statsmodels' CR1 factor is G/(G-1) * (N-1)/(N-K), ours (one
+    parameter, the paired difference) G/(G-1)."""
+    rng = np.random.default_rng(11)
+    for n, g in ((80, 12), (300, 40)):
+        terms, groups = _ratio_pair(rng, n, g)
+        scale = 100.0
+        sums = cluster_sums(terms, groups, g)
+        diff = paired_difference(terms.sum(axis=0), [scale])[0]
+        se = np.sqrt(cr1_variance(linearized(sums, [scale])))[0]
+        rows = []
+        for num, den, is_b in ((0, 1, 0.0), (2, 3, 1.0)):
+            keep = terms[:, den] > 0
+            for y, w, c in zip(
+                terms[keep, num] / terms[keep, den], terms[keep, den], groups[keep], strict=True
+            ):
+                rows.append((y, w, c, is_b))
+        y, w, c, is_b = (np.array(col) for col in zip(*rows, strict=True))
+        x = np.column_stack([1.0 - is_b, is_b])
+        fit = sm.WLS(scale * y, x, weights=w).fit(cov_type="cluster", cov_kwds={"groups": c})
+        contrast = np.array([-1.0, 1.0])
+        n_rows, k = len(y), 2
+        var = contrast @ fit.cov_params() @ contrast / ((n_rows - 1) / (n_rows - k))
+        assert abs(diff - contrast @ fit.params) < 1e-9
+        assert abs(se - np.sqrt(var)) < 1e-9
+
+
+def test_sr_difference_se_equals_cluster_robust_ols() -> None:
+    rng = np.random.default_rng(2)
+    n, g = 200, 17
+    a, b = rng.integers(0, 2, n).astype(float), rng.integers(0, 2, n).astype(float)
+    groups = rng.integers(0, g, n)
+    terms = np.column_stack([a, np.ones(n), b, np.ones(n)])
+    se = np.sqrt(cr1_variance(linearized(cluster_sums(terms, groups, g), [100.0])))[0]
+    naive = np.sqrt(cr1_variance(linearized(terms, [100.0])))[0]
+    d = 100.0 * (b - a)
+    fit = sm.OLS(d, np.ones((n, 1))).fit(cov_type="cluster", cov_kwds={"groups": groups})
+    assert abs(se - fit.bse[0]) < 1e-9
+    assert abs(naive - sm.OLS(d, np.ones((n, 1))).fit(cov_type="HC1").bse[0]) < 1e-9
+
+
+def test_one_cluster_has_no_variance_and_an_empty_metric_no_difference() -> None:
+    assert np.isnan(cr1_variance(np.array([[1.0]])))[0]
+    totals = np.array([1.0, 0.0, 2.0, 4.0])
+    assert np.isnan(paired_difference(totals, [100.0]))[0]
+    assert paired_difference(np.array([1.0, 2.0, 3.0, 4.0]), [100.0])[0] == pytest.approx(25.0)
