@@ -114,11 +114,11 @@ RetryWait = Annotated[
 ]
 PromptPrice = Annotated[
     float | None,
-    typer.Option("--prompt-price", help="USD per million prompt tokens (for the cost)."),
+    typer.Option("--prompt-price", help="USD per million prompt tokens, 0 to 10^9 (for the cost)."),
 ]
 CompletionPrice = Annotated[
     float | None,
-    typer.Option("--completion-price", help="USD per million completion tokens."),
+    typer.Option("--completion-price", help="USD per million completion tokens, 0 to 10^9."),
 ]
 MaxConsecutiveFailures = Annotated[
     int,
