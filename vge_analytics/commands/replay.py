@@ -80,8 +80,9 @@ def replay_command(
     max_record_bytes: int = max_record_bytes_option(),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
 ) -> None:
-    """Replay logged episodes against the SSMs and write the steps, episodes, goals and runs tables
-    (Parquet), and MCAP files on request.
+    """Replay logged episodes against the SSMs into Parquet tables (and MCAP files).
+
+    Writes the steps, episodes, goals and runs tables, and MCAP files on request.
 
     Exit code 0 when every record replayed, 2 when some were quarantined, 1 on fatal errors.
     """
