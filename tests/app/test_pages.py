@@ -372,8 +372,10 @@ def test_leaderboard_shows_the_folders_metrics(app_env, metrics_env):
         assert nums(shown[name]) == pytest.approx(nums(expected[name]), nan_ok=True)
     assert nums(shown["SR"]) == pytest.approx(nums(expected["SSR"]), nan_ok=True)  # override
     labels = column_labels(at.dataframe[0])
-    assert (labels["SR"], labels["SSR"], labels["SR-multi"]) == ("SR ↑ ✎", "SSR ↑", "SR-multi ↑ ＋")
-    assert any("✎ overridden: SR; ＋ added: SR-multi" in c.value for c in at.main.caption)
+    assert (labels["SR"], labels["SSR"], labels["SR-multi"]) == ("SR ↑ ✎", "SSR ↑", "SR-multi ↑ +")
+    assert any("✎ overridden: SR; + added: SR-multi" in c.value for c in at.main.caption)
+    title = f"The paper's metrics, SR overridden and SR-multi added by {metrics_env}. One row"
+    assert at.main.caption[0].value.startswith(title)
     assert f"built-in + `{metrics_env}`" in at.sidebar.caption[-1].value
 
 

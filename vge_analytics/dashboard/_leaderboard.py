@@ -60,14 +60,15 @@ def best_rows(
     return best
 
 
-ORIGIN_MARKS: dict[str, str] = {"built-in": "", "override": " ✎", "added": " ＋"}
+ORIGIN_MARKS: dict[str, str] = {"built-in": "", "override": " ✎", "added": " +"}
 """What a leaderboard header carries after its arrow: a metric a metrics folder overrides
-(✎) or adds (＋)."""
+(✎) or adds (+). Signs the system's fonts draw (the table is a canvas drawn with them:
+Debian's DejaVu has ✎ but not the full-width ＋, which showed as an empty box)."""
 
 
 def metric_headers(metric_names: Sequence[str], metrics: MetricSet | None = None) -> dict[str, str]:
     """{metric: header with the paper's arrow and its origin mark}, e.g. `SR ↑`, `VSPS ↓`,
-    `SR ↑ ✎` (overridden by a metrics folder), `SR-multi ↑ ＋` (added by one)."""
+    `SR ↑ ✎` (overridden by a metrics folder), `SR-multi ↑ +` (added by one)."""
     chosen = metrics or MetricSet.builtin()
     return {n: f"{n} {chosen.get(n).arrow}{ORIGIN_MARKS[chosen.origin(n)]}" for n in metric_names}
 
@@ -95,9 +96,9 @@ def metrics_note(metrics: MetricSet | None) -> str | None:
     added = [m.name for m in metrics if metrics.origin(m.name) == "added"]
     parts = []
     if overridden:
-        parts.append(f"✎ overridden: {', '.join(overridden)}")
+        parts.append(f"{ORIGIN_MARKS['override'].strip()} overridden: {', '.join(overridden)}")
     if added:
-        parts.append(f"＋ added: {', '.join(added)}")
+        parts.append(f"{ORIGIN_MARKS['added'].strip()} added: {', '.join(added)}")
     what = "; ".join(parts) if parts else "no metric changed"
     return f"Metrics of `{metrics.folder}`: {what}. Hover a header for its definition."
 
