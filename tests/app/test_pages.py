@@ -297,7 +297,11 @@ def test_side_by_side_from_a_link_with_marks(app_env):
     # Past the end of the shorter log, its side says so.
     at.select_slider(key="sbs_step").set_value(steps - 1)
     rerun(at)
-    assert any(f"ended after {min(logged)} steps" in i.value for i in at.info)
+    short = "AB"[logged.index(min(logged))]
+    ended = f"{short}'s log ended at step {min(logged) - 1}: no step {steps - 1} to show"
+    assert any(i.value.startswith(ended) for i in at.info)
+    headings = [m.value for m in at.markdown if m.value.startswith(f"**{short} · ")]
+    assert headings[-1].endswith(f"its log ended at step {min(logged) - 1}")  # not "of 1"
     assert len(at.get("image")) == 1
 
 
