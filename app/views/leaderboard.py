@@ -49,8 +49,13 @@ table = dash.incomplete_groups(
 st.dataframe(
     tables.best_styler(table, names),
     hide_index=True,
-    column_config={**tables.metric_column_config(names), **tables.cost_column_config()},
+    column_config={
+        **tables.group_column_config(table),
+        **tables.metric_column_config(names),
+        **tables.cost_column_config(),
+    },
     key="leaderboard_table",
+    placeholder=reports.MISSING,
 )
 st.download_button("Download CSV", table.write_csv(), file_name="leaderboard.csv", mime="text/csv")
 

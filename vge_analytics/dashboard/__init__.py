@@ -71,6 +71,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         metric_help,
         metrics_long,
         metrics_note,
+        text_width,
         with_costs,
     )
     from ._navigation import (
@@ -229,6 +230,7 @@ __all__ = [
     "switch_summary",
     "table_columns_frame",
     "termination_label",
+    "text_width",
     "view_boxes",
     "view_picture",
     "ViewPicture",

@@ -153,12 +153,32 @@ def cost_table(out, by: Sequence[str], where: Filters = None) -> pl.DataFrame:
 
 
 def with_costs(table: pl.DataFrame, costs: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:
-    """The metrics table with the cost columns of its groups after the metrics; unchanged
-    when no group has a recorded cost (simulated and human runs)."""
+    """The metrics table with the cost columns of its groups right after the group columns
+    (before the metrics, so they are in sight without scrolling sideways); unchanged when no
+    group has a recorded cost (simulated and human runs)."""
     if costs["cost_usd"].null_count() == costs.height:
         return table
     keys = [c for c in by if c in table.columns and c in costs.columns]
-    return table.join(costs.select(*keys, *COST_COLUMNS), on=keys, how="left", nulls_equal=True)
+    joined = table.join(costs.select(*keys, *COST_COLUMNS), on=keys, how="left", nulls_equal=True)
+    labels = [c for c in table.columns if c in by]
+    rest = [c for c in table.columns if c not in by]
+    return joined.select(*labels, *COST_COLUMNS, *rest)
+
+
+TEXT_PX_PER_CHAR = 8
+"""Pixels a character takes at most in the tables' 14 px sans-serif (lower case and digits;
+a bound that keeps a label whole)."""
+CELL_PADDING_PX = 24
+MAX_COLUMN_PX = 480
+"""The widest a column sized to its text gets (a run id of a thousand characters is cut
+there, not given a column wider than the page)."""
+
+
+def text_width(*texts: str) -> int:
+    """Pixels a table column needs to show the longest of `texts` whole, at most
+    `MAX_COLUMN_PX`."""
+    longest = max((len(t) for t in texts), default=0)
+    return min(MAX_COLUMN_PX, longest * TEXT_PX_PER_CHAR + CELL_PADDING_PX)
 
 
 def cost_frontier(runs: pl.DataFrame) -> pl.DataFrame:
