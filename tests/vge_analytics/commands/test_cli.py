@@ -174,3 +174,23 @@ def test_a_near_miss_option_gets_a_suggestion(capsys, args, suggested) -> None:
     assert code == 2 and out == ""  # click's usage error, not a crash
     assert f"Error: No such option: {args[2]} {suggested}" in err
     assert f"{args[0]} --help' for help." in err  # the program's name is pytest's here
+
+
+def test_mcap_episodes_that_name_no_episode(capsys, tmp_path: Path) -> None:
+    """`vge replay --mcap-episodes` with a typo: one line naming the nearest episodes, exit 1
+    before anything is written when no id is an episode; a warning when some are."""
+    root = Path(__file__).resolve().parents[3]
+    bench, run_dir = str(root / "logs" / "bench"), str(root / "logs" / "runs" / "sim-vlm-a")
+    out = tmp_path / "out"
+    args = ["replay", run_dir, "--bench", bench, "--out", str(out), "--no-progress"]
+    code, _, err = run(capsys, *args, "--mcap-episodes", "CarKey_000-1")
+    assert code == 1 and not out.exists()
+    assert err == (
+        f"error: --mcap-episodes selects no episode (no MCAP file): not an episode of "
+        f"{bench}/tasks.jsonl: 'CarKey_000-1'; nearest: CarKey_000-01, CarKey_000-00, "
+        "CarKey_000-02\n"
+    )
+    code, _, err = run(capsys, *args, "--mcap-episodes", "CarKey_000-1,CarKey_000-01")
+    assert code == 0
+    assert err.startswith("warning: --mcap-episodes: not an episode of ")
+    assert [p.name for p in out.rglob("*.mcap")] == ["CarKey_000-01.mcap"]
