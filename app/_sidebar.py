@@ -42,10 +42,9 @@ def sidebar() -> bool:
         )
         if metrics.folder is not None:
             st.caption(f"**Metrics** built-in + `{metrics.folder}`")
-        useful = {c: v for c, v in facets.items() if len(v) > 1}
-        if useful:
+        if facets:
             st.markdown("**Run facets** (filter every page)")
-            for column, values in useful.items():
+            for column, values in facets.items():
                 st.multiselect(
                     column.removeprefix("meta_"),
                     values,

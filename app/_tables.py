@@ -13,6 +13,7 @@ import streamlit as st
 
 from app._data import metric_set
 from vge_analytics import dashboard as dash
+from vge_analytics.reports import MISSING
 
 
 def labelled(df: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:
@@ -50,12 +51,13 @@ def number_table(
         column_config=number_config(df, digits),
         height=table_height(df) if every_row else "auto",
         key=key,
+        placeholder=MISSING,
     )
 
 
 def metric_column_config(names: Sequence[str]) -> dict[str, Any]:
-    """Column formats for metric columns: 2 decimals, header with the paper's arrow (and ✎
-    or ＋ for a metric the metrics folder overrides or adds), the definition on hover."""
+    """Column formats for metric columns: 2 decimals, header with the paper's arrow (and
+    `dash.ORIGIN_MARKS` for a metric the metrics folder overrides or adds), the definition on hover."""
     metrics = metric_set()
     headers = dash.metric_headers(names, metrics)
     return {
@@ -67,11 +69,20 @@ def metric_column_config(names: Sequence[str]) -> dict[str, Any]:
 
 
 def cost_column_config() -> dict[str, Any]:
-    """Column formats for the leaderboard's cost columns: dollars, 4 decimals."""
+    """Column formats for the leaderboard's cost columns: dollars, 4 decimals, wide enough
+    for their header."""
     return {
-        name: st.column_config.NumberColumn(header, format="$%.4f")
+        name: st.column_config.NumberColumn(header, format="$%.4f", width=dash.text_width(header))
         for name, header in dash.COST_COLUMNS.items()
     }
+
+
+def group_column_config(df: pl.DataFrame) -> dict[str, Any]:
+    """The group label column as wide as its longest label (the grid sizes a column by its
+    first rows only, cutting a longer label further down: `random-cut (incomplete)`), and
+    pinned, so a row keeps its name while the table scrolls sideways."""
+    labels = df["group"].cast(pl.String).to_list() if "group" in df.columns else []
+    return {"group": st.column_config.TextColumn(width=dash.text_width("group", *labels), pinned=True)}
 
 
 def best_styler(df: pl.DataFrame, metric_names: Sequence[str]) -> Any:
@@ -87,7 +98,7 @@ def best_styler(df: pl.DataFrame, metric_names: Sequence[str]) -> Any:
         ]
 
     present = [m for m in metric_names if m in pdf.columns]
-    return pdf.style.apply(style, subset=present).format(precision=2, na_rep="—", subset=present)
+    return pdf.style.apply(style, subset=present).format(precision=2, na_rep=MISSING, subset=present)
 
 
 def all_metrics() -> tuple[str, ...]:

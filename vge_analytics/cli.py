@@ -10,6 +10,7 @@ when it runs, so `vge --help` and `vge COMMAND --help` start at once (docs/PERFO
 
 from __future__ import annotations
 
+import inspect
 import sys
 from pathlib import Path
 
@@ -96,10 +97,28 @@ def _root(
     _state["debug"] = debug
 
 
+def one_line(doc: str | None) -> str:
+    """A command's description in `vge --help`: the first paragraph of its docstring, on one
+    line (typer's rich help would keep the docstring's line breaks, cutting the sentence)."""
+    return " ".join(inspect.cleandoc(doc or "").split("\n\n")[0].split())
+
+
 def _register_all() -> None:
     if not app.registered_commands:
         for module in COMMAND_MODULES:
             module.register(app)
+        for info in app.registered_commands:
+            info.short_help = info.short_help or one_line(info.callback.__doc__)
+
+
+def _usage_errors() -> tuple[type[Exception], ...]:
+    """Click's exception classes: click's own, and those of the copy of click that typer
+    0.2x carries (`typer.BadParameter` derives from its ClickException); a usage error of
+    either is shown as click shows it, exit code 2."""
+    import click
+
+    vendored = [c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException"]
+    return (click.ClickException, *vendored)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -120,10 +139,8 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo("aborted", err=True)
         return 130
     except Exception as exc:  # click usage errors and the like
-        import click
-
-        if isinstance(exc, click.ClickException):
-            exc.show()
+        if isinstance(exc, _usage_errors()):
+            exc.show()  # with click's "Possible options" for a near-miss (--metric)
             return exc.exit_code
         if _state["debug"]:
             raise

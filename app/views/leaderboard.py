@@ -10,12 +10,15 @@ from app import _sidebar as sidebar
 from app import _tables as tables
 from replay.io import EPISODES_TABLE
 from vge_analytics import dashboard as dash
+from vge_analytics import reports
 
 st.title("Leaderboard")
+names = tables.all_metrics()
 st.caption(
-    "The paper's twelve metrics per group, computed from the replayed steps. Best value per column "
-    "in bold green (↑ higher is better, ↓ lower). Click a header to sort. Runs that recorded "
-    "their cost also get the cost per episode and per success."
+    f"{reports.metrics_held(names, data.metric_set())}. One row per group, computed "
+    "from the replayed steps. Best value per column in bold green (↑ higher is better, ↓ lower). "
+    "Click a header to sort. Runs that recorded their cost also get the cost per episode and "
+    "per success."
 )
 note = dash.metrics_note(data.metric_set())
 if note:
@@ -34,7 +37,6 @@ with c4:
     by = pickers.group_by_picker("leaderboard_by")
 
 where = sidebar.where(run_id=chosen_runs, category=categories, n_goals=goal_counts)
-names = tables.all_metrics()
 done = data.completeness()
 incomplete = dash.incomplete_note(done)
 if incomplete:  # never shown as finished runs (PROTOCOL §10.3)
@@ -47,8 +49,13 @@ table = dash.incomplete_groups(
 st.dataframe(
     tables.best_styler(table, names),
     hide_index=True,
-    column_config={**tables.metric_column_config(names), **tables.cost_column_config()},
+    column_config={
+        **tables.group_column_config(table),
+        **tables.metric_column_config(names),
+        **tables.cost_column_config(),
+    },
     key="leaderboard_table",
+    placeholder=reports.MISSING,
 )
 st.download_button("Download CSV", table.write_csv(), file_name="leaderboard.csv", mime="text/csv")
 

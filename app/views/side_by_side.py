@@ -48,9 +48,10 @@ links.set_side_query(run_a, run_b, episode, step)
 for column, (name, run) in zip(st.columns(2), (("A", run_a), ("B", run_b)), strict=True):
     steps = both[run]
     with column:
-        st.markdown(f"**{name} · {run}** · step {step} of {steps.height}")
-        if step >= steps.height:
-            st.info(f"The log of {run} ended after {steps.height} steps.")
+        st.markdown(dash.side_heading(name, run, step, steps.height))
+        ended = dash.ended_note(name, step, steps.height)
+        if ended:
+            st.info(ended)
         elif steps["view_before"][step] is None:
             st.info("This step was logged after the episode ended (truncated): not replayed.")
         else:

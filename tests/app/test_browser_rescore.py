@@ -1,5 +1,5 @@
 """End to end: `vge app OUT --metrics-dir DIR` in Chromium. The leaderboard shows the folder's
-metrics (an overridden one marked ✎, an added one ＋), and the Rescore page shows what they
+metrics (an overridden one marked ✎, an added one +), and the Rescore page shows what they
 change, as the analytics API computes it.
 
 A server of its own (the session's `app_server` runs with the built-in metrics), in the
@@ -34,9 +34,9 @@ def test_metrics_folder_in_chromium(page, rescore_server, tiny_out, metrics_fold
     browser.open("", "Per metric")
     browser.screenshot(ARTIFACTS / "app-leaderboard-metrics-dir.png")
     assert not browser.errors(), browser.errors()
-    assert "✎ overridden: SR; ＋ added: SR-multi" in browser.text()
+    assert "✎ overridden: SR; + added: SR-multi" in browser.text()
     header, *rows = browser.tables()[0]
-    assert "SR ↑ ✎" in header and "SR-multi ↑ ＋" in header
+    assert "SR ↑ ✎" in header and "SR-multi ↑ +" in header
     shown = {row[0]: dict(zip(header, row, strict=False)) for row in rows}
     for row in expected.iter_rows(named=True):
         assert float(shown[row["run_id"]]["SR ↑ ✎"]) == pytest.approx(row["SR"], abs=0.005)

@@ -7,6 +7,7 @@ import copy
 import io
 import re
 import shutil
+import subprocess
 from pathlib import Path
 
 import polars as pl
@@ -19,6 +20,7 @@ from vge_analytics import OutputDirError, compare, error_distribution, sql, swit
 from vge_analytics import dashboard as dash
 from vge_analytics.dashboard._budgets import _sweep_cache_file
 from vge_analytics.play import result_headline
+from vge_analytics.reports import MISSING
 from vge_analytics.store import resolve_input
 from vge_analytics.store._limits import SqlLimits
 
@@ -470,6 +472,8 @@ def test_step_text(tiny_out):
     assert goals["instruction"][row["goal_index"]] in text
     table = dash.step_classification(row)
     assert table["field"].to_list() == list(dash.CLASSIFICATION_FIELDS)
+    blank = dash.step_classification(dict.fromkeys(dash.CLASSIFICATION_FIELDS))
+    assert set(blank["value"]) == {MISSING}  # as the command line writes a null
     assert dash.termination_label("budget_local") == "local budget out"
     assert dash.termination_label("context_exceeded") == "context window full"
     # Every termination has its words (replay.semantics.TERMINATION_TEXTS), here and on the
@@ -500,7 +504,7 @@ def test_episode_labels(tiny_out):
 def test_metric_headers_mark_overrides_and_additions(metrics_folder):
     chosen = va.load_metrics(metrics_folder)
     headers = dash.metric_headers(["SR", "SSR", "SR-multi", "VSPS"], chosen)
-    assert headers == {"SR": "SR ↑ ✎", "SSR": "SSR ↑", "SR-multi": "SR-multi ↑ ＋", "VSPS": "VSPS ↓"}
+    assert headers == {"SR": "SR ↑ ✎", "SSR": "SSR ↑", "SR-multi": "SR-multi ↑ +", "VSPS": "VSPS ↓"}
     assert dash.metric_headers(["SR"]) == {"SR": "SR ↑"}  # the built-ins alone
     assert dash.metric_help("SR", chosen) == (
         "Success Rate with partial credit: SR that credits each completed goal: the mean of "
@@ -512,10 +516,25 @@ def test_metric_headers_mark_overrides_and_additions(metrics_folder):
     )
     assert dash.metric_help("SSR", chosen).startswith("Sub-task Success Rate: Mean over")
     assert dash.metrics_note(chosen) == (
-        f"Metrics of `{metrics_folder}`: ✎ overridden: SR; ＋ added: SR-multi. Hover a header "
+        f"Metrics of `{metrics_folder}`: ✎ overridden: SR; + added: SR-multi. Hover a header "
         "for its definition."
     )
     assert dash.metrics_note(va.MetricSet.builtin()) is None
+
+
+def test_header_signs_are_in_the_installed_fonts():
+    """The table is a canvas drawn with the system's fonts: a sign none of them has is an
+    empty box (the full-width ＋ was one in Debian's Chromium). fontconfig, which Chromium
+    draws through, names a font for each sign of the headers and of a missing value."""
+    assert shutil.which("fc-list"), "fontconfig's fc-list is needed (Chromium depends on it)"
+    signs = {c for mark in dash.ORIGIN_MARKS.values() for c in mark.strip()}
+    signs |= {"↑", "↓", MISSING}
+    for sign in sorted(signs):
+        fonts = subprocess.run(
+            ["fc-list", f":charset={ord(sign):x}", "family"],
+            capture_output=True, text=True, check=True, timeout=60,
+        ).stdout  # fmt: skip
+        assert fonts.strip(), f"no installed font draws {sign!r} (U+{ord(sign):04X})"
 
 
 def test_best_rows_of_an_added_metric(metrics_folder):

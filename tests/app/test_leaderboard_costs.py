@@ -24,6 +24,7 @@ import pytest
 import replay
 import vge_analytics as va
 from vge_analytics import dashboard as dash
+from vge_analytics.reports import MISSING
 
 from ..vge_analytics.live.conftest import MALFORMED, OPEN_LID, PUSH_POWER, WAIT, kettle_bench  # noqa: F401
 from .test_pages import chart_data, charts, nums, open_page
@@ -90,7 +91,7 @@ def test_the_leaderboard_table_gets_the_costs_and_the_marks(priced_out: Path) ->
     by = ["run_id", "model"]
     table = va.metrics(priced_out, by=by, metrics=["SR"])
     joined = dash.with_costs(table, dash.cost_table(priced_out, by), by)
-    assert joined.columns == ["run_id", "model", "SR", *dash.COST_COLUMNS]
+    assert joined.columns == ["run_id", "model", *dash.COST_COLUMNS, "SR"]  # costs in sight
     assert joined["cost_per_success"].to_list() == pytest.approx([0.0015, 0.008, None, None])
     # Without any recorded cost the table is left as it is.
     plain = table.filter(pl.col("run_id") == "c")
@@ -149,8 +150,24 @@ def test_the_leaderboard_page_shows_costs_marks_and_the_frontier(
     assert nums(shown["cost_per_success"]) == pytest.approx(
         [0.0015, 0.008, float("nan"), float("nan")], nan_ok=True
     )
+    # Missing values are drawn as `–`; the costs come after the labels; the group column
+    # is as wide as its longest label and stays in place when the table scrolls sideways.
+    assert at.dataframe[0].proto.placeholder == MISSING
+    assert list(shown.columns[:4]) == ["group", "model", "cost_per_episode", "cost_per_success"]
+    config = json.loads(at.dataframe[0].proto.columns)
+    assert config["group"]["width"] == dash.text_width("group", "d (incomplete)") == 136
+    assert config["group"]["pinned"] is True
+    assert config["cost_per_episode"]["label"] == "$ / episode"
     frontier = chart_data(charts(at)[1])
     points = next(f for f in frontier if f.height == 3)
     assert list(zip(points["run_id"], points["frontier"], strict=True)) == [
         ("d", True), ("a", True), ("b", False),
     ]  # fmt: skip
+
+
+def test_a_column_sized_to_its_text() -> None:
+    # 8 px a character and 24 px of padding, at most 480 px.
+    assert dash.text_width("group") == 5 * 8 + 24
+    assert dash.text_width("a", "random-cut (incomplete)", "b") == 23 * 8 + 24
+    assert dash.text_width("x" * 100_000) == 480  # a hostile run id gets no page-wide column
+    assert dash.text_width() == 24

@@ -297,7 +297,11 @@ def test_side_by_side_from_a_link_with_marks(app_env):
     # Past the end of the shorter log, its side says so.
     at.select_slider(key="sbs_step").set_value(steps - 1)
     rerun(at)
-    assert any(f"ended after {min(logged)} steps" in i.value for i in at.info)
+    short = "AB"[logged.index(min(logged))]
+    ended = f"{short}'s log ended at step {min(logged) - 1}: no step {steps - 1} to show"
+    assert any(i.value.startswith(ended) for i in at.info)
+    headings = [m.value for m in at.markdown if m.value.startswith(f"**{short} · ")]
+    assert headings[-1].endswith(f"its log ended at step {min(logged) - 1}")  # not "of 1"
     assert len(at.get("image")) == 1
 
 
@@ -372,8 +376,10 @@ def test_leaderboard_shows_the_folders_metrics(app_env, metrics_env):
         assert nums(shown[name]) == pytest.approx(nums(expected[name]), nan_ok=True)
     assert nums(shown["SR"]) == pytest.approx(nums(expected["SSR"]), nan_ok=True)  # override
     labels = column_labels(at.dataframe[0])
-    assert (labels["SR"], labels["SSR"], labels["SR-multi"]) == ("SR ↑ ✎", "SSR ↑", "SR-multi ↑ ＋")
-    assert any("✎ overridden: SR; ＋ added: SR-multi" in c.value for c in at.main.caption)
+    assert (labels["SR"], labels["SSR"], labels["SR-multi"]) == ("SR ↑ ✎", "SSR ↑", "SR-multi ↑ +")
+    assert any("✎ overridden: SR; + added: SR-multi" in c.value for c in at.main.caption)
+    title = f"The paper's metrics, SR overridden and SR-multi added by {metrics_env}. One row"
+    assert at.main.caption[0].value.startswith(title)
     assert f"built-in + `{metrics_env}`" in at.sidebar.caption[-1].value
 
 

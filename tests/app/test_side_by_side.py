@@ -141,3 +141,22 @@ def test_side_picture_draws_the_optimal_box_and_the_click(pair: Path) -> None:
     )
     with pytest.raises(va.UnknownRunError, match="no replayed step 5 in episode 'late' of 'A'"):
         dash.side_picture(pair, "A", "late", 5)
+
+
+def test_the_heading_past_the_end_of_a_log() -> None:
+    # B's log holds 2 steps (0 and 1); the shared slider follows A's longer log.
+    assert dash.side_heading("A", "a", 1, 5) == "**A · a** · step 1 of steps 0–4"
+    assert dash.side_heading("B", "b", 1, 2) == "**B · b** · step 1 of steps 0–1"
+    assert dash.side_heading("B", "b", 2, 2) == "**B · b** · its log ended at step 1"
+    assert dash.side_heading("B", "b", 4, 1) == "**B · b** · its log ended at step 0"
+    assert dash.side_heading("B", "b", 0, 1) == "**B · b** · step 0, its only step"
+    assert dash.side_heading("B", "b", 0, 0) == "**B · b** · its log has no step"
+    assert dash.ended_note("B", 1, 2) is None
+    assert dash.ended_note("B", 2, 2) == (
+        "B's log ended at step 1: no step 2 to show (the slider follows the longer log)."
+    )
+    assert dash.ended_note("B", 0, 0) == "B's log of this episode has no step."
+    # Past the end of a log, never the old "step 2 of 1" (a step beyond the steps).
+    for n in range(4):
+        for step in range(n, n + 3):
+            assert "ended" in dash.side_heading("B", "b", step, n) or n == 0

@@ -182,8 +182,11 @@ def app_command(
         "built-in ones); the Rescore page shows what they change."
     ),
 ) -> None:
-    """Open the dashboard: leaderboard, errors, navigation, grounding, budgets, human vs VLM,
-    side by side, rescore, episode viewer and SQL over a replay output directory."""
+    """Open the dashboard over a replay output directory in the browser.
+
+    Its pages: leaderboard, errors, navigation, grounding, budgets, human vs VLM,
+    significance, side by side, rescore, episode viewer and SQL.
+    """
     resolved = check_out(out)
     folder = None
     if metrics_dir:

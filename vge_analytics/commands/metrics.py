@@ -112,12 +112,8 @@ def metrics_command(
                 df = marked_rows(df, "run_id" if "run_id" in df.columns else "model", flags)
         else:
             df = marked(df, runs, fmt, by_cols)
-        emit(
-            df,
-            fmt,
-            title="The paper's metrics: \u2191 higher is better, \u2193 lower is better",
-            metric_set=available,
-        )
+        held = reports.metrics_held([c for c in df.columns if c in available], available)
+        emit(df, fmt, title=f"{held}: {reports.ARROWS_LEGEND}", metric_set=available)
 
 
 def register(app: typer.Typer) -> None:

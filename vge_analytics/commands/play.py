@@ -73,8 +73,11 @@ def play_cmd(
     host: str = host_option("lets anyone on the network play into the run"),
     headless: bool = headless_option(),
 ) -> None:
-    """Play the benchmark in the browser: pick an episode, click on the device's views; each
-    step is written to a human run that `vge replay` reads."""
+    """Play the benchmark in the browser, writing a human run that `vge replay` reads.
+
+    Pick an episode, click on the device's views; each step is written to the run as it is
+    played.
+    """
     run = play.HumanRun.open(out, bench, run_id=run_id, model=model, lam=lam)
     bench_dir, run_dir = bench.resolve(), run.root.resolve()
     cmd = play_command(

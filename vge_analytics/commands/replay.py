@@ -80,8 +80,9 @@ def replay_command(
     max_record_bytes: int = max_record_bytes_option(),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
 ) -> None:
-    """Replay logged episodes against the SSMs and write the steps, episodes, goals and runs tables
-    (Parquet), and MCAP files on request.
+    """Replay logged episodes against the SSMs into Parquet tables (and MCAP files).
+
+    Writes the steps, episodes, goals and runs tables, and MCAP files on request.
 
     Exit code 0 when every record replayed, 2 when some were quarantined, 1 on fatal errors.
     """
@@ -100,7 +101,7 @@ def replay_command(
         lam=lam,
         workers=workers,
         mcap=mcap,
-        mcap_episodes=episode_ids(mcap_episodes, "--mcap-episodes"),
+        mcap_episodes=checked_mcap_episodes(bench, mcap_episodes),
         force=force,
         progress=progress,
         image_source=image_source(bench),
@@ -114,6 +115,31 @@ def replay_command(
     n = manifest.quarantined
     problem = f"{n:,} record(s) quarantined[/]: see {listed}" if n else None
     finish(console, f"wrote {escape(str(out))} ({replay.io.MANIFEST})", problem)
+
+
+def checked_mcap_episodes(bench: str, given: str | None) -> list[str] | None:
+    """The episode ids of `--mcap-episodes`, checked against BENCH's tasks: none of them a
+    task is an error (a typo, not a request for no file), some of them a warning on stderr;
+    each names the ids nearest to the first unknown one."""
+    ids = episode_ids(given, "--mcap-episodes")
+    if not ids:
+        return ids
+    from .._nearest import nearest_hint
+
+    opened = replay.Benchmark.open(bench)
+    unknown = [e for e in dict.fromkeys(ids) if e not in opened.tasks]
+    if not unknown:
+        return ids
+    what = (
+        f"not an episode of {opened.tasks_path}: "
+        + ", ".join(map(repr, unknown[:5]))
+        + (f" and {len(unknown) - 5:,} more" if len(unknown) > 5 else "")
+        + nearest_hint(unknown[0], list(opened.tasks), "episode")
+    )
+    if len(unknown) == len(set(ids)):
+        raise replay.ConfigError(f"--mcap-episodes selects no episode (no MCAP file): {what}")
+    typer.echo(f"warning: --mcap-episodes: {what}", err=True)
+    return ids
 
 
 def register(app: typer.Typer) -> None:

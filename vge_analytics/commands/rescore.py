@@ -47,9 +47,11 @@ def rescore(
         "the groups whose rank moved); in json a list of such objects.",
     ),
 ) -> None:
-    """What the metrics of a folder change: per run, each changed or added metric before and
-    after, the difference, the rank before and after; per metric, Kendall's tau-b between the
-    two rankings and the runs whose rank moved.
+    """What the metrics of a folder change, run by run, and how the rankings move.
+
+    Per run, each changed or added metric before and after, the difference, the rank before
+    and after; per metric, Kendall's tau-b between the two rankings and the runs whose rank
+    moved.
 
     Rank 1 is the best value in the metric's direction; tied values share a rank. json and csv
     print the rows (a list of objects with metric, the group columns, before, after, delta,

@@ -9,6 +9,8 @@ import polars as pl
 
 from replay.semantics import TERMINATION_TEXTS
 
+from ..reports import MISSING
+
 _LABELS = {termination: ending.label for termination, ending in TERMINATION_TEXTS.items()}
 
 
@@ -116,15 +118,15 @@ CLASSIFICATION_FIELDS: tuple[str, ...] = (
 
 
 def step_classification(row: Mapping[str, object]) -> pl.DataFrame:
-    """The classification of a step as (field, value) rows, values as text (null as —)."""
+    """The classification of a step as (field, value) rows, values as text (null as `reports.MISSING`)."""
 
     def text(value: object) -> str:
         if value is None:
-            return "—"
+            return MISSING
         if isinstance(value, float):
             return f"{value:.1f}"
         if isinstance(value, list):
-            return ", ".join(map(str, value)) or "—"
+            return ", ".join(map(str, value)) or MISSING
         return str(value)
 
     return pl.DataFrame(

@@ -60,14 +60,15 @@ def best_rows(
     return best
 
 
-ORIGIN_MARKS: dict[str, str] = {"built-in": "", "override": " ✎", "added": " ＋"}
+ORIGIN_MARKS: dict[str, str] = {"built-in": "", "override": " ✎", "added": " +"}
 """What a leaderboard header carries after its arrow: a metric a metrics folder overrides
-(✎) or adds (＋)."""
+(✎) or adds (+). Signs the system's fonts draw (the table is a canvas drawn with them:
+Debian's DejaVu has ✎ but not the full-width ＋, which showed as an empty box)."""
 
 
 def metric_headers(metric_names: Sequence[str], metrics: MetricSet | None = None) -> dict[str, str]:
     """{metric: header with the paper's arrow and its origin mark}, e.g. `SR ↑`, `VSPS ↓`,
-    `SR ↑ ✎` (overridden by a metrics folder), `SR-multi ↑ ＋` (added by one)."""
+    `SR ↑ ✎` (overridden by a metrics folder), `SR-multi ↑ +` (added by one)."""
     chosen = metrics or MetricSet.builtin()
     return {n: f"{n} {chosen.get(n).arrow}{ORIGIN_MARKS[chosen.origin(n)]}" for n in metric_names}
 
@@ -95,9 +96,9 @@ def metrics_note(metrics: MetricSet | None) -> str | None:
     added = [m.name for m in metrics if metrics.origin(m.name) == "added"]
     parts = []
     if overridden:
-        parts.append(f"✎ overridden: {', '.join(overridden)}")
+        parts.append(f"{ORIGIN_MARKS['override'].strip()} overridden: {', '.join(overridden)}")
     if added:
-        parts.append(f"＋ added: {', '.join(added)}")
+        parts.append(f"{ORIGIN_MARKS['added'].strip()} added: {', '.join(added)}")
     what = "; ".join(parts) if parts else "no metric changed"
     return f"Metrics of `{metrics.folder}`: {what}. Hover a header for its definition."
 
@@ -152,12 +153,32 @@ def cost_table(out, by: Sequence[str], where: Filters = None) -> pl.DataFrame:
 
 
 def with_costs(table: pl.DataFrame, costs: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:
-    """The metrics table with the cost columns of its groups after the metrics; unchanged
-    when no group has a recorded cost (simulated and human runs)."""
+    """The metrics table with the cost columns of its groups right after the group columns
+    (before the metrics, so they are in sight without scrolling sideways); unchanged when no
+    group has a recorded cost (simulated and human runs)."""
     if costs["cost_usd"].null_count() == costs.height:
         return table
     keys = [c for c in by if c in table.columns and c in costs.columns]
-    return table.join(costs.select(*keys, *COST_COLUMNS), on=keys, how="left", nulls_equal=True)
+    joined = table.join(costs.select(*keys, *COST_COLUMNS), on=keys, how="left", nulls_equal=True)
+    labels = [c for c in table.columns if c in by]
+    rest = [c for c in table.columns if c not in by]
+    return joined.select(*labels, *COST_COLUMNS, *rest)
+
+
+TEXT_PX_PER_CHAR = 8
+"""Pixels a character takes at most in the tables' 14 px sans-serif (lower case and digits;
+a bound that keeps a label whole)."""
+CELL_PADDING_PX = 24
+MAX_COLUMN_PX = 480
+"""The widest a column sized to its text gets (a run id of a thousand characters is cut
+there, not given a column wider than the page)."""
+
+
+def text_width(*texts: str) -> int:
+    """Pixels a table column needs to show the longest of `texts` whole, at most
+    `MAX_COLUMN_PX`."""
+    longest = max((len(t) for t in texts), default=0)
+    return min(MAX_COLUMN_PX, longest * TEXT_PX_PER_CHAR + CELL_PADDING_PX)
 
 
 def cost_frontier(runs: pl.DataFrame) -> pl.DataFrame:

@@ -116,6 +116,33 @@ def pair_summary(row: Mapping[str, object]) -> str:
     )
 
 
+def side_heading(name: str, run: str, step: int, n_steps: int) -> str:
+    """The line above a run's picture at `step` of the shared slider, its log holding
+    `n_steps` steps (numbered from 0): `**B · run** · step 2 of steps 0–4`, or, past its
+    end, `**B · run** · its log ended at step 1` (the other run's log goes on)."""
+    head = f"**{name} · {run}**"
+    if n_steps == 0:
+        return f"{head} · its log has no step"
+    if step >= n_steps:
+        return f"{head} · its log ended at step {n_steps - 1}"
+    if n_steps == 1:
+        return f"{head} · step 0, its only step"
+    return f"{head} · step {step} of steps 0–{n_steps - 1}"
+
+
+def ended_note(name: str, step: int, n_steps: int) -> str | None:
+    """What stands in place of a run's picture at a step past the end of its log (None:
+    the step is in its log)."""
+    if step < n_steps:
+        return None
+    if n_steps == 0:
+        return f"{name}'s log of this episode has no step."
+    return (
+        f"{name}'s log ended at step {n_steps - 1}: no step {step} to show "
+        f"(the slider follows the longer log)."
+    )
+
+
 @dataclass(frozen=True)
 class OptimalStep:
     """The planner's next action from a step's situation (PROTOCOL §4.5)."""
@@ -199,11 +226,13 @@ __all__ = [
     "OptimalStep",
     "SidePicture",
     "default_episode",
+    "ended_note",
     "optimal_next_step",
     "pair_labels",
     "pair_rows",
     "pair_summary",
     "side_caption",
+    "side_heading",
     "side_picture",
     "side_steps",
     "SIDE_STEP_COLUMNS",

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import polars as pl
 
-from ..reports import AllPairs, Repeated
+from ..reports import MISSING, AllPairs, Repeated
 
 CLUSTER_WORDS: dict[str, str] = {
     "device": "devices",
@@ -53,7 +53,7 @@ def pair_matrix(result: AllPairs) -> pl.DataFrame:
     p = pl.col("p_adjusted")
     return pl.concat([pairs, mirrored]).with_columns(
         text=pl.when(p.is_null())
-        .then(pl.lit("–"))
+        .then(pl.lit(MISSING))
         .when(p < 0.01)
         .then(pl.lit("<.01"))
         .otherwise(p.round(2).cast(pl.String))

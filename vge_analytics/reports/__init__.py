@@ -40,8 +40,11 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         diff,
     )
     from ._format import (
+        ARROWS_LEGEND,
         FORMATS,
+        MISSING,
         check_format,
+        metrics_held,
         render,
         render_latex,
         render_markdown,
@@ -84,6 +87,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
 
 __all__ = [
     "adjust_p",
+    "ARROWS_LEGEND",
     "AllPairs",
     "check_format",
     "CLUSTER_UNITS",
@@ -120,6 +124,8 @@ __all__ = [
     "mark_rows",
     "mcnemar_exact",
     "metric_intervals",
+    "metrics_held",
+    "MISSING",
     "NO_ERROR",
     "parse_lambdas",
     "plan",

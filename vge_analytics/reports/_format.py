@@ -36,7 +36,32 @@ SECTIONS_OF_TABLE_2: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 """Column groups of the paper's Table 2 (and, after it, PSR and the distance metrics)."""
 
-_NULL = "\u2013"
+MISSING = "\u2013"
+"""How a missing value (null, NaN) reads in a table for people: the command line's tables
+and the dashboard's alike."""
+ARROWS_LEGEND = "\u2191 higher is better, \u2193 lower is better"
+"""What the arrows of metric headers mean."""
+
+
+def metrics_held(names: Sequence[str], metric_set: MetricSet | None = None) -> str:
+    """What a table of the metrics `names` holds, for its title: `The paper's metrics`,
+    or, with a metrics folder, which of them it overrides and which it adds (`The paper's
+    metrics, SR overridden and SR-multi added by mine/`)."""
+    chosen = metric_set or MetricSet.builtin()
+    shown = [n for n in names if n in chosen]
+    by_origin = {
+        origin: [n for n in shown if chosen.origin(n) == origin]
+        for origin in ("built-in", "override", "added")
+    }
+    changes = " and ".join(
+        f"{', '.join(by_origin[origin])} {word}"
+        for origin, word in (("override", "overridden"), ("added", "added"))
+        if by_origin[origin]
+    )
+    if not changes:
+        return "The paper's metrics"
+    changed = f"{changes} by {chosen.folder}"
+    return f"The paper's metrics, {changed}" if by_origin["built-in"] else f"Metrics: {changed}"
 
 
 def check_format(fmt: str, allowed: Sequence[str] = FORMATS) -> str:
@@ -93,12 +118,12 @@ def _registry(metric_set: MetricSet | None) -> Mapping[str, Metric]:
 def _fmt_number(value: object, decimals: int | None = 2) -> str:
     """Floats: `decimals` places, or up to 6 significant digits when `decimals` is None."""
     if value is None:
-        return _NULL
+        return MISSING
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
         if not math.isfinite(value):
-            return _NULL
+            return MISSING
         return f"{value:.{decimals}f}" if decimals is not None else f"{value:.6g}"
     return str(value)
 
@@ -386,10 +411,13 @@ def render_sections(
 
 
 __all__ = [
+    "ARROWS_LEGEND",
     "FORMATS",
+    "MISSING",
     "SECTIONS_OF_TABLE_2",
     "check_format",
     "latex_escape",
+    "metrics_held",
     "rank_marks",
     "render",
     "render_csv",

@@ -27,6 +27,7 @@ from ..metrics import Metric, MetricSet, MetricsSource, default_folder, metric_s
 from ..metrics import metrics as compute_metrics
 from ..store import Filters, GroupBy, open_store, parse_by
 from ._defaults import DEFAULT_RESCORE_BY
+from ._format import MISSING
 from ._ranking import competition_ranks, kendall_tau_b
 
 CHANGES: tuple[str, ...] = ("changed", "added", "removed")
@@ -72,7 +73,7 @@ def rank_moves(rows: pl.DataFrame) -> pl.Series:
     labels = []
     for before, after in rows.select("rank_before", "rank_after").iter_rows():
         if before is None and after is None:
-            labels.append("–")
+            labels.append(MISSING)
         elif before is None:
             labels.append("new")
         elif after is None:
@@ -208,7 +209,7 @@ def _ranking_summary(change: MetricChange, part: pl.DataFrame, by_cols: Sequence
         for row in part.iter_rows(named=True):
             if row["rank_before"] != row["rank_after"]:
                 shown = [
-                    "–" if r is None else str(r) for r in (row["rank_before"], row["rank_after"])
+                    MISSING if r is None else str(r) for r in (row["rank_before"], row["rank_after"])
                 ]
                 moved.append(f"{group_label(row, by_cols)} {shown[0]}→{shown[1]}")
     source = (change.after or change.before).source  # type: ignore[union-attr]

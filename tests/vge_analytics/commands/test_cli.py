@@ -3,6 +3,7 @@ one-line errors."""
 
 from __future__ import annotations
 
+import inspect
 import json
 from pathlib import Path
 
@@ -139,3 +140,57 @@ def test_every_format_everywhere(capsys, hand_out: Path, pair_out: Path, fmt: st
         if isinstance(value, float):
             value = f"{value:.2f}" if fmt in ("table", "markdown", "latex") else repr(value)
         assert value in out, (args[0], value)
+
+
+def test_help_names_each_command_in_a_whole_sentence(capsys, monkeypatch) -> None:
+    """`vge --help` gives each command the first paragraph of its docstring on one line:
+    a whole sentence, never one cut at the docstring's line break."""
+    from vge_analytics.cli import _register_all, app, one_line
+
+    monkeypatch.setenv("COLUMNS", "250")  # wide enough that rich does not wrap a line
+    code, out, _ = run(capsys, "--help")
+    assert code == 0
+    _register_all()
+    for info in app.registered_commands:
+        first = inspect.cleandoc(info.callback.__doc__).split("\n\n")[0]
+        assert info.short_help == one_line(info.callback.__doc__) == " ".join(first.split())
+        assert info.short_help.endswith("."), info.name
+        line = next(x for x in out.splitlines() if x.startswith(f"│ {info.name} "))
+        assert info.short_help in line, (info.name, line)
+    assert one_line("Open it\n    in the browser.\n\n    More.") == "Open it in the browser."
+    assert one_line(None) == ""
+
+
+@pytest.mark.parametrize(
+    ("args", "suggested"),
+    [
+        (["metrics", "OUT", "--metric", "SR"], "(Possible options: --metrics, --metrics-dir)"),
+        (["replay", "RUN", "--mcap-episode", "e1"], "(Possible options: --mcap, --mcap-episodes)"),
+        (["errors", "OUT", "--formt", "json"], "(Possible options: --format)"),
+    ],
+)
+def test_a_near_miss_option_gets_a_suggestion(capsys, args, suggested) -> None:
+    code, out, err = run(capsys, *args)
+    assert code == 2 and out == ""  # click's usage error, not a crash
+    assert f"Error: No such option: {args[2]} {suggested}" in err
+    assert f"{args[0]} --help' for help." in err  # the program's name is pytest's here
+
+
+def test_mcap_episodes_that_name_no_episode(capsys, tmp_path: Path) -> None:
+    """`vge replay --mcap-episodes` with a typo: one line naming the nearest episodes, exit 1
+    before anything is written when no id is an episode; a warning when some are."""
+    root = Path(__file__).resolve().parents[3]
+    bench, run_dir = str(root / "logs" / "bench"), str(root / "logs" / "runs" / "sim-vlm-a")
+    out = tmp_path / "out"
+    args = ["replay", run_dir, "--bench", bench, "--out", str(out), "--no-progress"]
+    code, _, err = run(capsys, *args, "--mcap-episodes", "CarKey_000-1")
+    assert code == 1 and not out.exists()
+    assert err == (
+        f"error: --mcap-episodes selects no episode (no MCAP file): not an episode of "
+        f"{bench}/tasks.jsonl: 'CarKey_000-1'; nearest: CarKey_000-01, CarKey_000-00, "
+        "CarKey_000-02\n"
+    )
+    code, _, err = run(capsys, *args, "--mcap-episodes", "CarKey_000-1,CarKey_000-01")
+    assert code == 0
+    assert err.startswith("warning: --mcap-episodes: not an episode of ")
+    assert [p.name for p in out.rglob("*.mcap")] == ["CarKey_000-01.mcap"]
