@@ -72,6 +72,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     )
     from ._pictures import (
         CLICK_COLOR,
+        NO_PICTURE,
         ROLE_COLORS,
         Box,
         ViewPicture,
@@ -171,6 +172,7 @@ __all__ = [
     "metric_help",
     "metrics_long",
     "metrics_note",
+    "NO_PICTURE",
     "optimal_next_step",
     "OptimalStep",
     "ORIGIN_MARKS",
