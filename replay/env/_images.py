@@ -17,7 +17,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from .._errors import PictureError
-from ..io import ImageSource, as_view_image, open_picture
+from ..io import ImageSource, as_view_image, decode_picture
 from ..semantics import Machine
 
 CANVAS = (236, 238, 242)
@@ -76,11 +76,10 @@ class ViewImages:
 
 
 def _decoded(data: bytes, view: str) -> Image.Image | None:
-    """The picture as RGB, or None when it is not one or has more pixels than a view picture
-    may have (`replay.io.open_picture`: the header is checked before decoding)."""
+    """The picture as RGB, or None when it is not one, does not decode, or has more pixels
+    than a view picture may have (`replay.io.decode_picture`: the header is checked first)."""
     try:
-        with open_picture(data, f"the {view} view") as raw:
-            return raw.convert("RGB")
+        return decode_picture(data, f"the {view} view")
     except PictureError:
         return None
 

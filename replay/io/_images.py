@@ -6,9 +6,10 @@ entry for the view, then the caller's fallback (the analytics render the views o
 synthetic categories). A file that is too large, in bytes or in pixels, or that is not a
 picture, counts as absent (`bench_image_problem` says why, in one line naming the file).
 
-Every decoding of a view picture opens it with `open_picture`: the width and height are read
-from the file's header and checked against `MAX_IMAGE_PIXELS` before a pixel is decoded, so
-a PNG of half a megabyte that would decode to gigabytes costs nothing.
+Every decoding of a view picture opens it with `open_picture` (`decode_picture` decodes it):
+the width and height are read from the file's header and checked against `MAX_IMAGE_PIXELS`
+before a pixel is decoded, so a PNG of half a megabyte that would decode to gigabytes costs
+nothing, and a file whose pixels do not decode (truncated) is refused in the same one line.
 """
 
 from __future__ import annotations
@@ -108,6 +109,17 @@ def open_picture(data: bytes, name: str = "picture") -> Image.Image:
     return img
 
 
+def decode_picture(data: bytes, name: str = "picture") -> Image.Image:
+    """The picture decoded as RGB, once `open_picture` lets it through; `PictureError` naming
+    `name` when it is refused there or when its pixels do not decode (a truncated or corrupt
+    file whose header is sound)."""
+    with open_picture(data, name) as img:
+        try:
+            return img.convert("RGB")
+        except (OSError, SyntaxError, ValueError, IndexError, EOFError) as exc:
+            raise PictureError(name, f"not a readable {img.format} picture ({exc})") from None
+
+
 def view_image_of(data: bytes, name: str = "picture") -> ViewImage:
     """Bytes as a `ViewImage` (format and size from the file's header, nothing decoded), or
     `PictureError` naming `name` when `open_picture` refuses them."""
@@ -198,6 +210,7 @@ __all__ = [
     "as_view_image",
     "bench_image",
     "bench_image_problem",
+    "decode_picture",
     "decode_view_image",
     "open_picture",
     "view_image_of",

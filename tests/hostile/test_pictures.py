@@ -168,3 +168,37 @@ def test_a_drawn_step_of_a_huge_picture_is_the_stand_in_saying_why(huge: bytes) 
         grey = drawn.convert("RGB").getcolors(600 * 600)
     assert grey is not None and max(grey)[1] == (236, 238, 242)
     assert len(grey) > 1  # the reason is written on it
+
+
+def _truncated_png() -> bytes:
+    """A picture of 640 x 480 whose header is sound and whose pixels stop half-way."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (640, 480), (200, 30, 30)).save(buf, format="PNG")
+    return buf.getvalue()[: len(buf.getvalue()) // 2]
+
+
+def test_a_truncated_picture_is_refused_in_one_line_everywhere_it_is_decoded(tmp_path) -> None:
+    from PIL import Image
+
+    from replay.env import DeviceEnv
+    from vge_analytics import dashboard as dash
+    from vge_analytics.export._pictures import shrink
+
+    data = _truncated_png()
+    assert replay.io.decode_view_image(data) == replay.ViewImage(data, "png", 640, 480)
+    with pytest.raises(replay.PictureError) as refused:
+        replay.io.decode_picture(data, "BENCH/images/kettle/front.png")
+    assert str(refused.value) == (
+        "BENCH/images/kettle/front.png: not a readable PNG picture (image file is truncated)"
+    )
+    with pytest.raises(replay.PictureError):
+        shrink(data)  # the export: the step goes without its picture
+    drawn = dash.draw_step(dash.ViewPicture(data, "png", 640, 480, rendered=True), [], None)
+    with Image.open(io.BytesIO(drawn)) as img:
+        assert img.size == (600, 600)  # the stand-in
+    root = picture_bench(tmp_path, data)
+    env = DeviceEnv(str(root / "bench"), image_width=64, image_height=64)
+    obs, _ = env.reset(options={"episode_id": "e1"})
+    assert tuple(obs["image"][32, 32]) == (236, 238, 242)  # the canvas

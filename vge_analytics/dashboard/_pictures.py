@@ -160,15 +160,14 @@ def _stand_in(problem: str | None) -> ViewPicture:
 
 
 def _decoded(picture: ViewPicture) -> tuple[Image.Image, ViewPicture]:
-    """The picture as RGB, or the stand-in's when it is refused (`replay.io.open_picture`
-    checks the pixels before decoding), with the picture drawn."""
+    """The picture as RGB, or the stand-in's when it is refused (`replay.io.decode_picture`
+    checks the pixels before decoding; a truncated file is refused too), with the picture
+    drawn."""
     try:
-        with replay.io.open_picture(picture.data) as img:
-            return img.convert("RGB"), picture
+        return replay.io.decode_picture(picture.data), picture
     except replay.PictureError as exc:
         stand_in = _stand_in(str(exc))
-        with replay.io.open_picture(stand_in.data) as img:
-            return img.convert("RGB"), stand_in
+        return replay.io.decode_picture(stand_in.data), stand_in
 
 
 def draw_step(

@@ -47,9 +47,9 @@ class Picture:
 
 def shrink(data: bytes) -> Picture:
     """The picture scaled down to MAX_SIDE (never up), as JPEG. Raises `replay.PictureError`
-    for one with more pixels than a view picture may have (checked before decoding)."""
-    with replay.io.open_picture(data) as img:
-        rgb = img.convert("RGB")
+    for one with more pixels than a view picture may have (checked before decoding), or
+    whose pixels do not decode."""
+    rgb = replay.io.decode_picture(data)
     rgb.thumbnail((MAX_SIDE, MAX_SIDE))  # bicubic, reducing by 2 first when it can
     buf = io.BytesIO()
     rgb.save(buf, format="JPEG", quality=JPEG_QUALITY)
