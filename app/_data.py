@@ -62,6 +62,21 @@ _WRAPPED: dict[str, Callable[..., Any]] = {}
 @st.cache_data(show_spinner=False, max_entries=1024)
 def _cached(key: str, out: str, version: str, args: tuple, kwargs: dict) -> Any:
     del version  # part of the cache key only
+    return _call(key, out, args, kwargs)
+
+
+SQL_RESULTS_KEPT = 8
+"""Results of the SQL page the server keeps (each at most `vge_analytics.store.RESULT_BYTES`,
+so 256 MB at most), apart from the other pages' many small ones."""
+
+
+@st.cache_data(show_spinner=False, max_entries=SQL_RESULTS_KEPT)
+def _cached_sql(key: str, out: str, version: str, args: tuple, kwargs: dict) -> Any:
+    del version  # part of the cache key only
+    return _call(key, out, args, kwargs)
+
+
+def _call(key: str, out: str, args: tuple, kwargs: dict) -> Any:
     with va.query_time_limit(query_timeout()):
         return _WRAPPED[key](out, *args, **kwargs)
 
@@ -73,12 +88,16 @@ def query_timeout(argv: Sequence[str] | None = None) -> float | None:
     return CLI_TIMEOUT if value is None else (float(value) or None)
 
 
-def cached(fn: Callable[Concatenate[Any, P], R], *, metrics: bool = False) -> Callable[P, R]:
+def cached(
+    fn: Callable[Concatenate[Any, P], R], *, metrics: bool = False, sql: bool = False
+) -> Callable[P, R]:
     """`fn(OUT, ...)` as a page calls it, `fn(...)`: OUT is the app's, and the result is
     cached per (OUT, manifest hash, arguments). With `metrics`, `fn` also gets `metrics_dir`
-    (the app's folder, see `metrics_dir`), and the folder's fingerprint joins the key."""
+    (the app's folder, see `metrics_dir`), and the folder's fingerprint joins the key. With
+    `sql` (user queries' results), only the last `SQL_RESULTS_KEPT` are kept."""
     key = f"{fn.__module__}.{fn.__qualname__}"
     _WRAPPED[key] = fn
+    cache = _cached_sql if sql else _cached
 
     @functools.wraps(fn)
     def call(*args: P.args, **kwargs: P.kwargs) -> R:
@@ -87,7 +106,7 @@ def cached(fn: Callable[Concatenate[Any, P], R], *, metrics: bool = False) -> Ca
         if metrics:
             kwargs = {**kwargs, "metrics_dir": metrics_dir()}  # type: ignore[assignment]
             version += "/" + metric_set().fingerprint
-        return _cached(key, str(out), version, args, kwargs)
+        return cache(key, str(out), version, args, kwargs)
 
     return call
 
@@ -121,6 +140,7 @@ facets = cached(dash.run_facets)
 episodes = cached(va.episodes)
 goals = cached(va.goals)
 episode_steps = cached(va.episode_steps)
+viewer_steps = cached(dash.viewer_steps)
 out_summary = cached(dash.out_summary)
 column_values = cached(dash.column_values)
 error_step_sample = cached(dash.error_step_sample)
@@ -134,7 +154,7 @@ scatter_boxes = cached(dash.scatter_boxes)
 view_picture = cached(dash.view_picture)
 table_columns = cached(dash.table_columns_frame)
 sweep_size = cached(dash.sweep_size)
-sql_preview = cached(dash.sql_preview)
+sql_preview = cached(dash.sql_preview, sql=True)
 completeness = cached(va.completeness)
 cost_table = cached(dash.cost_table)
 selection_check = cached(check_selection)

@@ -30,11 +30,13 @@ sys.path.insert(0, str(ROOT))
 from replay.io import (  # noqa: E402
     EPISODES,
     EPISODES_GZ,
+    episode_mcap_path,
     manifest_path,
     mcap_dir,
     quarantine_path,
 )
 from tests.bounded import Finished, run_bounded  # noqa: E402
+from tests.hostile import picture_inputs as pictures  # noqa: E402
 from tests.hostile import processes  # noqa: E402
 from tests.hostile import replay_inputs as gen  # noqa: E402
 
@@ -304,6 +306,75 @@ def live_token_counts(work: Path) -> list[str]:
         body = json.loads(answer(opens).body)
         body["usage"] = {"prompt_tokens": tokens, "completion_tokens": tokens}
         rows.append(_live(work / str(len(rows)), case, Scripted(200, json.dumps(body).encode())))
+PILLOW_DECODE = """
+import sys
+from PIL import Image
+with Image.open(sys.argv[1]) as img:
+    rgb = img.convert("RGB")
+print(*rgb.size)
+"""
+"""What every reader of a view picture did before: Pillow's own bomb check, then decoding."""
+
+
+def _picture_note(command: str, root: Path, done: Finished) -> str:
+    """What a reader of the picture benchmark made of its picture."""
+    text = done.stdout_head.decode(errors="replace").strip()
+    if command.startswith("vge replay"):
+        from mcap.reader import make_reader
+
+        with open(episode_mcap_path(root / "out", "r", "e1").local, "rb") as fh:
+            messages = make_reader(fh).iter_messages(topics=["/camera"])
+            return f"{sum(1 for _ in messages)} picture frame(s) in the MCAP file"
+    if command.startswith("vge export"):
+        return f"{len(list((root / 'atif' / 'r' / 'images').glob('*.jpg')))} picture(s) exported"
+    return " ".join(text.splitlines()[-1:]).replace(f"{root}/bench/", "BENCH/")[:140]
+
+
+def bomb_png(work: Path) -> list[str]:
+    """A PNG of 13,370 x 13,370 pixels (half a megabyte, just under Pillow's bomb threshold)
+    as a view's picture, beside the same benchmark with a picture of 640 x 480, each reader
+    run on both in turn (a ratio holds on a busy machine where seconds do not); and, as the
+    baseline of before, Pillow decoding it."""
+    huge = pictures.huge_png(work / "huge.png", pictures.BOMB_SIDE)
+    side = f"{pictures.BOMB_SIDE:,} x {pictures.BOMB_SIDE:,} ({huge.stat().st_size / MiB:.1f} MB)"
+    sides = {
+        "640 x 480": pictures.picture_bench(work / "small", None),
+        side: pictures.picture_bench(work / "huge", huge.read_bytes()),
+    }
+    python = [sys.executable, "-c"]
+    commands: list[tuple[str, Callable[[Path], list[object]]]] = [
+        ("vge validate BENCH", lambda r: [*VGE, "validate", r / "bench"]),
+        (
+            "vge replay RUN --mcap",
+            lambda r: [
+                *VGE,
+                "replay",
+                r / "run",
+                "--bench",
+                r / "bench",
+                "--out",
+                r / "out",
+                "--mcap",
+            ],
+        ),
+        (
+            "vge export OUT --format atif",
+            lambda r: [*VGE, "export", r / "out", "--format", "atif", "--out", r / "atif"],
+        ),
+        ("dash.step_picture, view_picture", lambda r: [*python, pictures.VIEWER_SCRIPT, r / "out"]),
+        ("DeviceEnv(BENCH).reset", lambda r: [*python, pictures.ENV_SCRIPT, r / "bench"]),
+        (
+            "Pillow: Image.open, convert",
+            lambda r: [*python, PILLOW_DECODE, r / "bench" / pictures.FRONT],
+        ),
+    ]
+    rows = []
+    for command, args in commands:
+        for picture, root in sides.items():
+            cmd = [str(a) for a in args(root)]
+            done = run_bounded(cmd, address_space=8 << 30, timeout=300.0)
+            note = _picture_note(command, root, done)
+            rows.append(row(f"a view picture of {picture}", command, done, note))
     return rows
 
 
@@ -322,6 +393,7 @@ CASES: list[Callable[[Path], list[str]]] = [
     live_50mb_answer,
     live_trickle,
     live_token_counts,
+    bomb_png,
 ]
 
 

@@ -21,6 +21,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         ActionError,
         ConfigError,
         InputError,
+        PictureError,
         Problem,
         RecordTooLarge,
         SSMError,
@@ -31,6 +32,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._version import ENGINE_VERSION
     from .io import (
         MAX_IMAGE_BYTES,
+        MAX_IMAGE_PIXELS,
         MAX_RECORD_BYTES,
         MCAP_LIBRARY,
         QUARANTINE_KINDS,
@@ -130,6 +132,7 @@ __all__ = [
     "replay_runs",
     # inputs: where they live, reading and checking them, their bounds
     "MAX_IMAGE_BYTES",
+    "MAX_IMAGE_PIXELS",
     "MAX_RECORD_BYTES",
     "Benchmark",
     "Location",
@@ -214,6 +217,7 @@ __all__ = [
     "ActionError",
     "ConfigError",
     "InputError",
+    "PictureError",
     "Problem",
     "RecordTooLarge",
     "SSMError",

@@ -26,6 +26,11 @@ class RecordTooLarge(InputError):
     the reading of its file stops there (PROTOCOL §1.5)."""
 
 
+class PictureError(InputError):
+    """A view picture that is not decoded: not a PNG, JPEG or WebP picture, or larger than a
+    view picture may be, in bytes or in pixels (PROTOCOL §1.1). It counts as absent."""
+
+
 class Problem(VGEError):
     """One validation problem; `where` locates it (file, state, component...)."""
 

@@ -33,7 +33,7 @@ episode = c2.selectbox(
     key="viewer_episode",
 )
 ep = episodes.filter(episodes["episode_id"] == episode).row(0, named=True)
-steps = data.episode_steps(run, episode)
+steps = data.viewer_steps(run, episode)  # free texts cut at dash.TEXT_CHARS characters
 goals = data.goals(where={"run_id": run, "episode_id": episode})
 
 m = st.columns([2, 1, 1, 1, 1])
@@ -62,6 +62,19 @@ with left:
         )
 with right:
     st.markdown(dash.step_markdown(row, goals))
+    for text in dash.long_texts(row):
+        st.caption(text.note)
+        st.download_button(
+            f"Download the whole {text.label}",
+            data=functools.partial(
+                dash.step_text, str(data.out_dir()), run, episode, step, text.field
+            ),  # read when clicked: the page holds only the cut text
+            file_name=f"{run}-{episode}-step{step}-{text.field}.txt",
+            mime="text/plain",
+            icon=":material/download:",
+            on_click="ignore",
+            key=f"viewer_text_{text.field}",
+        )
     classification = dash.step_classification(row)
     st.dataframe(classification, hide_index=True, height=tables.table_height(classification))
     if row["thinking"]:

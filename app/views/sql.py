@@ -1,5 +1,7 @@
 """SQL: read-only queries over the tables steps, episodes, goals and runs."""
 
+import functools
+
 import streamlit as st
 
 from app import _data as data
@@ -40,5 +42,9 @@ if query.strip():
     st.caption(dash.sql_caption(result, max_rows))
     st.dataframe(result.frame, hide_index=True)
     st.download_button(
-        "Download CSV", dash.csv_bytes(result.frame), file_name="query.csv", mime="text/csv"
+        "Download CSV",
+        functools.partial(dash.csv_bytes, result.frame),  # made when clicked, not at each run
+        file_name="query.csv",
+        mime="text/csv",
+        on_click="ignore",
     )

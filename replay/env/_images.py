@@ -4,18 +4,20 @@ Views come from an image source (`replay.ImageSource`), the caller's: by default
 benchmark's own pictures (`replay.BenchImages`, PROTOCOL §1.1); the analytics package passes
 one that also renders the views of the synthetic categories. Every view is resized to the
 environment's size, which keeps the 0..1000 scale of the view exactly (the scale is relative
-to width and height); a view without an image is a plain canvas naming it.
+to width and height); a view without an image, or whose picture has more pixels than a view
+picture may have (`replay.MAX_IMAGE_PIXELS`, checked before decoding), is a plain canvas
+naming it.
 """
 
 from __future__ import annotations
 
-import io
 from collections import OrderedDict
 
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ..io import ImageSource, as_view_image
+from .._errors import PictureError
+from ..io import ImageSource, as_view_image, decode_picture
 from ..semantics import Machine
 
 CANVAS = (236, 238, 242)
@@ -62,17 +64,24 @@ class ViewImages:
     def _load(self, machine: Machine, view: str) -> np.ndarray:
         found = as_view_image(self.source(machine, view))
         size = (self.width, self.height)
-        if found is None:
+        img = None if found is None else _decoded(found.data, view)
+        if img is None:
             img = Image.new("RGB", size, CANVAS)
             ImageDraw.Draw(img).text((8, 8), f"no image of the {view} view", fill=(90, 90, 90))
-        else:
-            with Image.open(io.BytesIO(found.data)) as raw:
-                img = raw.convert("RGB")
-            if img.size != size:
-                img = img.resize(size, Image.Resampling.BILINEAR)
+        elif img.size != size:
+            img = img.resize(size, Image.Resampling.BILINEAR)
         array = np.asarray(img, dtype=np.uint8)
         array.setflags(write=False)
         return array
+
+
+def _decoded(data: bytes, view: str) -> Image.Image | None:
+    """The picture as RGB, or None when it is not one, does not decode, or has more pixels
+    than a view picture may have (`replay.io.decode_picture`: the header is checked first)."""
+    try:
+        return decode_picture(data, f"the {view} view")
+    except PictureError:
+        return None
 
 
 __all__ = ["CACHE_BYTES", "ViewImages", "no_images"]

@@ -35,12 +35,17 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._fs import Location, is_uri, location
     from ._images import (
         MAX_IMAGE_BYTES,
+        MAX_IMAGE_PIXELS,
         BenchImages,
         ImageSource,
         ViewImage,
         as_view_image,
         bench_image,
+        bench_image_problem,
+        decode_picture,
         decode_view_image,
+        open_picture,
+        view_image_of,
     )
     from ._lambdas import LambdaBatch, LambdaTask, replay_lambdas
     from ._layout import (
@@ -136,6 +141,7 @@ __all__ = [
     "validate_run",
     # pictures and MCAP
     "MAX_IMAGE_BYTES",
+    "MAX_IMAGE_PIXELS",
     "MCAP_LIBRARY",
     "BenchImages",
     "ImageSource",
@@ -143,7 +149,11 @@ __all__ = [
     "as_view_image",
     "attached_ssm",
     "bench_image",
+    "bench_image_problem",
+    "decode_picture",
     "decode_view_image",
+    "open_picture",
+    "view_image_of",
     "episode_mcap_path",
     "mcap_file_name",
     "write_episode_mcap",

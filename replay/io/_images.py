@@ -3,22 +3,36 @@ shows of a step, so an MCAP frame, the dashboard and the environment show the sa
 
 The order is `BENCH/images/<device_id>/<view>.png|.jpg|.jpeg`, then the SSM's `images`
 entry for the view, then the caller's fallback (the analytics render the views of the
-synthetic categories). A file that is too large, or that is not a picture, counts as absent.
+synthetic categories). A file that is too large, in bytes or in pixels, or that is not a
+picture, counts as absent (`bench_image_problem` says why, in one line naming the file).
+
+Every decoding of a view picture opens it with `open_picture` (`decode_picture` decodes it):
+the width and height are read from the file's header and checked against `MAX_IMAGE_PIXELS`
+before a pixel is decoded, so a PNG of half a megabyte that would decode to gigabytes costs
+nothing, and a file whose pixels do not decode (truncated) is refused in the same one line.
 """
 
 from __future__ import annotations
 
 import io
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
+from .._errors import PictureError
 from ..semantics import Machine
 from ._fs import Location, location
 from ._layout import image_paths
 
+if TYPE_CHECKING:
+    from PIL import Image
+
 MAX_IMAGE_BYTES = 64 << 20
 """A view image file larger than this is not read (it counts as absent)."""
+MAX_IMAGE_PIXELS = 1 << 24
+"""A view image of more pixels than this (width x height, 4096 x 4096; read from the file's
+header) is not decoded (it counts as absent): decoded, it takes up to 4 bytes a pixel, 64 MiB,
+where Pillow's own bomb threshold (178,956,970 pixels) lets 700 MB through."""
 
 _FORMATS = {"PNG": "png", "JPEG": "jpeg", "WEBP": "webp"}
 """Pillow's format names -> the names `foxglove.CompressedImage` uses."""
@@ -53,21 +67,78 @@ def as_view_image(got: object) -> ViewImage | None:
     return ViewImage(bytes(data), str(fmt), int(width), int(height))
 
 
+def _plugin(head: bytes):
+    """Pillow's reader of the picture format `head` starts with (PNG, JPEG or WebP), or None.
+    Only these three are ever opened, by their own plugin: no other format's code runs on
+    a benchmark's bytes."""
+    if head.startswith(b"\x89PNG\r\n\x1a\n"):
+        from PIL.PngImagePlugin import PngImageFile
+
+        return PngImageFile
+    if head.startswith(b"\xff\xd8\xff"):
+        from PIL.JpegImagePlugin import JpegImageFile
+
+        return JpegImageFile
+    if head.startswith(b"RIFF") and head[8:12] == b"WEBP":
+        from PIL.WebPImagePlugin import WebPImageFile
+
+        return WebPImageFile
+    return None
+
+
+def open_picture(data: bytes, name: str = "picture") -> Image.Image:
+    """The picture `data` holds, opened but not decoded (decoding starts at its first use:
+    `convert`, `load`, `resize`...), once its header shows a PNG, JPEG or WebP picture of at
+    most `MAX_IMAGE_PIXELS` pixels; else `PictureError`, one line naming `name`. Every
+    decoding of a view picture starts here (PROTOCOL §1.1)."""
+    plugin = _plugin(data[:12])
+    if plugin is None:
+        raise PictureError(name, "not a PNG, JPEG or WebP picture")
+    try:
+        img = plugin(io.BytesIO(data))  # reads the header only
+    except (OSError, SyntaxError, ValueError, IndexError, TypeError, EOFError) as exc:
+        raise PictureError(name, f"not a readable {plugin.format} picture ({exc})") from None
+    width, height = img.size
+    if width * height > MAX_IMAGE_PIXELS:
+        img.close()
+        raise PictureError(
+            name,
+            f"a picture of {width:,} x {height:,} pixels, more than the {MAX_IMAGE_PIXELS:,} "
+            "a view picture may have (PROTOCOL §1.1): not decoded",
+        )
+    return img
+
+
+def decode_picture(data: bytes, name: str = "picture") -> Image.Image:
+    """The picture decoded as RGB, once `open_picture` lets it through; `PictureError` naming
+    `name` when it is refused there or when its pixels do not decode (a truncated or corrupt
+    file whose header is sound)."""
+    with open_picture(data, name) as img:
+        try:
+            return img.convert("RGB")
+        except (OSError, SyntaxError, ValueError, IndexError, EOFError) as exc:
+            raise PictureError(name, f"not a readable {img.format} picture ({exc})") from None
+
+
+def view_image_of(data: bytes, name: str = "picture") -> ViewImage:
+    """Bytes as a `ViewImage` (format and size from the file's header, nothing decoded), or
+    `PictureError` naming `name` when `open_picture` refuses them."""
+    with open_picture(data, name) as img:
+        return ViewImage(data, _FORMATS[img.format or ""], *img.size)
+
+
 def decode_view_image(data: bytes) -> ViewImage | None:
     """Bytes as a `ViewImage` (format and size from the file's header), or None when they are
-    not a PNG, JPEG or WebP picture."""
-    from PIL import Image, UnidentifiedImageError  # imported on first use: only pictures need it
-
+    not a PNG, JPEG or WebP picture of at most `MAX_IMAGE_PIXELS` pixels."""
     try:
-        with Image.open(io.BytesIO(data)) as img:
-            fmt = _FORMATS.get(img.format or "")
-            width, height = img.size
-    except (OSError, ValueError, UnidentifiedImageError, Image.DecompressionBombError):
+        return view_image_of(data)
+    except PictureError:
         return None
-    return None if fmt is None else ViewImage(data, fmt, width, height)
 
 
 def _read(path: Location) -> ViewImage | None:
+    """The picture at `path`; None when there is no file; `PictureError` naming it when the
+    file is too large or not a picture."""
     try:
         if not path.is_file():
             return None
@@ -75,19 +146,44 @@ def _read(path: Location) -> ViewImage | None:
             data = fh.read(MAX_IMAGE_BYTES + 1)
     except OSError:
         return None
-    return None if len(data) > MAX_IMAGE_BYTES else decode_view_image(data)
+    if len(data) > MAX_IMAGE_BYTES:
+        raise PictureError(str(path), f"more than {MAX_IMAGE_BYTES:,} bytes: not read")
+    return view_image_of(data, str(path))
+
+
+def _candidates(root: Location, machine: Machine, view: str) -> Iterator[Location]:
+    """The files that may hold the view's picture, in the order of PROTOCOL §1.1."""
+    view = view.lower()
+    yield from image_paths(root, machine.device_id, view)
+    ref = machine.images.get(view)
+    if ref is not None:
+        yield root / ref[0]
 
 
 def bench_image(bench: str | Location, machine: Machine, view: str) -> ViewImage | None:
     """The benchmark's own picture of `view` (PROTOCOL §1.1 order), or None."""
-    view = view.lower()
-    root = location(bench)
-    for path in image_paths(root, machine.device_id, view):
-        found = _read(path)
+    for path in _candidates(location(bench), machine, view):
+        try:
+            found = _read(path)
+        except PictureError:
+            continue  # too large or not a picture: absent (`bench_image_problem` says why)
         if found is not None:
             return found
-    ref = machine.images.get(view)
-    return None if ref is None else _read(root / ref[0])
+    return None
+
+
+def bench_image_problem(bench: str | Location, machine: Machine, view: str) -> PictureError | None:
+    """Why the benchmark's own picture of `view` is not shown: the refusal (one line naming
+    the file) of the first file of the §1.1 order that is there but too large or not a
+    picture; None when a picture is shown, or when there is no file at all."""
+    first: PictureError | None = None
+    for path in _candidates(location(bench), machine, view):
+        try:
+            if _read(path) is not None:
+                return None
+        except PictureError as exc:
+            first = first or exc
+    return first
 
 
 @dataclass(frozen=True)
@@ -107,10 +203,15 @@ class BenchImages:
 
 __all__ = [
     "MAX_IMAGE_BYTES",
+    "MAX_IMAGE_PIXELS",
     "BenchImages",
     "ImageSource",
     "ViewImage",
     "as_view_image",
     "bench_image",
+    "bench_image_problem",
+    "decode_picture",
     "decode_view_image",
+    "open_picture",
+    "view_image_of",
 ]

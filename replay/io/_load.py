@@ -26,6 +26,7 @@ from ..semantics import (
 )
 from ._decode import decode
 from ._fs import Location, location
+from ._images import bench_image_problem
 from ._layout import (
     EPISODES,
     EPISODES_FILES,
@@ -206,9 +207,26 @@ def validate_benchmark(root: str | Path | Location) -> list[Problem]:
                 problems.append(_problem(exc))
                 continue
             problems.extend(validate_machine(ucsm, str(path), require_geometry=False))
+    problems.extend(_picture_problems(bench))
     problems.extend(bench.task_problems)
     for episode_id, entry in bench.tasks.items():
         problems.extend(_task_problems(bench, episode_id, entry))
+    return problems
+
+
+def _picture_problems(bench: Benchmark) -> list[Problem]:
+    """A warning for each view whose picture file is there but not shown: too large, in bytes
+    or pixels, or not a picture (§1.1)."""
+    problems = []
+    for device_id in bench.ssm_paths:
+        try:
+            machine = bench.machine(device_id)
+        except VGEError:
+            continue  # an SSM that does not load is reported as such
+        for view in machine.views:
+            refused = bench_image_problem(bench.root, machine, view)
+            if refused is not None:
+                problems.append(Problem(refused.path, f"view {view}", refused.message, "warning"))
     return problems
 
 

@@ -453,6 +453,35 @@ def test_sql_preview_runs_in_its_own_process(tiny_out):
     )
 
 
+def test_sql_preview_holds_a_bounded_result(tiny_out):
+    """Wide rows come back cut by the query's process: text cells at 10,000 characters, the
+    whole at RESULT_BYTES; the caption says what was cut."""
+    limits = SqlLimits.make(memory="512MB", timeout=30)
+    wide = dash.sql_preview(tiny_out, "SELECT repeat('x', 2000000) AS s FROM range(20)", 100, limits)
+    assert wide.frame["s"].to_list() == ["x" * 10_000 + "… [cut: 1990000 more characters]"] * 20
+    assert (wide.cut.cells, wide.cut.rows, wide.truncated) == (20, 0, False)
+    mark = len("… [cut: 1990000 more characters]".encode())  # 34 bytes
+    assert wide.cut.bytes == 20 * (2_000_000 - 10_000 - mark) == 39_799_320  # 37.96 MiB
+    assert dash.sql_caption(wide, 100).startswith("20 rows shown (in ")
+    assert dash.sql_caption(wide, 100).endswith(
+        "38.0 MB cut to fit the page: 20 text cells longer than 10,000 characters cut (marked "
+        "“… [cut: …]”). The page and the CSV download hold what is shown; "
+        "`vge sql OUT QUERY --format csv` writes everything."
+    )
+    # 4 columns of 10,000 characters (cut from 10,001) and a mark of 28 bytes: 40,112 bytes
+    # a row, so 32 MiB (33,554,432 bytes) hold 836 rows of the first 1,000
+    columns = ", ".join(f"repeat('{c}', 10001) AS {c}" for c in "abcd")
+    many = dash.sql_preview(tiny_out, f"SELECT {columns} FROM range(2000)", 1000, limits)
+    row_bytes = 4 * (10_000 + len("… [cut: 1 more characters]".encode()))
+    assert many.frame.height == va.store.RESULT_BYTES // row_bytes == 836
+    assert (many.cut.cells, many.cut.rows, many.truncated) == (4000, 1000 - many.frame.height, True)
+    assert dash.sql_caption(many, 1000).endswith(
+        "4,000 text cells longer than 10,000 characters cut (marked “… [cut: …]”) and 164 rows "
+        "past the page's 32 MB left out, and the query has more rows. The page and the CSV "
+        "download hold what is shown; `vge sql OUT QUERY --format csv` writes everything."
+    )
+
+
 def test_csv_bytes_writes_lists_as_json():
     df = pl.DataFrame({"a": [1, 2], "b": [["x", "y"], []]})
     assert dash.csv_bytes(df).decode() == 'a,b\n1,"[""x"", ""y""]"\n2,[]\n'

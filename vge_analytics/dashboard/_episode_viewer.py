@@ -1,15 +1,39 @@
-"""The Episode viewer: episodes, steps and their classification in words."""
+"""The Episode viewer: episodes, steps and their classification in words.
+
+A step's free texts (its thinking, action, feedback, the whole response) come cut at
+`TEXT_CHARS` characters (`viewer_steps`), with their whole length beside them: a step whose
+thinking held 10 MB never rendered. The page says what it cut (`long_texts`) and offers each
+whole text as a download, read from the tables only when asked (`step_text`).
+"""
 
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
 
 import polars as pl
 
+from replay.io import STEPS_TABLE
 from replay.semantics import TERMINATION_TEXTS
 
 from ..reports import MISSING
+from .._errors import UnknownColumnError, UnknownRunError
+from ..store import open_store, quote_ident, run_query, steps
+
+TEXT_CHARS = 20_000
+"""Characters of a step's free text the viewer shows; a longer one ends with `CUT`."""
+CUT = " …"
+"""What ends a text the viewer cut."""
+LONG_TEXTS: dict[str, str] = {
+    "thinking": "thinking",
+    "action_raw": "action",
+    "feedback_text": "feedback",
+    "parse_detail": "parse detail",
+    "output": "response",
+}
+"""The steps' free texts the viewer cuts (column -> what the page calls it)."""
 
 _LABELS = {termination: ending.label for termination, ending in TERMINATION_TEXTS.items()}
 
@@ -36,9 +60,79 @@ def episode_labels(episodes: pl.DataFrame) -> dict[str, str]:
     return dict(episodes.select("episode_id", label.alias("label")).iter_rows())
 
 
+def chars_column(field: str) -> str:
+    """The column of `viewer_steps` that holds the whole length of the text `field`."""
+    return f"{field}_chars"
+
+
+def viewer_steps(out: str | Path, run_id: str, episode_id: str) -> pl.DataFrame:
+    """Every step of one episode (truncated ones included), in log order, as the viewer shows
+    them: each free text of `LONG_TEXTS` cut at `TEXT_CHARS` characters (and marked `CUT`),
+    its whole length in `<field>_chars` (`chars_column`). The cut is made in the query, so
+    the server holds no whole long text."""
+    store = open_store(out)
+    if run_id not in store.run_ids():
+        raise UnknownRunError(f"unknown run {run_id!r} in {store.out}")
+    texts = [quote_ident(f) for f in LONG_TEXTS]
+    cut = ", ".join(
+        f"CASE WHEN length({q}) > ? THEN left({q}, ?) || ? ELSE {q} END AS {q}" for q in texts
+    )
+    lengths = ", ".join(
+        f"length({q}) AS {quote_ident(chars_column(f))}" for f, q in zip(LONG_TEXTS, texts, strict=True)
+    )
+    sql = (
+        f"SELECT * REPLACE ({cut}), {lengths} FROM {STEPS_TABLE} "
+        "WHERE run_id = ? AND episode_id = ? ORDER BY step"
+    )
+    return run_query(store, sql, [TEXT_CHARS, TEXT_CHARS, CUT] * len(texts) + [run_id, episode_id])
+
+
+@dataclass(frozen=True)
+class LongText:
+    """A free text of a step the viewer shows cut."""
+
+    field: str
+    """Its column (a key of `LONG_TEXTS`)."""
+    label: str
+    chars: int
+    """Its whole length, in characters."""
+
+    @property
+    def note(self) -> str:
+        return (
+            f"The {self.label} holds {self.chars:,} characters; the first {TEXT_CHARS:,} are "
+            "shown. The button below downloads it whole."
+        )
+
+
+def long_texts(row: Mapping[str, object]) -> list[LongText]:
+    """The free texts of a step of `viewer_steps` that were cut, in `LONG_TEXTS` order."""
+    found = []
+    for field, label in LONG_TEXTS.items():
+        chars = row.get(chars_column(field))
+        if isinstance(chars, int) and chars > TEXT_CHARS:
+            found.append(LongText(field, label, chars))
+    return found
+
+
+def step_text(out: str | Path, run_id: str, episode_id: str, step: int, field: str) -> bytes:
+    """The whole free text `field` (a key of `LONG_TEXTS`) of a step, as UTF-8: what the
+    viewer's download gives, read from the tables when it is asked for."""
+    if field not in LONG_TEXTS:
+        raise UnknownColumnError(f"not a free text of a step: {field!r}; {', '.join(LONG_TEXTS)}")
+    where = {"run_id": run_id, "episode_id": episode_id, "step": int(step)}
+    rows = steps(out, where=where, columns=[field])
+    if rows.height == 0:
+        raise UnknownRunError(f"no step {step} in episode {episode_id!r} of run {run_id!r}")
+    return (rows[field][0] or "").encode("utf-8")
+
+
 def _code(text: object) -> str:
-    """Inline code that survives any text (backticks inside are widened around)."""
+    """Inline code that survives any text (backticks inside are widened around), cut at
+    `TEXT_CHARS` characters."""
     value = str(text).replace("\n", " ")
+    if len(value) > TEXT_CHARS:
+        value = value[:TEXT_CHARS] + CUT
     fence = "``" if "`" in value else "`"
     return f"{fence} {value} {fence}" if fence == "``" else f"`{value}`"
 

@@ -4,10 +4,12 @@
 from __future__ import annotations
 
 import io
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import replay
 from replay.io import ssm_path
@@ -15,6 +17,9 @@ from replay.io import ssm_path
 from .._errors import OutputDirError, UnknownRunError
 from ..store import bench_dir
 from ..synth import image_source
+
+if TYPE_CHECKING:
+    from PIL import Image
 
 
 @dataclass(frozen=True)
@@ -123,21 +128,46 @@ class ViewPicture:
     height: int
     rendered: bool
     """False when the benchmark has no image for the view (a blank canvas stands in)."""
+    problem: str | None = None
+    """Why the benchmark's own picture is not shown (too large, not a picture), one line
+    naming its file; None when it is shown or there is none."""
+
+
+NO_PICTURE = "no image of this view in the benchmark"
+"""What the stand-in of a view without a picture says."""
 
 
 def view_picture(
     out: str | Path, device_id: str, view: str, run_id: str | None = None
 ) -> ViewPicture:
-    """The image of a device view (rendered synthetic views included), or a blank canvas."""
+    """The image of a device view (rendered synthetic views included), or a blank canvas
+    that says why (`replay.io.bench_image_problem`)."""
     bench = bench_dir(out, run_id)  # the manifest read once for the machine and the picture
-    got = image_source(bench)(bench_machine(bench, device_id), view)
+    machine = bench_machine(bench, device_id)
+    got = image_source(bench)(machine, view)
     if got is not None:
         return ViewPicture(*got, rendered=True)
+    problem = replay.io.bench_image_problem(bench, machine, view)
+    return _stand_in(None if problem is None else str(problem))
+
+
+def _stand_in(problem: str | None) -> ViewPicture:
     from PIL import Image
 
     buf = io.BytesIO()
     Image.new("RGB", (600, 600), (236, 238, 242)).save(buf, format="PNG")
-    return ViewPicture(buf.getvalue(), "png", 600, 600, False)
+    return ViewPicture(buf.getvalue(), "png", 600, 600, False, problem)
+
+
+def _decoded(picture: ViewPicture) -> tuple[Image.Image, ViewPicture]:
+    """The picture as RGB, or the stand-in's when it is refused (`replay.io.decode_picture`
+    checks the pixels before decoding; a truncated file is refused too), with the picture
+    drawn."""
+    try:
+        return replay.io.decode_picture(picture.data), picture
+    except replay.PictureError as exc:
+        stand_in = _stand_in(str(exc))
+        return replay.io.decode_picture(stand_in.data), stand_in
 
 
 def draw_step(
@@ -148,15 +178,16 @@ def draw_step(
     max_width: int = 720,
 ) -> bytes:
     """PNG of the view with the component boxes (by role) and the click drawn as a red x."""
-    from PIL import Image, ImageDraw
+    from PIL import ImageDraw
 
-    img = Image.open(io.BytesIO(picture.data)).convert("RGB")
+    img, picture = _decoded(picture)
     if img.width > max_width:
         img = img.resize((max_width, round(img.height * max_width / img.width)))
     sx, sy = img.width / replay.SCALE, img.height / replay.SCALE
     draw = ImageDraw.Draw(img)
     if not picture.rendered:
-        draw.text((10, 10), "no image of this view in the benchmark", fill=(90, 90, 90))
+        text = "\n".join(textwrap.wrap(picture.problem or NO_PICTURE, 90))
+        draw.multiline_text((10, 10), text, fill=(90, 90, 90))
     for box in boxes:
         width = {"target": 3, "hit": 3, "component": 1, "optimal": 4}[box.role]
         color = ROLE_COLORS[box.role]

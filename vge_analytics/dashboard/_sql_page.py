@@ -9,6 +9,8 @@ from pathlib import Path
 import polars as pl
 
 from ..store import (
+    CELL_CHARS,
+    RESULT_BYTES,
     SLOT_WAIT,
     IsolatedResult,
     SqlLimits,
@@ -86,15 +88,36 @@ def sql_limits_note(limits: SqlLimits, rows: int, max_queries: int | None = None
 
 
 def sql_caption(result: IsolatedResult, rows: int) -> str:
-    """What the SQL page says about a result: rows, time, memory, and the cap when it cut."""
+    """What the SQL page says about a result: rows, time, memory, and what was cut (by the
+    row cap, or by the query process to fit a page: `bound_result`)."""
     took = f"in {result.seconds:.2f} s, peak memory {format_size(result.peak_memory)}"
+    n = result.frame.height
+    cut = result.cut
+    if cut.cells or cut.rows:
+        return _cut_caption(result, took)
     if result.truncated:
         return (
             f"The first {rows:,} rows ({took}): the query has more. The page and the CSV "
             f"download hold these {rows:,} rows; `vge sql OUT QUERY --format csv` writes them all."
         )
-    n = result.frame.height
     return f"{n:,} {'row' if n == 1 else 'rows'} ({took})."
+
+
+def _cut_caption(result: IsolatedResult, took: str) -> str:
+    n, cut = result.frame.height, result.cut
+    what = []
+    if cut.cells:
+        cells = "1 text cell" if cut.cells == 1 else f"{cut.cells:,} text cells"
+        what.append(f"{cells} longer than {CELL_CHARS:,} characters cut (marked “… [cut: …]”)")
+    if cut.rows:
+        left = "1 row" if cut.rows == 1 else f"{cut.rows:,} rows"
+        what.append(f"{left} past the page's {format_size(RESULT_BYTES)} left out")
+    more = ", and the query has more rows" if result.truncated else ""
+    return (
+        f"{n:,} {'row' if n == 1 else 'rows'} shown ({took}); {format_size(cut.bytes)} cut to "
+        f"fit the page: {' and '.join(what)}{more}. The page and the CSV download hold what "
+        f"is shown; `vge sql OUT QUERY --format csv` writes everything."
+    )
 
 
 def csv_bytes(df: pl.DataFrame) -> bytes:

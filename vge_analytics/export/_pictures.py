@@ -5,9 +5,10 @@ image_source(bench)` (the benchmark's own images, else the synthetic renderings)
 shown at every step spent in it, and in every run of the benchmark, so each picture is
 decoded, scaled and encoded once and kept, up to `CACHED_BYTES` of them (the least recently
 shown go first; episodes are exported in id order, which keeps a device's episodes
-together). The device's list of views (what the agent is told it can switch to) comes from
-its compiled SSM, from the benchmark's own cache of machines (`replay.Benchmark.machine`: a
-full-scale benchmark's 968 devices hold about 46 MB).
+together). A picture of more pixels than a view picture may have (`replay.MAX_IMAGE_PIXELS`)
+is never decoded: the step goes without it. The device's list of views (what the agent is
+told it can switch to) comes from its compiled SSM, from the benchmark's own cache of
+machines (`replay.Benchmark.machine`: a full-scale benchmark's 968 devices hold about 46 MB).
 """
 
 from __future__ import annotations
@@ -17,8 +18,6 @@ import io
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
-
-from PIL import Image
 
 import replay
 from vge_analytics.synth import image_source
@@ -47,9 +46,10 @@ class Picture:
 
 
 def shrink(data: bytes) -> Picture:
-    """The picture scaled down to MAX_SIDE (never up), as JPEG."""
-    with Image.open(io.BytesIO(data)) as img:
-        rgb = img.convert("RGB")
+    """The picture scaled down to MAX_SIDE (never up), as JPEG. Raises `replay.PictureError`
+    for one with more pixels than a view picture may have (checked before decoding), or
+    whose pixels do not decode."""
+    rgb = replay.io.decode_picture(data)
     rgb.thumbnail((MAX_SIDE, MAX_SIDE))  # bicubic, reducing by 2 first when it can
     buf = io.BytesIO()
     rgb.save(buf, format="JPEG", quality=JPEG_QUALITY)
@@ -80,7 +80,10 @@ class Views:
             self._pictures.move_to_end(key)
             return self._pictures[key]
         found = self._source(self.bench.machine(device_id), view)
-        got = shrink(found.data) if found is not None else None
+        try:
+            got = shrink(found.data) if found is not None else None
+        except replay.PictureError:
+            got = None  # not decoded: the step is exported without its picture
         self._pictures[key] = got
         self._held += len(got.data) if got is not None else 0
         while self._held > CACHED_BYTES:

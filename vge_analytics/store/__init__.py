@@ -29,6 +29,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         locked_connection,
         register_all,
     )
+    from ._page_result import CELL_CHARS, RESULT_BYTES, ResultCut, bound_result
     from ._ratios import (
         Ratio,
         ratio_query,
@@ -112,6 +113,10 @@ __all__ = [
     "grouped_aggregate",
     "guarded_cursor",
     "IsolatedResult",
+    "CELL_CHARS",
+    "RESULT_BYTES",
+    "ResultCut",
+    "bound_result",
     "locked_connection",
     "MAX_METRIC_FILE",
     "memory_store",

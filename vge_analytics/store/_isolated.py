@@ -7,9 +7,10 @@ ignores its interrupt would hold a thread forever. Here each query is parsed, ch
 in a child process forked from a forkserver (it starts in milliseconds, with the libraries
 already imported), with DuckDB's limits and its data segment capped (`process_memory_cap`,
 for the child's whole life). The server only measures the text (`check_size`). The child
-sends back the first rows as Arrow IPC, or the one-line error. The parent waits for the time
-limit plus a grace period and kills a child that has not answered by then; a child that dies
-(killed, crashed) is reported, and the next query gets a fresh child.
+sends back the first rows as Arrow IPC, cut to what a page holds (`bound_result`: the
+server never holds more of a result than `RESULT_BYTES`), or the one-line error. The parent
+waits for the time limit plus a grace period and kills a child that has not answered by
+then; a child that dies (killed, crashed) is reported, and the next query gets a fresh child.
 
 At most `max_queries` children run at once across all the sessions of the server (each may
 take its memory limit and half again): a query beyond them waits up to `SLOT_WAIT` seconds for
@@ -39,6 +40,7 @@ from ._limits import (
     memory_headroom,
     process_memory_cap,
 )
+from ._page_result import ResultCut, bound_result
 from ._sql import check_size, sql_head
 
 GRACE = 5.0
@@ -62,6 +64,8 @@ class IsolatedResult:
     """Wall time of the query, process start included."""
     peak_memory: int
     """Peak resident memory of the query's process (bytes)."""
+    cut: ResultCut = ResultCut()
+    """What the query process cut from those rows to fit a page (`bound_result`)."""
 
 
 def warm_query_processes() -> None:
@@ -88,11 +92,12 @@ def _child(conn: Connection, out: str, query: str, rows: int, limits: SqlLimits)
     with conn, process_memory_cap(limits):
         try:
             head = sql_head(out, query, rows, limits=limits)
-            table = head.frame.to_arrow()
+            frame, cut = bound_result(head.frame)
+            table = frame.to_arrow()
             sink = pa.BufferOutputStream()
             with pa.ipc.new_stream(sink, table.schema) as writer:
                 writer.write_table(table)
-            conn.send(("ok", head.truncated, _peak_memory()))
+            conn.send(("ok", head.truncated, cut, _peak_memory()))
             conn.send_bytes(sink.getvalue())
         except AnalyticsError as exc:  # refused, failed, stopped, or OUT unreadable
             limit = getattr(exc, "limit", None)
@@ -157,7 +162,7 @@ def _run_child(out: str | Path, query: str, rows: int, limits: SqlLimits) -> Iso
         if header[0] == "error":
             _, kind, message, limit, _ = header
             raise _error(kind, message, limit)
-        _, truncated, peak = header
+        _, truncated, cut, peak = header
         data = receiver.recv_bytes(maxlength=memory_headroom(limits))
     except (EOFError, OSError):
         child.join(timeout=GRACE)
@@ -177,6 +182,7 @@ def _run_child(out: str | Path, query: str, rows: int, limits: SqlLimits) -> Iso
         truncated=truncated,
         seconds=time.monotonic() - started,
         peak_memory=peak,
+        cut=cut,
     )
 
 

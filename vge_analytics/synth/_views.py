@@ -12,13 +12,11 @@ concurrent processes never read a half-written image.
 from __future__ import annotations
 
 import hashlib
-import io
 import os
 import threading
 from pathlib import Path
 
 import msgspec
-from PIL import Image
 
 import replay
 from replay import ViewImage
@@ -61,15 +59,26 @@ def synthetic_view(machine: replay.Machine, view: str) -> ViewImage | None:
         return None
     key = _cache_key(machine)
     path = cache_dir() / "views" / key[:2] / key / f"{view}.png"
-    if path.is_file():
-        found = replay.io.decode_view_image(path.read_bytes())
-        if found is not None:
-            return found
+    found = _cached(path)
+    if found is not None:
+        return found
     data = _render_png(machine, view, key)
     _store(path, data)
-    with Image.open(io.BytesIO(data)) as img:
-        width, height = img.size
-    return ViewImage(data, "png", width, height)
+    return replay.io.view_image_of(data)
+
+
+def _cached(path: Path) -> ViewImage | None:
+    """The cached rendering, when it is there and a picture within the bounds of any view
+    picture (`replay.io.MAX_IMAGE_BYTES`, `MAX_IMAGE_PIXELS`): the cache is a folder anyone
+    with the user's rights can write into."""
+    try:
+        if not path.is_file():  # not a pipe, which would never end
+            return None
+        with open(path, "rb") as fh:
+            data = fh.read(replay.io.MAX_IMAGE_BYTES + 1)
+    except OSError:
+        return None
+    return replay.io.decode_view_image(data) if len(data) <= replay.io.MAX_IMAGE_BYTES else None
 
 
 def _cache_key(machine: replay.Machine) -> str:
