@@ -18,8 +18,8 @@ import polars as pl
 from replay.io import STEPS_TABLE
 from replay.semantics import TERMINATION_TEXTS
 
-from ..reports import MISSING
 from .._errors import UnknownColumnError, UnknownRunError
+from ..reports import MISSING
 from ..store import open_store, quote_ident, run_query, steps
 
 TEXT_CHARS = 20_000
