@@ -17,11 +17,13 @@ from ..reports import (
     DEFAULT_RESAMPLES,
     DEFAULT_SEED,
 )
+from ._bounds import command_limits
 from ._incomplete import warn_incomplete
 from ._options import (
     episode_ids,
     format_option,
     ids_option,
+    memory_limit_option,
     metric_names_option,
     metrics_dir_option,
     out_argument,
@@ -65,6 +67,7 @@ def compare(
     metrics_dir: str = metrics_dir_option(),
     fmt: str = format_option(),
     timeout: float = timeout_option(),
+    memory_limit: str = memory_limit_option(what="each query"),
 ) -> None:
     """Paired comparison of two runs on the episodes both have, or of every pair (--all).
 
@@ -75,9 +78,8 @@ def compare(
     """
     from ..reports import check_format
     from ..reports import compare as compute_compare
-    from ..store import query_time_limit
 
-    with query_time_limit(timeout):
+    with command_limits(timeout, memory_limit):
         check_format(fmt)
         if every:
             if run_a is not None or run_b is not None:
