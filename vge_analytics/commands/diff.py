@@ -6,6 +6,7 @@ from __future__ import annotations
 import typer
 
 from .. import reports
+from ._benchmarks import allow_option, refusal_hinted
 from ._bounds import command_limits
 from ._options import episode_ids, ids_option, memory_limit_option, out_argument, timeout_option
 from ._output import emit, emit_sections
@@ -26,6 +27,7 @@ def diff(
     ),
     timeout: float = timeout_option(),
     memory_limit: str = memory_limit_option(what="each query"),
+    allow_different: bool = allow_option(),
 ) -> None:
     """Two runs' trajectories side by side, one row per common episode.
 
@@ -35,10 +37,16 @@ def diff(
     (success_a, success_b), the median first difference, the error types at the first
     errors.
     """
-    with command_limits(timeout, memory_limit):
+    with command_limits(timeout, memory_limit), refusal_hinted():
         # not latex: a row per episode is no table for a paper
         reports.check_format(fmt, DIFF_FORMATS)
-        result = reports.diff(out, run_a, run_b, episodes=episode_ids(episodes, "--episodes"))
+        result = reports.diff(
+            out,
+            run_a,
+            run_b,
+            episodes=episode_ids(episodes, "--episodes"),
+            allow_different_benchmarks=allow_different,
+        )
         if fmt == "json":  # the rows alone: what another tool reads
             emit(result.episodes, fmt)
         else:

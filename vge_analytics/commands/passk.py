@@ -11,6 +11,7 @@ from ..reports import (
     DEFAULT_RESAMPLES,
     DEFAULT_SEED,
 )
+from ._benchmarks import allow_option, refusal_hinted
 from ._bounds import command_limits
 from ._options import (
     episode_ids,
@@ -44,6 +45,7 @@ def passk(
     fmt: str = format_option(),
     timeout: float = timeout_option(),
     memory_limit: str = memory_limit_option(what="each query"),
+    allow_different: bool = allow_option(),
 ) -> None:
     """pass@k and pass^k of repeated runs (runs differing only in their seed).
 
@@ -54,7 +56,7 @@ def passk(
     """
     from ..reports import check_format, repeated
 
-    with command_limits(timeout, memory_limit):
+    with command_limits(timeout, memory_limit), refusal_hinted():
         check_format(fmt)
         columns = episode_ids(group_by, "--group-by") if group_by is not None else None
         result = repeated(
@@ -65,6 +67,7 @@ def passk(
             cluster=cluster,
             seed=seed,
             resamples=resamples,
+            allow_different_benchmarks=allow_different,
         )
         emit_sections(result.sections(per_episode), fmt)
 

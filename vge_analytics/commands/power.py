@@ -14,6 +14,7 @@ from ..reports import (
     DEFAULT_DELTA,
     DEFAULT_POWER,
 )
+from ._benchmarks import allow_option, refusal_hinted
 from ._bounds import command_limits
 from ._options import (
     format_option,
@@ -51,6 +52,7 @@ def power(
     fmt: str = format_option(),
     timeout: float = timeout_option(),
     memory_limit: str = memory_limit_option(what="each query"),
+    allow_different: bool = allow_option(),
 ) -> None:
     """How large a difference a comparison can detect, and how many devices it needs.
 
@@ -60,7 +62,7 @@ def power(
     """
     from ..reports import check_format, plan, power_of_pair
 
-    with command_limits(timeout, memory_limit):
+    with command_limits(timeout, memory_limit), refusal_hinted():
         check_format(fmt)
         if (run_a is None) != (run_b is None):
             raise ConfigError("power takes two runs (RUN_A RUN_B), or none with --rate")
@@ -79,6 +81,7 @@ def power(
                 power=power_,
                 cluster=cluster,
                 metrics_dir=metrics_dir,
+                allow_different_benchmarks=allow_different,
             )
         else:
             if rate is None:

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 from replay import lazy_names
 
 if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ._benchmarks import Benchmark, benchmark_of, check_same_benchmark
     from ._bounds import (
         QueryBounds,
         query_bounds,
@@ -92,6 +93,9 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
 
 __all__ = [
     "bench_dir",
+    "Benchmark",
+    "benchmark_of",
+    "check_same_benchmark",
     "run_entry",
     "warm_query_processes",
     "APP_MAX_ROWS",
