@@ -8,6 +8,7 @@ passes after `--` (`script_option`).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import sys
@@ -77,8 +78,23 @@ def _cached_sql(key: str, out: str, version: str, args: tuple, kwargs: dict) -> 
 
 
 def _call(key: str, out: str, args: tuple, kwargs: dict) -> Any:
-    with va.query_time_limit(query_timeout()):
+    with query_bounds():
         return _WRAPPED[key](out, *args, **kwargs)
+
+
+def query_bounds(argv: Sequence[str] | None = None) -> contextlib.AbstractContextManager:
+    """The bounds of the pages' analytics queries (`va.query_limits`): `--query-timeout`, the
+    SQL page's memory limit (`--sql-memory-limit`, DuckDB's and the process cap's), and a
+    query holding a metric file's SQL in a query process of its own, sharing the SQL page's
+    slots (`--sql-max-queries`): the server's process is never capped, its other visitors
+    never fail an allocation."""
+    given = script_option("sql-max-queries", argv)
+    return va.query_limits(
+        memory=script_option("sql-memory-limit", argv),
+        timeout=query_timeout(argv),
+        isolated=True,
+        max_queries=int(given) if given else None,
+    )
 
 
 def query_timeout(argv: Sequence[str] | None = None) -> float | None:

@@ -375,6 +375,40 @@ def bomb_png(work: Path) -> list[str]:
             done = run_bounded(cmd, address_space=8 << 30, timeout=300.0)
             note = _picture_note(command, root, done)
             rows.append(row(f"a view picture of {picture}", command, done, note))
+REPEAT = "sum(length(repeat(episode_id, 20000000)))"
+"""A metric's numerator whose every value is 400 MB that DuckDB's memory limit does not count
+(issue 25: it took `vge metrics` on the sample to 22.5 GB)."""
+
+
+def metric_file_bound(work: Path) -> list[str]:
+    """The `repeat` metric file in every command that evaluates one, on the bundled sample,
+    within `--memory-limit 512MB`; before each, the same command without it (the baseline)."""
+    from tests.vge_analytics.metrics.metric_files import metric_text
+
+    out, folder = work / "out", work / "metrics"
+    folder.mkdir(parents=True)
+    (folder / "repeat.sql").write_text(metric_text("Repeat", REPEAT, "count(*)"))
+    runs = sorted((ROOT / "logs" / "runs").iterdir())
+    vge("replay", *runs, "--bench", ROOT / "logs" / "bench", "--out", out)
+    pair = ["sim-vlm-a", "sim-vlm-b"]
+    cases = [  # (baseline or None, with the file)
+        (["metrics"], ["metrics"]),
+        (["compare", *pair], ["compare", *pair]),
+        (["compare", "--all"], ["compare", "--all", "--metric", "Repeat"]),
+        (None, ["rescore"]),  # rescore needs a folder
+        (["sweep", "--lambdas", "2,3"], ["sweep", "--lambdas", "2,3", "--metrics", "Repeat"]),
+    ]
+    rows = []
+    for baseline, hostile in cases:
+        for args, extra in ((baseline, []), (hostile, ["--metrics-dir", folder])):
+            if args is None:
+                continue
+            done = vge(args[0], out, *args[1:], *extra, "--memory-limit", "512MB", timeout=300)
+            said = done.stderr.strip().splitlines()[-1] if done.returncode else "computed"
+            said = said.split("metric file ")[-1]
+            case = "the `repeat` metric file" if extra else "no metric file (baseline)"
+            shown = " ".join(["vge", args[0], "OUT", *args[1:], "--memory-limit 512MB"])
+            rows.append(row(case, shown, done, said))
     return rows
 
 
@@ -394,6 +428,7 @@ CASES: list[Callable[[Path], list[str]]] = [
     live_trickle,
     live_token_counts,
     bomb_png,
+    metric_file_bound,
 ]
 
 

@@ -53,8 +53,12 @@ environments with the rendered synthetic views:
 
 Read-only SQL (within a memory and a time limit, see `store`):
     sql(out, "SELECT ...", timeout=300, memory_limit=None)   views steps, episodes, goals, runs
-    with query_time_limit(60): ...       the analytics above stop a query after 60 s (default:
-                                         no limit; the CLI's and the app's: 300 s)
+    with query_limits(memory="2GB", timeout=60): ...
+                                         the analytics above within DuckDB's memory limit,
+                                         60 s, and a cap on the process around each query
+                                         (default: no time limit, no cap; the CLI's and the
+                                         app's: 300 s, a quarter of the machine, capped)
+    with query_time_limit(60): ...       the time limit alone
 
 `where` filters are `{column: value or list of values}` over columns of runs/episodes (and
 of steps/goals where the result is computed from them); `by` lists grouping columns.
@@ -127,6 +131,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         goals,
         groupable_columns,
         open_store,
+        query_limits,
         query_time_limit,
         runs,
         sql,
@@ -181,6 +186,7 @@ __all__ = [
     "open_store",
     "parse_lambdas",
     "polars_metrics",
+    "query_limits",
     "query_time_limit",
     "registry",
     "render",

@@ -54,6 +54,11 @@ class CommonEpisodesError(AnalyticsError):
     or an episode asked for is not replayed in both."""
 
 
+class DifferentBenchmarksError(AnalyticsError):
+    """Runs a comparison would pair were replayed against different benchmarks (their
+    manifest entries' task or SSM digests differ): their episodes share ids, not tasks."""
+
+
 class QueryRefused(AnalyticsError):
     """`vge sql` refused a statement (writing, or reaching outside OUT)."""
 
@@ -134,6 +139,7 @@ __all__ = [
     "AnalyticsError",
     "CommonEpisodesError",
     "ContextExceededError",
+    "DifferentBenchmarksError",
     "EmptySelectionError",
     "InfrastructureError",
     "MetricFileError",

@@ -14,7 +14,7 @@ import vge_analytics as va
 from vge_analytics import ERROR_LABELS, compare, error_distribution, play, sweep, switch_classes
 from vge_analytics import dashboard as dash
 
-from ..vge_analytics.metrics.metric_files import RUNAWAY, write_folder
+from ..vge_analytics.metrics.metric_files import RUNAWAY, metric_text, write_folder
 from .conftest import APP
 
 
@@ -537,5 +537,25 @@ def test_a_runaway_metric_ends_with_one_line_on_the_page(app_env, tmp_path, monk
     at = AppTest.from_file(str(APP), default_timeout=60).run()
     assert not at.exception, [e.message for e in at.exception]
     assert [e.value for e in at.main.error] == [
-        f"{app_env}: a query ran past its time limit of 0.5 s and was stopped (--timeout sets it)"
+        f"{folder / 'runaway.sql'}: the query of this metric file ran past its time limit of "
+        "0.5 s and was stopped"
+    ]
+
+
+def test_a_metric_past_its_memory_bound_ends_with_one_line_on_the_page(
+    app_env, tmp_path, monkeypatch
+):
+    # Each value is 400 MB that DuckDB's memory limit does not count: the query runs in a
+    # query process of its own, capped (tests/hostile/test_metric_bounds.py measures it).
+    numerator = "sum(length(repeat(episode_id, 20000000)))"
+    folder = write_folder(
+        tmp_path / "repeat", {"repeat.sql": metric_text("Repeat", numerator, "count(*)")}
+    )
+    monkeypatch.setenv("VGE_METRICS_DIR", str(folder))
+    monkeypatch.setattr("sys.argv", ["streamlit_app.py", "--sql-memory-limit", "256MB"])
+    at = AppTest.from_file(str(APP), default_timeout=120).run()
+    assert not at.exception, [e.message for e in at.exception]
+    assert [e.value for e in at.main.error] == [
+        f"{folder / 'repeat.sql'}: the query of this metric file needed more memory than its "
+        "limit (256 MB in memory, 512 MB on disk) and was stopped"
     ]

@@ -350,7 +350,7 @@ def test_query_processes_are_capped_across_sessions(out: Path, monkeypatch):
     with pytest.raises(va.QueryLimitError) as info:
         dash.sql_preview(out, "SELECT 1 AS one", 10, quick, max_queries=1)
     assert str(info.value) == (
-        "1 query is running already, as many as the SQL page runs at once; this one waited "
+        "1 query is running already, as many as the dashboard runs at once; this one waited "
         "0.2 s: run it again when one has ended"
     )
     assert info.value.limit == "queries"

@@ -158,7 +158,9 @@ def app_command(
     sql_timeout: float = typer.Option(
         APP_TIMEOUT, "--sql-timeout", help="The SQL page stops a query after this many seconds."
     ),
-    sql_memory_limit: str = memory_limit_option("--sql-memory-limit", "a query of the SQL page"),
+    sql_memory_limit: str = memory_limit_option(
+        "--sql-memory-limit", "a query of the SQL page, or of a metric file on any page"
+    ),
     sql_max_rows: int = typer.Option(
         APP_MAX_ROWS, "--sql-max-rows", min=1, help="Rows the SQL page shows and downloads."
     ),

@@ -17,11 +17,14 @@ from ..reports import (
     DEFAULT_RESAMPLES,
     DEFAULT_SEED,
 )
+from ._benchmarks import allow_option, refusal_hinted
+from ._bounds import command_limits
 from ._incomplete import warn_incomplete
 from ._options import (
     episode_ids,
     format_option,
     ids_option,
+    memory_limit_option,
     metric_names_option,
     metrics_dir_option,
     out_argument,
@@ -65,6 +68,8 @@ def compare(
     metrics_dir: str = metrics_dir_option(),
     fmt: str = format_option(),
     timeout: float = timeout_option(),
+    memory_limit: str = memory_limit_option(what="each query"),
+    allow_different: bool = allow_option(),
 ) -> None:
     """Paired comparison of two runs on the episodes both have, or of every pair (--all).
 
@@ -75,15 +80,20 @@ def compare(
     """
     from ..reports import check_format
     from ..reports import compare as compute_compare
-    from ..store import query_time_limit
 
-    with query_time_limit(timeout):
+    with command_limits(timeout, memory_limit), refusal_hinted():
         check_format(fmt)
         if every:
             if run_a is not None or run_b is not None:
                 raise ConfigError("--all compares every run: give no RUN_A RUN_B (--runs chooses)")
             chosen = episode_ids(runs, "--runs")
-            options = dict(cluster=cluster, correction=correction, seed=seed, resamples=resamples)
+            options = dict(
+                cluster=cluster,
+                correction=correction,
+                seed=seed,
+                resamples=resamples,
+                allow_different_benchmarks=allow_different,
+            )
             _every_pair(out, chosen, by, metric, alpha, options, metrics_dir, fmt)
             return
         if run_a is None or run_b is None:
@@ -98,6 +108,7 @@ def compare(
             cluster=cluster,
             correction=correction,
             metrics_dir=metrics_dir,
+            allow_different_benchmarks=allow_different,
         )
         warn_incomplete(out, [run_a, run_b])
         emit_sections(result.sections(), fmt)

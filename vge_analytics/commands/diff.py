@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import typer
 
-from .. import reports, store
-from ._options import episode_ids, ids_option, out_argument, timeout_option
+from .. import reports
+from ._benchmarks import allow_option, refusal_hinted
+from ._bounds import command_limits
+from ._options import episode_ids, ids_option, memory_limit_option, out_argument, timeout_option
 from ._output import emit, emit_sections
 
 DIFF_FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown")
@@ -24,6 +26,8 @@ def diff(
         help="Output format: table (for people), json (the rows only), csv or markdown.",
     ),
     timeout: float = timeout_option(),
+    memory_limit: str = memory_limit_option(what="each query"),
+    allow_different: bool = allow_option(),
 ) -> None:
     """Two runs' trajectories side by side, one row per common episode.
 
@@ -33,9 +37,16 @@ def diff(
     (success_a, success_b), the median first difference, the error types at the first
     errors.
     """
-    with store.query_time_limit(timeout):
-        reports.check_format(fmt, DIFF_FORMATS)  # not latex: a row per episode is no table for a paper
-        result = reports.diff(out, run_a, run_b, episodes=episode_ids(episodes, "--episodes"))
+    with command_limits(timeout, memory_limit), refusal_hinted():
+        # not latex: a row per episode is no table for a paper
+        reports.check_format(fmt, DIFF_FORMATS)
+        result = reports.diff(
+            out,
+            run_a,
+            run_b,
+            episodes=episode_ids(episodes, "--episodes"),
+            allow_different_benchmarks=allow_different,
+        )
         if fmt == "json":  # the rows alone: what another tool reads
             emit(result.episodes, fmt)
         else:

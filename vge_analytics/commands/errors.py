@@ -7,9 +7,11 @@ from typing import TYPE_CHECKING
 import typer
 
 from .. import reports, store
+from ._bounds import command_limits
 from ._options import (
     by_option,
     format_option,
+    memory_limit_option,
     out_argument,
     parse_where,
     timeout_option,
@@ -42,6 +44,7 @@ def errors_command(
     where: list[str] = where_option(),
     fmt: str = format_option(),
     timeout: float = timeout_option(),
+    memory_limit: str = memory_limit_option(what="each query"),
 ) -> None:
     """Error taxonomy (share of errors, counts) and switch classes per run.
 
@@ -50,7 +53,7 @@ def errors_command(
     """
     import polars as pl
 
-    with store.query_time_limit(timeout):
+    with command_limits(timeout, memory_limit):
         reports.check_format(fmt)
         by_cols = list(store.parse_by(by))
         filters = parse_where(where)

@@ -9,11 +9,13 @@ import click
 import typer
 
 from .. import reports, store
+from ._bounds import command_limits
 from ._incomplete import PEOPLE_FORMATS, marked, marked_rows, warn_incomplete
 from ._options import (
     by_option,
     flag_option,
     format_option,
+    memory_limit_option,
     metric_names_option,
     metrics_dir_option,
     parse_where,
@@ -80,6 +82,7 @@ def metrics_command(
     ),
     fmt: str = format_option(),
     timeout: float = timeout_option(),
+    memory_limit: str = memory_limit_option(what="each query"),
 ) -> None:
     """The paper's main table: its twelve metrics per run or per any grouping.
 
@@ -89,7 +92,7 @@ def metrics_command(
     """
     from ..metrics import load_metrics, metrics
 
-    with store.query_time_limit(timeout):
+    with command_limits(timeout, memory_limit):
         reports.check_format(fmt)
         available = load_metrics(metrics_dir)
         if list_metrics:

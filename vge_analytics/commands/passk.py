@@ -11,11 +11,14 @@ from ..reports import (
     DEFAULT_RESAMPLES,
     DEFAULT_SEED,
 )
+from ._benchmarks import allow_option, refusal_hinted
+from ._bounds import command_limits
 from ._options import (
     episode_ids,
     flag_option,
     format_option,
     ids_option,
+    memory_limit_option,
     out_argument,
     timeout_option,
 )
@@ -41,6 +44,8 @@ def passk(
     resamples: int = typer.Option(DEFAULT_RESAMPLES, "--resamples", help="Bootstrap resamples."),
     fmt: str = format_option(),
     timeout: float = timeout_option(),
+    memory_limit: str = memory_limit_option(what="each query"),
+    allow_different: bool = allow_option(),
 ) -> None:
     """pass@k and pass^k of repeated runs (runs differing only in their seed).
 
@@ -50,9 +55,8 @@ def passk(
     solved.
     """
     from ..reports import check_format, repeated
-    from ..store import query_time_limit
 
-    with query_time_limit(timeout):
+    with command_limits(timeout, memory_limit), refusal_hinted():
         check_format(fmt)
         columns = episode_ids(group_by, "--group-by") if group_by is not None else None
         result = repeated(
@@ -63,6 +67,7 @@ def passk(
             cluster=cluster,
             seed=seed,
             resamples=resamples,
+            allow_different_benchmarks=allow_different,
         )
         emit_sections(result.sections(per_episode), fmt)
 

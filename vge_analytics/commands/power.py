@@ -14,7 +14,15 @@ from ..reports import (
     DEFAULT_DELTA,
     DEFAULT_POWER,
 )
-from ._options import format_option, metrics_dir_option, out_argument, timeout_option
+from ._benchmarks import allow_option, refusal_hinted
+from ._bounds import command_limits
+from ._options import (
+    format_option,
+    memory_limit_option,
+    metrics_dir_option,
+    out_argument,
+    timeout_option,
+)
 from ._output import emit
 
 
@@ -43,6 +51,8 @@ def power(
     metrics_dir: str = metrics_dir_option(),
     fmt: str = format_option(),
     timeout: float = timeout_option(),
+    memory_limit: str = memory_limit_option(what="each query"),
+    allow_different: bool = allow_option(),
 ) -> None:
     """How large a difference a comparison can detect, and how many devices it needs.
 
@@ -51,9 +61,8 @@ def power(
     correlation.
     """
     from ..reports import check_format, plan, power_of_pair
-    from ..store import query_time_limit
 
-    with query_time_limit(timeout):
+    with command_limits(timeout, memory_limit), refusal_hinted():
         check_format(fmt)
         if (run_a is None) != (run_b is None):
             raise ConfigError("power takes two runs (RUN_A RUN_B), or none with --rate")
@@ -72,6 +81,7 @@ def power(
                 power=power_,
                 cluster=cluster,
                 metrics_dir=metrics_dir,
+                allow_different_benchmarks=allow_different,
             )
         else:
             if rate is None:

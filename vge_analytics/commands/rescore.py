@@ -5,11 +5,13 @@ from __future__ import annotations
 import typer
 
 from .. import reports, store
+from ._bounds import command_limits
 from ._incomplete import marked, warn_incomplete
 from ._options import (
     by_option,
     flag_option,
     format_option,
+    memory_limit_option,
     metric_names_option,
     metrics_dir_option,
     out_argument,
@@ -41,6 +43,7 @@ def rescore(
     where: list[str] = where_option(),
     fmt: str = format_option(),
     timeout: float = timeout_option(),
+    memory_limit: str = memory_limit_option(what="each query"),
     summary: bool = flag_option(
         "--summary",
         "Print one row per metric instead (change, Kendall's tau-b between the rankings, "
@@ -58,7 +61,7 @@ def rescore(
     rank_before, rank_after), or with --summary the rankings; table, markdown and latex print
     both.
     """
-    with store.query_time_limit(timeout):
+    with command_limits(timeout, memory_limit):
         reports.check_format(fmt)
         filters = parse_where(where)
         check_where(out, filters, where)

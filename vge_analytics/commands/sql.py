@@ -8,14 +8,9 @@ import typer
 from .. import reports
 from .._errors import QueryLimitError
 from ..store import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap
+from ._bounds import hinted
 from ._options import format_option, memory_limit_option, out_argument
 from ._output import emit, emit_stream
-
-_HINTS = {
-    "time": "--timeout sets the limit",
-    "memory": "--memory-limit sets the limit",
-    "result": "--max-rows shows fewer rows; --format csv or json writes them all",
-}
 
 
 def sql(
@@ -53,7 +48,7 @@ def sql(
                 return
             head = sql_head(out, query, max_rows, limits=limits)
     except QueryLimitError as exc:
-        raise QueryLimitError(f"{exc} ({_HINTS[exc.limit]})", limit=exc.limit) from None
+        raise hinted(exc) from None
     emit(head.frame, fmt, marks=False)
     if head.truncated:
         typer.echo(

@@ -4,15 +4,20 @@ from __future__ import annotations
 
 import typer
 
-from .. import reports, store
-from ._options import format_option, metric_names_option, metrics_dir_option, timeout_option
+from .. import reports
+from ._bounds import command_limits
+from ._options import (
+    format_option,
+    memory_limit_option,
+    metric_names_option,
+    metrics_dir_option,
+    timeout_option,
+)
 from ._output import emit
 
 
 def sweep(
-    out: str = typer.Argument(
-        ..., help="Replay output directory (its manifest names the inputs)."
-    ),
+    out: str = typer.Argument(..., help="Replay output directory (its manifest names the inputs)."),
     lambdas: str = typer.Option("2,3,4,5", "--lambdas", help="Comma-separated lambdas."),
     runs: str = typer.Option(None, "--runs", help="Only these run ids (comma-separated)."),
     metric_names: str = metric_names_option(
@@ -28,13 +33,14 @@ def sweep(
     metrics_dir: str = metrics_dir_option(),
     fmt: str = format_option(),
     timeout: float = timeout_option(),
+    memory_limit: str = memory_limit_option(what="each query"),
 ) -> None:
     """SR and SSR per run at each lambda, by re-replaying the logs.
 
     Also the gain over the smallest lambda. A lambda above what a run's logs support (an
     episode hit its recorded budget and its log stops there) is refused.
     """
-    with store.query_time_limit(timeout):
+    with command_limits(timeout, memory_limit):
         reports.check_format(fmt)
         run_ids = [r.strip() for r in runs.split(",") if r.strip()] if runs else None
         df = reports.sweep(

@@ -71,7 +71,7 @@ def _computed(
         )
     _check_grains(store, [*by, *(where or {})], chosen, available)
     sql, params = ratio_query(store, by, chosen, where, terms=terms)
-    return run_query(store, sql, params), chosen
+    return run_query(store, sql, params, sources=available.files_of(chosen)), chosen
 
 
 def metrics(

@@ -117,6 +117,12 @@ class MetricSet:
             return "added"
         return "built-in" if metric is self._builtins[name] else "override"
 
+    def files_of(self, metrics: Sequence[Metric]) -> tuple[str, ...]:
+        """The metric files that define `metrics` (a folder's; none for the built-ins),
+        each once, in order: what a message about a query computing them names."""
+        files = (m.source for m in metrics if self.origin(m.name) != "built-in")
+        return tuple(dict.fromkeys(files))
+
     @property
     def fingerprint(self) -> str:
         """A hash of every definition (what a cache of computed values is keyed by)."""

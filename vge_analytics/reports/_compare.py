@@ -33,7 +33,7 @@ import polars as pl
 
 from .._errors import AnalyticsError
 from ..metrics import Metric, MetricsSource, metric_set
-from ..store import Store, check_runs, open_store, run_query
+from ..store import Store, check_runs, check_same_benchmark, open_store, run_query
 from ._completeness import completeness
 from ._defaults import DEFAULT_RESAMPLES, DEFAULT_SEED
 from ._taxonomy import ERROR_LABELS, error_distribution
@@ -272,10 +272,11 @@ def error_difference(store: Store, run_a: str, run_b: str, common: list[str]) ->
     )
 
 
-def _check_runs(store: Store, run_a: str, run_b: str) -> None:
+def _check_runs(store: Store, run_a: str, run_b: str, allow_different: bool) -> None:
     check_runs(store, [run_a, run_b])
     if run_a == run_b:
         raise AnalyticsError(f"compare needs two different runs, got {run_a!r} twice")
+    check_same_benchmark(store, [run_a, run_b], allow=allow_different)
 
 
 def single_cluster_note(cluster: str, n_clusters: int) -> str | None:
@@ -300,16 +301,20 @@ def compare(
     cluster: str = DEFAULT_CLUSTER,
     correction: str = DEFAULT_CORRECTION,
     metrics_dir: MetricsSource = None,
+    allow_different_benchmarks: bool = False,
 ) -> Comparison:
     """Compare run B with run A on their common episodes (see the module docstring).
 
     `metrics_dir`: a metrics folder (or `MetricSet`) whose metrics are compared; default
-    `$VGE_METRICS_DIR`, else the built-ins."""
+    `$VGE_METRICS_DIR`, else the built-ins.
+
+    `allow_different_benchmarks`: compare runs replayed against different benchmarks (refused
+    by default, `DifferentBenchmarksError`: their episodes share ids, not tasks)."""
     store = open_store(out)
     check_resampling(seed, resamples)
     check_cluster(cluster)
     check_correction(correction)
-    _check_runs(store, run_a, run_b)
+    _check_runs(store, run_a, run_b, allow_different_benchmarks)
     available = metric_set(metrics_dir)
     chosen = available.resolve(metrics)
     a_eps, b_eps = _episodes(store, run_a, run_b)

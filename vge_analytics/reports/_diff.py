@@ -17,7 +17,7 @@ import polars as pl
 
 from .._errors import CommonEpisodesError
 from .._nearest import nearest
-from ..store import check_runs, open_store, run_query
+from ..store import check_runs, check_same_benchmark, open_store, run_query
 from ._queries import query_text
 from ._taxonomy import ERROR_LABELS, ERROR_TYPES
 
@@ -130,14 +130,23 @@ def _named(ids: Sequence[str]) -> str:
     return shown + (f" and {more} more" if more > 0 else "")
 
 
-def diff(out, run_a: str, run_b: str, *, episodes: Sequence[str] | None = None) -> Diff:
+def diff(
+    out,
+    run_a: str,
+    run_b: str,
+    *,
+    episodes: Sequence[str] | None = None,
+    allow_different_benchmarks: bool = False,
+) -> Diff:
     """Compare the trajectories of runs A and B on the episodes both replayed (or on
     `episodes`, which must all be common), one row per episode (see `DIFF_COLUMNS`).
 
     Raises `UnknownRunError` for a run not in OUT, `CommonEpisodesError` when the runs share
-    no episode or `episodes` names one they do not share."""
+    no episode or `episodes` names one they do not share, `DifferentBenchmarksError` when
+    they were replayed against different benchmarks (unless `allow_different_benchmarks`)."""
     store = open_store(out)
     check_runs(store, [run_a, run_b])
+    check_same_benchmark(store, [run_a, run_b], allow=allow_different_benchmarks)
     wanted = None if episodes is None else sorted(set(episodes))
     rows = run_query(store, query_text("diff"), [run_a, run_b, wanted])
     if wanted is not None and rows.height < len(wanted):

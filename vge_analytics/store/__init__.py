@@ -7,8 +7,16 @@ from typing import TYPE_CHECKING
 from replay import lazy_names
 
 if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ._benchmarks import Benchmark, benchmark_of, check_same_benchmark
+    from ._bounds import (
+        QueryBounds,
+        query_bounds,
+        query_limits,
+        query_time_limit,
+    )
     from ._isolated import (
         IsolatedResult,
+        query_isolated,
         run_isolated,
         warm_query_processes,
     )
@@ -58,7 +66,6 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._sql import (
         Batches,
         guarded_cursor,
-        query_time_limit,
         run_query,
         sql,
         sql_head,
@@ -87,6 +94,9 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
 
 __all__ = [
     "bench_dir",
+    "Benchmark",
+    "benchmark_of",
+    "check_same_benchmark",
     "run_entry",
     "warm_query_processes",
     "APP_MAX_ROWS",
@@ -126,6 +136,10 @@ __all__ = [
     "order_by",
     "parse_by",
     "process_memory_cap",
+    "QueryBounds",
+    "query_bounds",
+    "query_isolated",
+    "query_limits",
     "query_time_limit",
     "quote_ident",
     "Ratio",

@@ -1,4 +1,5 @@
-"""One user query in a process of its own (the dashboard's SQL page).
+"""One user query in a process of its own (the dashboard's SQL page, and each query of its
+pages that holds a metric file's SQL).
 
 The dashboard serves every visitor from one process, so a query run inside it could take all
 of it down: DuckDB's memory limit does not cover everything (one value larger than memory,
@@ -12,9 +13,14 @@ server never holds more of a result than `RESULT_BYTES`), or the one-line error.
 waits for the time limit plus a grace period and kills a child that has not answered by
 then; a child that dies (killed, crashed) is reported, and the next query gets a fresh child.
 
+The pages' queries that hold SQL a user wrote (a metric file of `vge app --metrics-dir`) run
+the same way (`query_isolated`, chosen by `run_query` within `query_limits(...,
+isolated=True)`): the child opens OUT within the limits (or is handed the Arrow tables of a
+sweep's `memory_store`), runs the query through `run_query`, and sends back the whole result.
+
 At most `max_queries` children run at once across all the sessions of the server (each may
-take its memory limit and half again): a query beyond them waits up to `SLOT_WAIT` seconds for
-one to end, then is refused in one line.
+take its memory limit and half again), SQL page and metric queries together: a query beyond
+them waits up to `SLOT_WAIT` seconds for one to end, then is refused in one line.
 """
 
 from __future__ import annotations
@@ -23,10 +29,12 @@ import multiprocessing
 import resource
 import threading
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
 from multiprocessing.connection import Connection
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import polars as pl
 import pyarrow as pa
@@ -41,16 +49,18 @@ from ._limits import (
     process_memory_cap,
 )
 from ._page_result import ResultCut, bound_result
-from ._sql import check_size, sql_head
+from ._sql import check_size, memory_message, sql_head, subject_of, time_message
+from ._store import Store, memory_store, open_store
+
+if TYPE_CHECKING:
+    from ._bounds import QueryBounds
 
 GRACE = 5.0
 """Seconds the parent waits past the time limit before it kills the child (the child's own
 timer normally ends the query first, with a clearer message)."""
 
 _CONTEXT = multiprocessing.get_context("forkserver")
-_ERRORS = {
-    cls.__name__: cls for cls in (QueryError, QueryRefused, QueryLimitError, OutputDirError)
-}
+_ERRORS = {cls.__name__: cls for cls in (QueryError, QueryRefused, QueryLimitError, OutputDirError)}
 
 
 @dataclass(frozen=True)
@@ -87,24 +97,69 @@ def _peak_memory() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
+def _send_frame(conn: Connection, frame: pl.DataFrame, *header: object) -> None:
+    """Answer with `("ok", *header, peak memory)`, then the frame as Arrow IPC."""
+    table = frame.to_arrow()
+    sink = pa.BufferOutputStream()
+    with pa.ipc.new_stream(sink, table.schema) as writer:
+        writer.write_table(table)
+    conn.send(("ok", *header, _peak_memory()))
+    conn.send_bytes(sink.getvalue())
+
+
+def _answer_failure(conn: Connection, exc: BaseException, limits: SqlLimits, subject: str) -> None:
+    """Answer with `("error", kind, message, limit, peak memory)`."""
+    if isinstance(exc, MemoryError):
+        message, kind, limit = memory_message(subject, limits), "QueryLimitError", "memory"
+    else:  # refused, failed, stopped, or OUT unreadable
+        message, kind, limit = str(exc), type(exc).__name__, getattr(exc, "limit", None)
+    conn.send(("error", kind, message, limit, _peak_memory()))
+
+
 def _child(conn: Connection, out: str, query: str, rows: int, limits: SqlLimits) -> None:
-    """The query's process: run it within its limits, answer once, exit."""
+    """The SQL page's query process: run the query within its limits, answer once, exit."""
     with conn, process_memory_cap(limits):
         try:
             head = sql_head(out, query, rows, limits=limits)
             frame, cut = bound_result(head.frame)
-            table = frame.to_arrow()
-            sink = pa.BufferOutputStream()
-            with pa.ipc.new_stream(sink, table.schema) as writer:
-                writer.write_table(table)
-            conn.send(("ok", head.truncated, cut, _peak_memory()))
-            conn.send_bytes(sink.getvalue())
-        except AnalyticsError as exc:  # refused, failed, stopped, or OUT unreadable
-            limit = getattr(exc, "limit", None)
-            conn.send(("error", type(exc).__name__, str(exc), limit, _peak_memory()))
-        except MemoryError:
-            message = f"the query needed more memory than its limit ({limits.describe()})"
-            conn.send(("error", "QueryLimitError", message, "memory", _peak_memory()))
+            _send_frame(conn, frame, head.truncated, cut)
+        except (AnalyticsError, MemoryError) as exc:
+            _answer_failure(conn, exc, limits, "the query")
+
+
+@dataclass(frozen=True)
+class _Tables:
+    """What a query process opens: OUT (`out`), or the tables of a `memory_store` (`held`,
+    named in messages by `out`)."""
+
+    out: object
+    held: dict[str, pa.Table] | None = None
+
+
+def _query_child(
+    conn: Connection,
+    where: _Tables,
+    sql: str,
+    params: list,
+    limits: SqlLimits,
+    sources: tuple[str, ...],
+) -> None:
+    """An analytics query's process (`query_isolated`): open OUT (or the tables handed over)
+    within `limits`, run the query there, capped for the process's life; answer once."""
+    from ._bounds import within
+    from ._sql import run_query
+
+    with conn, process_memory_cap(limits):
+        try:
+            if where.held is not None:
+                store = memory_store(where.held, label=where.out, limits=limits)
+            else:
+                store = open_store(where.out, limits)
+            with within(limits):  # this process is capped already, for its life
+                frame = run_query(store, sql, params, sources=sources)
+            _send_frame(conn, frame)
+        except (AnalyticsError, MemoryError) as exc:
+            _answer_failure(conn, exc, limits, subject_of(where.out, sources))
 
 
 def _error(kind: str, message: str, limit: str | None) -> Exception:
@@ -112,6 +167,20 @@ def _error(kind: str, message: str, limit: str | None) -> Exception:
     if cls is QueryLimitError:
         return QueryLimitError(message, limit=limit or "memory")
     return cls(message)
+
+
+def _slot(size: int, prefix: str = "") -> threading.BoundedSemaphore:
+    """A process slot of this server, taken (release it); refused past `SLOT_WAIT` seconds
+    with a line that begins with `prefix`."""
+    slots = _slots(size)
+    if not slots.acquire(timeout=SLOT_WAIT):
+        raise QueryLimitError(
+            f"{prefix}{size} {'query is' if size == 1 else 'queries are'} running already, as "
+            f"many as the dashboard runs at once; this one waited {SLOT_WAIT:g} s: run it "
+            "again when one has ended",
+            limit="queries",
+        )
+    return slots
 
 
 def run_isolated(
@@ -127,58 +196,15 @@ def run_isolated(
     `default_max_queries(limits)`). Raises `QueryRefused`, `QueryLimitError` or `QueryError`
     (one line)."""
     check_size(query)  # too large: refused without a process; parsing is the child's job
-    size = max_queries or default_max_queries(limits)
-    slots = _slots(size)
-    if not slots.acquire(timeout=SLOT_WAIT):
-        raise QueryLimitError(
-            f"{size} {'query is' if size == 1 else 'queries are'} running already, as many as "
-            f"the SQL page runs at once; this one waited {SLOT_WAIT:g} s: run it again when "
-            "one has ended",
-            limit="queries",
-        )
+    slots = _slot(max_queries or default_max_queries(limits))
+    started = time.monotonic()
     try:
-        return _run_child(out, query, rows, limits)
+        args = (str(out), query, rows, limits)
+        (_, truncated, cut, peak), data = _run_child(_child, args, limits, "the query")
     finally:
         slots.release()
-
-
-def _run_child(out: str | Path, query: str, rows: int, limits: SqlLimits) -> IsolatedResult:
-    started = time.monotonic()
-    _CONTEXT.set_forkserver_preload([__name__])
-    receiver, sender = _CONTEXT.Pipe(duplex=False)
-    child = _CONTEXT.Process(
-        target=_child, args=(sender, str(out), query, rows, limits), daemon=True
-    )
-    child.start()
-    sender.close()
-    wait = None if limits.timeout is None else limits.timeout + GRACE
-    try:
-        if not receiver.poll(wait):
-            raise QueryLimitError(
-                f"the query ran past its time limit of {limits.timeout:g} s and was stopped",
-                limit="time",
-            )
-        header = receiver.recv()
-        if header[0] == "error":
-            _, kind, message, limit, _ = header
-            raise _error(kind, message, limit)
-        _, truncated, cut, peak = header
-        data = receiver.recv_bytes(maxlength=memory_headroom(limits))
-    except (EOFError, OSError):
-        child.join(timeout=GRACE)
-        raise QueryLimitError(
-            f"the query's process ended without an answer (exit code {child.exitcode}); "
-            f"it most likely needed more than its memory limit ({format_size(limits.memory)})",
-            limit="memory",
-        ) from None
-    finally:
-        receiver.close()
-        if child.is_alive():
-            child.kill()
-        child.join()
-    frame = pl.from_arrow(pa.ipc.open_stream(data).read_all())
     return IsolatedResult(
-        frame=frame,
+        frame=_frame(data),
         truncated=truncated,
         seconds=time.monotonic() - started,
         peak_memory=peak,
@@ -186,4 +212,67 @@ def _run_child(out: str | Path, query: str, rows: int, limits: SqlLimits) -> Iso
     )
 
 
-__all__ = ["GRACE", "IsolatedResult", "run_isolated", "warm_query_processes"]
+def query_isolated(
+    store: Store,
+    sql: str,
+    params: Sequence[object],
+    bounds: QueryBounds,
+    sources: Sequence[str],
+) -> pl.DataFrame:
+    """`run_query(store, sql, params)` in a query process of its own, capped for its life
+    within `bounds.limits` (a server's query holding a metric file's SQL: `query_limits(...,
+    isolated=True)`), sharing the server's process slots with the SQL page. Errors as
+    `run_query`'s, naming `sources`."""
+    limits = bounds.limits
+    subject = subject_of(store.out, sources)
+    held = dict(store.sources) if store.in_memory else None  # Arrow tables: handed over
+    args = (_Tables(store.out, held), sql, list(params), limits, tuple(sources))
+    slots = _slot(bounds.max_queries or default_max_queries(limits), f"{', '.join(sources)}: ")
+    try:
+        _, data = _run_child(_query_child, args, limits, subject)
+    finally:
+        slots.release()
+    return _frame(data)
+
+
+def _frame(data: bytes) -> pl.DataFrame:
+    return pl.from_arrow(pa.ipc.open_stream(data).read_all())
+
+
+def _run_child(
+    target: Callable[..., None], args: tuple, limits: SqlLimits, subject: str
+) -> tuple[tuple, bytes]:
+    """Run `target(conn, *args)` in a forked child; its answer: the header `("ok", ...)`
+    and the result's bytes. An error it answers is raised; past the time limit and a grace
+    period it is killed, and a child that ends without an answer is reported (`subject`
+    names the query)."""
+    _CONTEXT.set_forkserver_preload([__name__])
+    receiver, sender = _CONTEXT.Pipe(duplex=False)
+    child = _CONTEXT.Process(target=target, args=(sender, *args), daemon=True)
+    child.start()
+    sender.close()
+    wait = None if limits.timeout is None else limits.timeout + GRACE
+    try:
+        if not receiver.poll(wait):
+            raise QueryLimitError(time_message(subject, limits), limit="time")
+        header = receiver.recv()
+        if header[0] == "error":
+            _, kind, message, limit, _ = header
+            raise _error(kind, message, limit)
+        data = receiver.recv_bytes(maxlength=memory_headroom(limits))
+    except (EOFError, OSError):
+        child.join(timeout=GRACE)
+        raise QueryLimitError(
+            f"{subject} ended without an answer: its process exited with code "
+            f"{child.exitcode}, most likely past its memory limit ({format_size(limits.memory)})",
+            limit="memory",
+        ) from None
+    finally:
+        receiver.close()
+        if child.is_alive():
+            child.kill()
+        child.join()
+    return header, data
+
+
+__all__ = ["GRACE", "IsolatedResult", "query_isolated", "run_isolated", "warm_query_processes"]

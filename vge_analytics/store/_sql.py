@@ -26,7 +26,10 @@ it, `sql_head` the first rows. A query stopped by a limit raises `QueryLimitErro
 Every statement that may hold SQL a user wrote goes through one door, `guarded_cursor`:
 `vge sql` and the SQL page (`stream`), and every query of the analytics (`run_query`), a
 metric file's expressions and the `--where` filters among them, over an OUT or over the
-tables a sweep holds in memory (`memory_store`).
+tables a sweep holds in memory (`memory_store`). `run_query` runs within the bounds the code
+around it set (`_bounds.query_limits`): DuckDB's memory limit, the time limit, and the process
+cap, around the query in a command's process or, in a server's, by running a query that holds
+a metric file's SQL in a query process of its own (`_isolated`).
 """
 
 from __future__ import annotations
@@ -35,7 +38,6 @@ import contextlib
 import re
 import threading
 from collections.abc import Iterator, Sequence
-from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,7 +46,15 @@ import polars as pl
 import pyarrow as pa
 
 from .._errors import QueryError, QueryLimitError, QueryRefused
-from ._limits import CLI_TIMEOUT, MAX_SQL_TEXT, SqlLimits, format_size, text_too_large
+from ._bounds import query_bounds
+from ._limits import (
+    CLI_TIMEOUT,
+    MAX_SQL_TEXT,
+    SqlLimits,
+    format_size,
+    process_memory_cap,
+    text_too_large,
+)
 from ._store import Store, open_store
 
 _ALLOWED = {duckdb.StatementType.SELECT}
@@ -137,27 +147,6 @@ class Deadline:
         return isinstance(exc, duckdb.InterruptException) or "INTERRUPT" in first
 
 
-_ANALYTICS_TIMEOUT: ContextVar[float | None] = ContextVar("vge_analytics_timeout", default=None)
-
-
-@contextlib.contextmanager
-def query_time_limit(seconds: float | None) -> Iterator[None]:
-    """Within the block, each query of the analytics (metrics, errors, comparisons, sweeps,
-    rescoring, the dashboard's tables) is stopped after `seconds` (None or 0: no limit, the
-    API's default) with `QueryLimitError`. A metric a user wrote that runs away ends with one
-    line instead of holding the command or the dashboard. Per thread (a context variable)."""
-    token = _ANALYTICS_TIMEOUT.set(seconds or None)
-    try:
-        yield
-    finally:
-        _ANALYTICS_TIMEOUT.reset(token)
-
-
-def analytics_timeout() -> float | None:
-    """The time limit of the analytics' queries here (`query_time_limit`)."""
-    return _ANALYTICS_TIMEOUT.get()
-
-
 @contextlib.contextmanager
 def guarded_cursor(
     store: Store, sql: str, timeout: float | None
@@ -178,49 +167,82 @@ def guarded_cursor(
         cursor.close()
 
 
-def run_query(store: Store, sql: str, params: Sequence[object]) -> pl.DataFrame:
-    """Run one of the analytics' queries (`guarded_cursor`: the metric expressions in it may
-    come from a user's files), stopped at the time limit of `query_time_limit`, if one is
-    set; the result as a polars DataFrame."""
-    timeout = analytics_timeout()
-    with guarded_cursor(store, sql, timeout) as (cursor, deadline):
+def subject_of(out: object, sources: Sequence[str]) -> str:
+    """How a message names a query of the analytics: by the metric files whose SQL it holds,
+    else by OUT (`out`)."""
+    if not sources:
+        return f"{out}: a query"
+    if len(sources) == 1:
+        return f"{sources[0]}: the query of this metric file"
+    return f"{', '.join(sources)}: the query of these metric files"
+
+
+def run_query(
+    store: Store, sql: str, params: Sequence[object], *, sources: Sequence[str] = ()
+) -> pl.DataFrame:
+    """Run one of the analytics' queries through `guarded_cursor`, within the bounds of the
+    block around it (`query_limits`: DuckDB's memory limit, the time limit, the process cap,
+    or a process of its own); the result as a polars DataFrame.
+
+    `sources`: the metric files whose SQL the statement holds (none: only this package's
+    SQL and bound values). A query stopped by a bound raises `QueryLimitError`, another
+    failure `QueryError`, each one line naming those files, else OUT."""
+    bounds = query_bounds()
+    if bounds is not None and bounds.isolated and sources:
+        from ._isolated import query_isolated  # it runs this function in a child
+
+        return query_isolated(store, sql, params, bounds, sources)
+    limits = bounds.limits if bounds is not None else None
+    capped = process_memory_cap(limits) if limits is not None and bounds.capped else None
+    with capped or contextlib.nullcontext():
+        return _run_here(store, sql, params, limits, subject_of(store.out, sources))
+
+
+def _run_here(
+    store: Store, sql: str, params: Sequence[object], limits: SqlLimits | None, subject: str
+) -> pl.DataFrame:
+    limits = limits or store.limits or SqlLimits.make(timeout=None)
+    with guarded_cursor(store, sql, limits.timeout) as (cursor, deadline):
         try:
             return cursor.sql(sql, params=list(params)).pl()
-        except duckdb.Error as exc:
-            if deadline.stopped(exc):
-                raise QueryLimitError(
-                    f"{store.out}: a query ran past its time limit of {timeout:g} s and was "
-                    "stopped (--timeout sets it)",
-                    limit="time",
-                ) from None
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise QueryError(f"{store.out}: query failed: {first}") from None
+        except _FAILURES as exc:
+            failure = _limit_error(exc, limits, deadline, subject)
+    if isinstance(failure, QueryLimitError):
+        raise failure from None
+    raise type(failure)(f"{subject} failed: {failure}") from None
 
 
-def _limit_error(exc: BaseException, limits: SqlLimits, deadline: Deadline) -> Exception:
-    """The one-line error for a failure while a query ran or its result was read.
+def _limit_error(
+    exc: BaseException, limits: SqlLimits, deadline: Deadline, subject: str = "the query"
+) -> Exception:
+    """The one-line error for a failure while a query ran or its result was read; a bound's
+    message begins with `subject` (what ran past it).
 
     DuckDB's errors reach us as duckdb exceptions, or, while the Arrow reader pulls batches,
     as pyarrow errors carrying DuckDB's text: both are classified by that text."""
     first = (str(exc).splitlines() or [type(exc).__name__])[0]
     if deadline.stopped(exc):
-        return QueryLimitError(
-            f"the query ran past its time limit of {limits.timeout:g} s and was stopped",
-            limit="time",
-        )
+        return QueryLimitError(time_message(subject, limits), limit="time")
     if isinstance(exc, MemoryError | duckdb.OutOfMemoryException) or first.startswith(
         "Out of Memory Error"
     ):
-        return QueryLimitError(
-            f"the query needed more memory than its limit ({limits.describe()}) and was stopped",
-            limit="memory",
-        )
+        return QueryLimitError(memory_message(subject, limits), limit="memory")
     if isinstance(exc, duckdb.PermissionException) or first.startswith("Permission Error"):
         return QueryRefused(
             "access outside the tables steps, episodes, goals, runs is not allowed: no file "
             f"is opened, in OUT or elsewhere ({first})"
         )
     return QueryError(first)
+
+
+def time_message(subject: str, limits: SqlLimits) -> str:
+    """`<subject> ran past its time limit of 30 s and was stopped`."""
+    return f"{subject} ran past its time limit of {limits.timeout:g} s and was stopped"
+
+
+def memory_message(subject: str, limits: SqlLimits) -> str:
+    """`<subject> needed more memory than its limit (...) and was stopped`."""
+    return f"{subject} needed more memory than its limit ({limits.describe()}) and was stopped"
 
 
 _FAILURES = (duckdb.Error, pa.ArrowException, OSError, MemoryError)
@@ -376,13 +398,14 @@ __all__ = [
     "Batches",
     "Deadline",
     "SqlHead",
-    "analytics_timeout",
     "check_read_only",
     "check_size",
     "guarded_cursor",
-    "query_time_limit",
+    "memory_message",
     "run_query",
     "sql",
     "sql_head",
     "stream",
+    "subject_of",
+    "time_message",
 ]

@@ -34,6 +34,7 @@ import replay
 from replay.io import MANIFEST, PARTITIONED, RUNS_TABLE, TABLES, manifest_path
 
 from .._errors import OutputDirError, UnknownRunError
+from ._bounds import store_limits
 from ._datasets import empty_table, table_sources
 from ._limits import SqlLimits
 from ._locked import locked_connection, register_all
@@ -85,6 +86,9 @@ class Store:
     sources: Mapping[str, object] = field(default_factory=dict)
     """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`), or
     Arrow tables in memory (`memory_store`)."""
+    in_memory: bool = False
+    """Its tables are Arrow tables held in this process (`memory_store`), not OUT's files: a
+    query process is handed the tables, not OUT."""
     limits: SqlLimits | None = None
     """The memory limits its connection was opened with."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
@@ -211,11 +215,24 @@ def _store(out: Path | replay.Location, manifest: dict | None, limits: SqlLimits
 
 
 def _opened(
-    out: Path | replay.Location, manifest: dict, sources: Mapping[str, object], limits: SqlLimits
+    out: Path | replay.Location,
+    manifest: dict,
+    sources: Mapping[str, object],
+    limits: SqlLimits,
+    *,
+    in_memory: bool = False,
 ) -> Store:
     """A store over `sources` on a new locked connection within `limits`, its catalogue read."""
     con = _connection(limits)
-    store = Store(out=out, con=con, columns={}, manifest=manifest, sources=sources, limits=limits)
+    store = Store(
+        out=out,
+        con=con,
+        columns={},
+        manifest=manifest,
+        sources=sources,
+        in_memory=in_memory,
+        limits=limits,
+    )
     try:
         store.columns = _catalogue(store)
     except BaseException:
@@ -231,13 +248,13 @@ def memory_store(
     limits: SqlLimits | None = None,
 ) -> Store:
     """A store over Arrow tables held in memory (the episode rows a sweep replays at each
-    lambda), on a locked connection within `limits` (default `SqlLimits.make()`) as an OUT's
-    store is: every query over it, a metric file's expressions included, meets the same guard
-    and limits (`guarded_cursor`). A table not given is empty, with the replay's columns.
+    lambda), on a locked connection within `limits` (default: the block's, `query_limits`)
+    as an OUT's store is: every query over it, a metric file's expressions included, meets
+    the same guard and bounds (`guarded_cursor`, `run_query`). A table not given is empty, with the replay's columns.
     `label` is how messages name it (the OUT the tables come from). Not cached: the caller
     closes it (`Store.close`)."""
     sources = {t: tables[t] if t in tables else empty_table(t) for t in TABLES}
-    return _opened(label, {}, sources, limits or SqlLimits.make())
+    return _opened(label, {}, sources, limits or store_limits(), in_memory=True)
 
 
 def _open(out: Path, limits: SqlLimits) -> Store:
@@ -298,10 +315,11 @@ _CACHE_LOCK = threading.Lock()
 def open_store(out: str | Path | replay.Location | Store, limits: SqlLimits | None = None) -> Store:
     """The `Store` of an OUT directory (a path or a URI), cached per directory and memory
     limits (re-opened if the directory changed). `limits`: the memory DuckDB may use
-    (default: `SqlLimits.make()`, a quarter of the machine's memory)."""
+    (default: the bounds of the block around, `query_limits`, else `SqlLimits.make()`, a
+    quarter of the machine's memory)."""
     if isinstance(out, Store):
         return out
-    limits = limits or SqlLimits.make()
+    limits = limits or store_limits()
     where: Path | replay.Location
     if isinstance(out, replay.Location) or replay.is_uri(str(out)):
         where = replay.location(out)

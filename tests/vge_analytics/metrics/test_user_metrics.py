@@ -244,25 +244,25 @@ def test_a_runaway_metric_stops_at_the_time_limit(
     with va.query_time_limit(0.5), pytest.raises(va.QueryLimitError) as caught:
         va.metrics(hand_out, metrics=["SR", "Runaway"], metrics_dir=folder)
     assert caught.value.limit == "time"
-    assert str(caught.value) == (
-        f"{hand_out}: a query ran past its time limit of 0.5 s and was stopped (--timeout sets it)"
-    )
+    # The line names the metric file whose SQL the stopped query holds.
+    named = f"{folder / 'runaway.sql'}: the query of this metric file"
+    assert str(caught.value) == f"{named} ran past its time limit of 0.5 s and was stopped"
     # The limit ends with the block: the built-ins are computed as before.
     assert va.metrics(hand_out, metrics=["SR"])["SR"].to_list() == [
         EXPECTED[run]["SR"] for run in ("kettle-vlm", "oven-human")
     ]
     # The commands take --timeout; the error is one line.
-    for out, args in (
-        (hand_out, ["metrics", str(hand_out), "--metrics", "Runaway"]),
-        (pair_out, ["compare", str(pair_out), "A", "B"]),
-        (hand_out, ["rescore", str(hand_out)]),
+    for args in (
+        ["metrics", str(hand_out), "--metrics", "Runaway"],
+        ["compare", str(pair_out), "A", "B"],
+        ["rescore", str(hand_out)],
     ):
         code = main([*args, "--metrics-dir", str(folder), "--timeout", "0.5"])
         err = capsys.readouterr().err
         assert code == 1, (args[0], err)
         assert err == (
-            f"error: {out}: a query ran past its time limit of 0.5 s and was stopped "
-            "(--timeout sets it)\n"
+            f"error: {named} ran past its time limit of 0.5 s and was stopped "
+            "(--timeout sets the limit)\n"
         ), args[0]
     # Queries that end in time are not affected by one.
     assert main(["errors", str(hand_out), "--timeout", "0.5"]) == 0

@@ -53,10 +53,10 @@ def test_a_runaway_metric_in_a_sweep_stops_at_the_time_limit(
         + ["--metrics-dir", str(folder), "--timeout", "0.5"]
     )
     assert code == 1
-    # One line, naming OUT, as `vge metrics` says it (test_user_metrics.py).
+    # One line, naming the metric file, as `vge metrics` says it (test_user_metrics.py).
     assert capsys.readouterr().err == (
-        f"error: {hand_out.resolve()}: a query ran past its time limit of 0.5 s and was "
-        "stopped (--timeout sets it)\n"
+        f"error: {folder / 'runaway.sql'}: the query of this metric file ran past its time "
+        "limit of 0.5 s and was stopped (--timeout sets the limit)\n"
     )
 
 

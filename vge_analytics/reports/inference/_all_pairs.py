@@ -21,7 +21,7 @@ import polars as pl
 
 from ..._errors import AnalyticsError
 from ...metrics import Metric, MetricsSource, metric_set
-from ...store import Store, open_store
+from ...store import Store, check_same_benchmark, open_store
 from .._defaults import DEFAULT_ALPHA, DEFAULT_CORRECTION
 from .._ranking import competition_ranks
 from ._clusters import DEFAULT_CLUSTER, pooled
@@ -185,9 +185,13 @@ def compare_all(
     seed: int = 0,
     resamples: int = 2000,
     metrics_dir: MetricsSource = None,
+    allow_different_benchmarks: bool = False,
 ) -> AllPairs:
     """Every pair of runs (or of `by` groups) on its common episodes; see the module
-    docstring."""
+    docstring.
+
+    `allow_different_benchmarks`: compare runs replayed against different benchmarks (refused
+    by default, `DifferentBenchmarksError`: their episodes share ids, not tasks)."""
     store = open_store(out)
     check_resampling(seed, resamples)
     check_cluster(cluster)
@@ -197,6 +201,8 @@ def compare_all(
     available = metric_set(metrics_dir)
     (chosen,) = available.resolve([metric])
     entities = entities_of(store, runs, by)
+    members = [run for group in entities.values() for run in group]
+    check_same_benchmark(store, members, allow=allow_different_benchmarks)
     terms = entity_terms(store, entities, [chosen], available)
     ordered, ranking = _ranking(terms, list(entities), chosen)
     parts = {name: terms.filter(pl.col("entity") == name) for name in ordered}

@@ -19,7 +19,7 @@ import polars as pl
 
 from ..._errors import AnalyticsError
 from ...metrics import MetricsSource, metric_set
-from ...store import open_store, run_query
+from ...store import check_same_benchmark, open_store, run_query
 from .._defaults import DEFAULT_DELTA, DEFAULT_POWER
 from ._clusters import DEFAULT_CLUSTER
 from ._paired import (
@@ -61,14 +61,19 @@ def power_of_pair(
     power: float = DEFAULT_POWER,
     cluster: str = DEFAULT_CLUSTER,
     metrics_dir: MetricsSource = None,
+    allow_different_benchmarks: bool = False,
 ) -> pl.DataFrame:
     """One row: the pair's observed difference and clustered SE, the minimal detectable
     difference with its common episodes, and the clusters and episodes needed for `delta`
-    (null, with a note, when the pair has fewer than two clusters or never differs)."""
+    (null, with a note, when the pair has fewer than two clusters or never differs).
+
+    `allow_different_benchmarks`: compare runs replayed against different benchmarks (refused
+    by default, `DifferentBenchmarksError`: their episodes share ids, not tasks)."""
     _check(delta, alpha, power)
     check_cluster(cluster)
     store = open_store(out)
     runs_of(store, [run_a, run_b])
+    check_same_benchmark(store, [run_a, run_b], allow=allow_different_benchmarks)
     available = metric_set(metrics_dir)
     (chosen,) = available.resolve([metric])
     terms = entity_terms(store, {run_a: [run_a], run_b: [run_b]}, [chosen], available)

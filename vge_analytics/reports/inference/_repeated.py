@@ -23,7 +23,7 @@ import numpy as np
 import polars as pl
 
 from ..._errors import AnalyticsError
-from ...store import Store, open_store, run_query
+from ...store import Store, check_same_benchmark, open_store, run_query
 from ._clusters import (
     DEFAULT_CLUSTER,
     bootstrap_totals,
@@ -272,15 +272,21 @@ def repeated(
     cluster: str = DEFAULT_CLUSTER,
     seed: int = 0,
     resamples: int = 2000,
+    allow_different_benchmarks: bool = False,
 ) -> Repeated:
     """Groups of repeated runs, their pass@k and pass^k (k = 1..k, default each group's n)
-    and their mean SR; see the module docstring."""
+    and their mean SR; see the module docstring.
+
+    `allow_different_benchmarks`: group runs replayed against different benchmarks (refused
+    by default, `DifferentBenchmarksError`: their episodes share ids, not tasks)."""
     store = open_store(out)
     check_resampling(seed, resamples)
     check_cluster(cluster)
     if k is not None and not 1 <= k <= MAX_K:
         raise AnalyticsError(f"k must be between 1 and {MAX_K}, not {k}")
     groups = run_groups(store, runs, group_by)
+    for members in groups.values():  # a group pairs its runs' episodes by id
+        check_same_benchmark(store, members, allow=allow_different_benchmarks)
     eps = run_query(
         store,
         "SELECT run_id, episode_id, device_id, category, success FROM episodes "
