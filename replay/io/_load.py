@@ -21,6 +21,7 @@ from ..semantics import (
     StateMachine,
     Task,
     compile_machine,
+    meta_problem,
     setup_episode,
     validate_machine,
 )
@@ -81,9 +82,16 @@ def load_machine(path: str | Path | Location, device_id: str | None = None) -> M
     return compile_machine(ssm, device_id=device_id or path.stem, source=str(path))
 
 
+MAX_RUN_JSON_BYTES = 1 << 20
+"""The most bytes a run.json may take (PROTOCOL §1.5): a header, a bounded meta and room to
+indent it; a wider one is refused before its meta is decoded."""
+
+
 def read_run_header(run_dir: str | Path | Location) -> RunHeader:
+    """run.json, decoded and checked: an empty run_id, or a meta too wide or with a number
+    the tables cannot hold, is refused in one line naming the file (PROTOCOL §1.5)."""
     path = run_json_path(location(run_dir))
-    data = read_whole(path)
+    data = read_whole(path, MAX_RUN_JSON_BYTES)
     try:
         header = decode(_run_decoder, data)
     except msgspec.DecodeError as exc:
@@ -91,6 +99,9 @@ def read_run_header(run_dir: str | Path | Location) -> RunHeader:
         raise InputError(str(path), msg, _line_of(data, msg)) from None
     if not header.run_id.strip():
         raise InputError(str(path), "run_id is empty")
+    problem = meta_problem(header.meta)
+    if problem is not None:
+        raise InputError(str(path), problem)
     return header
 
 
@@ -245,11 +256,11 @@ def _task_problems(bench: Benchmark, episode_id: str, entry: TaskEntry) -> list[
     where = f"{bench.tasks_path}:{entry.line}"
     episode = f"episode {episode_id!r}"
     task = entry.task
+    if task.device_id not in bench.ssm_paths:
+        return [Problem(where, episode, f"unknown device {task.device_id!r}")]
     try:
         machine = bench.machine(task.device_id)
-    except InputError:
-        return [Problem(where, episode, f"unknown device {task.device_id!r}")]
-    except VGEError:
+    except VGEError:  # an SSM that does not decode or does not validate
         return [Problem(where, episode, f"device {task.device_id!r} has an invalid SSM")]
     try:
         setup = setup_episode(machine, task)

@@ -78,6 +78,7 @@ from ._records import (
     StateMachine,
     Task,
     Transition,
+    meta_problem,
 )
 from ._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
 from ._step import Outcome, SimState, apply_transition, reset, step
@@ -206,6 +207,7 @@ __all__ = [
     "StateMachine",
     "Task",
     "Transition",
+    "meta_problem",
     # the machine
     "CompiledTransition",
     "Machine",
