@@ -40,7 +40,7 @@ from ._file_names import part_name
 from ._files import write_part
 from ._fs import location
 from ._images import ViewImage
-from ._layout import MCAP_DIR, SSM_DIR, SSM_SUFFIX, TABLE_ROWS, TASKS
+from ._layout import MCAP_DIR, TABLE_ROWS, TASKS
 from ._load import episode_decoder
 from ._mcap import mcap_file_name, write_episode_mcap
 from ._quarantine import classify_decode_error, one_line
@@ -375,9 +375,9 @@ def _prepare_line(
         return
     task = entry.task
     device = task.device_id
-    if device not in bench.ssm_paths:
-        where = f"{SSM_DIR}/{device}{SSM_SUFFIX}"
-        reason = f"device {device!r} ({TASKS} line {entry.line}) has no SSM file {where}"
+    missing = bench.no_machine(device)
+    if missing is not None:
+        reason = one_line(f"device {device!r} ({TASKS} line {entry.line}) {missing}")
         outcomes.append(LineOutcome(number, eid, True, "unknown_device", reason))
         return
     try:

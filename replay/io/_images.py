@@ -14,8 +14,8 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from ..semantics import Machine
-from ._fs import Location, location
-from ._layout import image_paths
+from ._fs import Location, confined, location
+from ._layout import image_paths, not_a_file_name, relative_inside
 
 MAX_IMAGE_BYTES = 64 << 20
 """A view image file larger than this is not read (it counts as absent)."""
@@ -79,15 +79,20 @@ def _read(path: Location) -> ViewImage | None:
 
 
 def bench_image(bench: str | Location, machine: Machine, view: str) -> ViewImage | None:
-    """The benchmark's own picture of `view` (PROTOCOL §1.1 order), or None."""
+    """The benchmark's own picture of `view` (PROTOCOL §1.1 order), or None. Only a file
+    inside BENCH is read: a view that cannot name a file, an `images` path that leaves BENCH
+    (absolute, `..`, a link out) counts as absent."""
     view = view.lower()
     root = location(bench)
-    for path in image_paths(root, machine.device_id, view):
-        found = _read(path)
-        if found is not None:
-            return found
+    if not_a_file_name(view) is None:
+        for path in image_paths(root, machine.device_id, view):
+            found = _read(path) if confined(root, path) else None
+            if found is not None:
+                return found
     ref = machine.images.get(view)
-    return None if ref is None else _read(root / ref[0])
+    if ref is None or not relative_inside(ref[0]) or not confined(root, root / ref[0]):
+        return None
+    return _read(root / ref[0])
 
 
 @dataclass(frozen=True)

@@ -17,10 +17,11 @@ from .._errors import ConfigError
 from .._version import ENGINE_VERSION
 from ..semantics import SCHEMA_VERSION
 from ._files import STATE_DIR, atomic_write, atomic_write_bytes
-from ._fs import Location, location
+from ._fs import Location, confined, location
 from ._layout import (
     RUNS_TABLE,
     manifest_path,
+    not_a_file_name,
     quarantine_path,
     run_json_path,
     runs_path,
@@ -28,6 +29,7 @@ from ._layout import (
     tasks_path,
 )
 from ._manifest import (
+    FileRef,
     Hasher,
     ManifestFile,
     RunEntry,
@@ -41,14 +43,22 @@ from ._reading import RunInput
 
 
 def run_inputs(run: RunInput, bench_dir: str, hasher: Hasher, devices: Iterable[str]) -> RunInputs:
+    """The inputs of a run and their sha256, an SSM for each device its tasks name (a device
+    with no SSM yet too: one added later makes the run replay again). A device id that
+    cannot name a file, or an SSM linked out of BENCH, is never made a path nor read."""
     bench = location(bench_dir)
+    ssm: dict[str, FileRef] = {}
+    for d in sorted(devices):
+        if not_a_file_name(d) is None:
+            path = ssm_path(bench, d)
+            ssm[d] = hasher.ref(path) if confined(bench, path) else FileRef(str(path), None)
     return RunInputs(
         run_dir=run.run_dir,
         run_json=hasher.ref(run_json_path(location(run.run_dir))),
         episodes=hasher.ref(run.episodes),
         bench=bench_dir,
         tasks=hasher.ref(tasks_path(bench)),
-        ssm={d: hasher.ref(ssm_path(bench, d)) for d in sorted(devices)},
+        ssm=ssm,
     )
 
 
