@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import msgspec
 import pyarrow.compute as pc
 
-from .._errors import TaskError, VGEError
+from .._errors import OutputError, TaskError, VGEError
 from ..kernel import BatchTables, EpisodeInput, replay_kernel
 from ..semantics import (
     NO_PRICES,
@@ -149,12 +149,17 @@ class BatchFailure:
     message: str
     details: str
     node: str = ""
+    output: str | None = None
+    """The output file that could not be written (a full disk): the error names it."""
 
 
 def replay_batch(task: BatchTask) -> BatchReport | BatchFailure:
     """Replay a batch and write its parts; every error comes back as data."""
     try:
         return _replay(worker_state(task.bench), task)
+    except OutputError as exc:  # a full disk: the output file is to blame, not the line
+        details = traceback.format_exc()
+        return BatchFailure(task.index, None, exc.message, details, socket.gethostname(), exc.path)
     except Exception as exc:  # a bug or an I/O error: fatal, reported by the main process
         return BatchFailure(
             task.index,

@@ -6,9 +6,10 @@ local disk only: object stores have no lock, docs/SCALE.md)."""
 from __future__ import annotations
 
 import fcntl
+import io
 import shutil
 from collections import defaultdict
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import BinaryIO
 
 import pyarrow.parquet as pq
@@ -16,7 +17,8 @@ import pyarrow.parquet as pq
 from .._errors import ConfigError
 from .._version import ENGINE_VERSION
 from ..semantics import SCHEMA_VERSION
-from ._files import STATE_DIR, atomic_write, atomic_write_bytes
+from ._durable import FileSet
+from ._files import STATE_DIR
 from ._fs import Location, confined, location
 from ._layout import (
     RUNS_TABLE,
@@ -104,32 +106,77 @@ def _all_present(out: Location, paths: list[str]) -> bool:
 # ------------------------------------------------------------------------- publishing
 
 
-def publish(out: Location, entries: dict[str, RunEntry]) -> ManifestFile:
-    """Rewrite quarantine.jsonl, runs/runs.parquet and manifest.json (last: the commit
-    marker) from the run entries."""
+class Publishing:
+    """quarantine.jsonl, runs/runs.parquet and manifest.json, written whole but not yet in
+    place: `commit` puts them there, the manifest (the commit marker) last."""
+
+    def __init__(self, manifest: ManifestFile, commit: Callable[[], None]) -> None:
+        self.manifest = manifest
+        self.commit = commit
+
+
+def prepare_publish(
+    out: Location, entries: dict[str, RunEntry], staged: dict[str, Location] | None = None
+) -> Publishing:
+    """Make OUT's three files from the run entries (a run's quarantine records from
+    `staged` if there, else from OUT's state), changing nothing in OUT: what fails here (a
+    full disk, a meta the runs table cannot hold) leaves OUT as it was. On the local disk
+    they are temporary files beside their places; elsewhere, bytes in memory."""
     runs = [entries[k] for k in sorted(entries)]
     qdir = out / STATE_DIR / "quarantine"
     present = set(qdir.names())
+    staged = staged or {}
 
     def write_quarantine(fh: BinaryIO) -> None:
         for r in runs:
             name = f"{r.run_id}.jsonl"
-            if name in present:
-                with (qdir / name).open_read() as src:
+            source = staged.get(r.run_id) or (qdir / name if name in present else None)
+            if source is not None:
+                with source.open_read() as src:
                     shutil.copyfileobj(src, fh)
 
-    atomic_write(quarantine_path(out), write_quarantine)
-    (out / RUNS_TABLE).mkdir()
     table = runs_table(runs)
-    atomic_write(runs_path(out), lambda fh: pq.write_table(table, fh))
     manifest = ManifestFile(
         engine_version=ENGINE_VERSION,
         schema_version=SCHEMA_VERSION,
         totals=totals_of(runs),
         runs=runs,
     )
-    atomic_write_bytes(manifest_path(out), encode_manifest(manifest))
-    return manifest
+    writers: list[tuple[Location, Callable[[BinaryIO], object]]] = [
+        (quarantine_path(out), write_quarantine),
+        (runs_path(out), lambda fh: pq.write_table(table, fh)),
+        (manifest_path(out), lambda fh: fh.write(encode_manifest(manifest))),
+    ]
+    (out / RUNS_TABLE).mkdir()
+    if out.local is None:  # uploaded whole, one after the other, when committed
+        made = []
+        for path, write in writers:
+            buffer = io.BytesIO()
+            write(buffer)
+            made.append((path, buffer.getvalue()))
+
+        def upload() -> None:
+            for path, data in made:
+                path.write_bytes(data)
+
+        return Publishing(manifest, upload)
+    files = FileSet()
+    try:
+        for path, write in writers:
+            with files.file(path.local) as fh:  # type: ignore[arg-type]
+                write(fh)
+    except BaseException:
+        files.discard()
+        raise
+    return Publishing(manifest, files.commit)
+
+
+def publish(out: Location, entries: dict[str, RunEntry]) -> ManifestFile:
+    """Rewrite quarantine.jsonl, runs/runs.parquet and manifest.json (last: the commit
+    marker) from the run entries, all three or none."""
+    publishing = prepare_publish(out, entries)
+    publishing.commit()
+    return publishing.manifest
 
 
 class OutputLock:

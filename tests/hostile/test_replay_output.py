@@ -1,0 +1,87 @@
+"""OUT under a full disk and a late error (PROTOCOL §7.1): a run's partitions, the runs table
+and the manifest change together or not at all, and the one-line error names the output
+file that could not be written, never the input.
+
+The full disk is a file-size limit (`RLIMIT_FSIZE`, no root needed): past it a write fails
+with `EFBIG`, as it fails with `ENOSPC` on a full disk, through the same code."""
+
+from __future__ import annotations
+
+import resource
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import replay
+
+from .replay_inputs import episode, line_ssm, task, write_bench, write_run
+
+VGE = [sys.executable, "-m", "vge_analytics.cli"]
+DEVICES = 300
+"""A run over 300 devices: its manifest entry (an SSM reference each) is about 50 KB, its
+Parquet parts about 15 KB each."""
+
+
+def _limited(limit: int):
+    def start() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a failed write, not a killed process
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return start
+
+
+def snapshot(out: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+
+
+def test_a_disk_full_at_the_manifest_changes_nothing_and_names_it(tmp_path) -> None:
+    devices = {f"d{i}": line_ssm(2) for i in range(DEVICES)}
+    tasks = [task(f"e{i}", f"d{i}", "S1") for i in range(DEVICES)]
+    bench = write_bench(tmp_path / "bench", devices, tasks)
+    small = write_run(tmp_path / "a", [episode("e0")], run_id="a")
+    wide = write_run(tmp_path / "b", [episode(f"e{i}") for i in range(DEVICES)], run_id="b")
+    out = tmp_path / "out"
+    first = subprocess.run([*VGE, "replay", small, "--bench", bench, "--out", out], check=False)
+    assert first.returncode == 0
+    before = snapshot(out)
+
+    done = subprocess.run(
+        [*VGE, "replay", small, wide, "--bench", bench, "--out", out],
+        preexec_fn=_limited(30_000),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 1
+    assert done.stderr.strip().splitlines() == [
+        f"error: {out / 'manifest.json'}: cannot write: File too large"
+    ]
+    assert snapshot(out) == before  # no partition of b, no runs row, no temporary file
+    manifest = replay.read_manifest(out)
+    assert manifest is not None and [r.run_id for r in manifest.runs] == ["a"]
+
+    again = subprocess.run([*VGE, "replay", small, wide, "--bench", bench, "--out", out], check=False)
+    assert again.returncode == 0  # the next replay, with room, completes it
+    assert [r.run_id for r in replay.read_manifest(out).runs] == ["a", "b"]
+
+
+def test_a_disk_full_in_a_part_names_the_part(tmp_path) -> None:
+    bench = write_bench(tmp_path / "bench", {"press": line_ssm(2)}, [task("e0", "press", "S1")])
+    run = write_run(tmp_path / "run", [episode("e0")], run_id="r")
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [*VGE, "replay", run, "--bench", bench, "--out", out],
+        preexec_fn=_limited(2_000),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 1
+    (line,) = done.stderr.strip().splitlines()
+    assert line.startswith(f"error: {out / '.replay' / 'staging' / 'r'}/")
+    assert line.endswith(".parquet: cannot write: File too large")
+    assert str(run) not in line
+    assert not (out / "manifest.json").exists()
