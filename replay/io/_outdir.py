@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import fcntl
 import io
+import os
 import shutil
 from collections import defaultdict
 from collections.abc import Callable, Iterable
@@ -191,7 +192,12 @@ class OutputLock:
     def __enter__(self) -> OutputLock:
         if self.path is None:
             return self
-        self._fh = open(self.path, "wb")  # noqa: SIM115
+        # never through a link left there (opening it "wb" would truncate its target)
+        try:
+            fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666)
+        except OSError as exc:
+            raise ConfigError(f"{self.path}: cannot take the writer lock: {exc.strerror}") from None
+        self._fh = os.fdopen(fd, "wb")
         try:
             fcntl.flock(self._fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -85,3 +85,47 @@ def test_a_disk_full_in_a_part_names_the_part(tmp_path) -> None:
     assert line.endswith(".parquet: cannot write: File too large")
     assert str(run) not in line
     assert not (out / "manifest.json").exists()
+
+
+def test_a_second_writer_into_one_out_is_refused_in_one_line(tmp_path) -> None:
+    """The lock a running `vge replay` holds (taken here by this process) refuses a second
+    one before it writes anything."""
+    bench = write_bench(tmp_path / "bench", {"press": line_ssm(2)}, [task("e0", "press", "S1")])
+    run = write_run(tmp_path / "run", [episode("e0")], run_id="r")
+    out = tmp_path / "out"
+    with replay.io._outdir.OutputLock(replay.io._fs.location(out / ".replay")):
+        done = subprocess.run(
+            [*VGE, "replay", run, "--bench", bench, "--out", out],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
+    assert done.returncode == 1
+    assert done.stderr.strip().splitlines() == [
+        f"error: {out}: another vge replay is writing to this directory"
+    ]
+    assert sorted(p.name for p in out.rglob("*")) == [".replay", "lock"]
+
+
+def test_a_link_in_place_of_the_lock_is_never_followed(tmp_path) -> None:
+    bench = write_bench(tmp_path / "bench", {"press": line_ssm(2)}, [task("e0", "press", "S1")])
+    run = write_run(tmp_path / "run", [episode("e0")], run_id="r")
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me")
+    out = tmp_path / "out"
+    (out / ".replay").mkdir(parents=True)
+    (out / ".replay" / "lock").symlink_to(target)
+    done = subprocess.run(
+        [*VGE, "replay", run, "--bench", bench, "--out", out],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 1
+    assert done.stderr.strip().splitlines() == [
+        f"error: {out / '.replay' / 'lock'}: cannot take the writer lock: Too many levels of "
+        "symbolic links"
+    ]
+    assert target.read_text() == "keep me"
