@@ -58,6 +58,8 @@ def append_record(path: Path, data: bytes, *, create: bool = False) -> None:
     fd = os.open(path, flags, 0o644)
     try:
         write_all(fd, data)
+    except OSError as exc:
+        raise output_error(path, exc) from exc
     finally:
         os.close(fd)
 

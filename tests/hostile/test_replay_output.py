@@ -129,3 +129,24 @@ def test_a_link_in_place_of_the_lock_is_never_followed(tmp_path) -> None:
         "symbolic links"
     ]
     assert target.read_text() == "keep me"
+
+
+def test_writers_of_runs_and_schemas_never_follow_a_link(tmp_path) -> None:
+    """`RunDirectory.stream` (what `vge synth` writes its runs through) and `write_schemas`
+    replace a link left at their file; its target keeps its bytes."""
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me")
+    run = replay.io.RunDirectory(tmp_path / "run")
+    (tmp_path / "run").mkdir()
+    for name, compress in (("episodes.jsonl", False), ("episodes.jsonl.gz", True)):
+        (tmp_path / "run" / name).symlink_to(target)
+        with run.stream(compress=compress) as fh:
+            fh.write(episode("e0") + b"\n")
+        assert not (tmp_path / "run" / name).is_symlink()
+    schemas = tmp_path / "schemas"
+    schemas.mkdir()
+    (schemas / "manifest.schema.json").symlink_to(target)
+    written = replay.io.write_schemas(schemas)
+    assert schemas / "manifest.schema.json" in written
+    assert not (schemas / "manifest.schema.json").is_symlink()
+    assert target.read_text() == "keep me"
