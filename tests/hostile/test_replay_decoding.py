@@ -20,10 +20,26 @@ def three_episodes(tmp_path: Path, *, middle: bytes | None = None) -> Path:
     return write_run(tmp_path / "run", [episode("e0"), middle or episode("e1"), episode("e2")])
 
 
-def press_bench(tmp_path: Path, ssms: dict[str, dict] | None = None) -> Path:
+def press_bench(tmp_path: Path) -> Path:
     """Device `press` (one press to S1) and tasks e0..e2 on it."""
-    ssms = {"press": line_ssm(2), **(ssms or {})}
-    return write_bench(tmp_path / "bench", ssms, [task(f"e{i}", "press", "S1") for i in range(3)])
+    tasks = [task(f"e{i}", "press", "S1") for i in range(3)]
+    return write_bench(tmp_path / "bench", {"press": line_ssm(2)}, tasks)
+
+
+def add_device(bench: Path, device: str, ssm: bytes) -> None:
+    """BENCH/ssm/<device>.json holding `ssm`, and task e3 on it."""
+    (bench / "ssm" / f"{device}.json").write_bytes(ssm)
+    with open(bench / "tasks.jsonl", "a") as fh:
+        fh.write(json.dumps(task("e3", device, "S1")) + "\n")
+
+
+def replays_all_but(vge_here, run: Path, bench: Path, out: Path, bad: tuple[int, str]) -> None:
+    """`vge replay` exits 2 having quarantined the one bad record and replayed the others."""
+    done = vge_here("replay", run, "--bench", bench, "--out", out)
+    assert done.returncode == 2, done.stderr
+    assert quarantine(out) == [bad]
+    manifest = counts(out)
+    assert manifest.replayed == manifest.lines_read - 1
 
 
 def errors(stdout: str) -> list[str]:
@@ -35,13 +51,10 @@ def test_an_episode_line_not_utf8_is_quarantined(tmp_path, vge_here) -> None:
     run = three_episodes(tmp_path, middle=bad)
     bench = press_bench(tmp_path)
     out = tmp_path / "out"
-    done = vge_here("replay", run, "--bench", bench, "--out", out)
-    assert done.returncode == 2, done.stderr
-    assert quarantine(out) == [(2, "malformed_json")]
+    replays_all_but(vge_here, run, bench, out, (2, "malformed_json"))
     at = bad.index(BAD)
     reason = json.loads((out / "quarantine.jsonl").read_text())["reason"]
     assert reason == f"not valid JSON: invalid UTF-8 (byte {at})"
-    assert counts(out).replayed == 2
 
     done = vge_here("validate", bench, run)
     assert errors(done.stdout) == [
@@ -60,19 +73,13 @@ def test_a_task_line_not_utf8_is_named_and_its_episode_quarantined(tmp_path, vge
     assert errors(done.stdout) == [
         f"error   {bench / 'tasks.jsonl'}:2: invalid UTF-8 (byte {line.index(BAD)})"
     ]
-    out = tmp_path / "out"
-    done = vge_here("replay", run, "--bench", bench, "--out", out)
-    assert done.returncode == 2, done.stderr
-    assert quarantine(out) == [(2, "unknown_episode")]
-    assert counts(out).replayed == 2
+    replays_all_but(vge_here, run, bench, tmp_path / "out", (2, "unknown_episode"))
 
 
 def test_an_ssm_not_utf8_quarantines_its_episodes(tmp_path, vge_here) -> None:
     text = json.dumps(line_ssm(2), indent=1).encode().replace(b'"Line"', b'"Li' + BAD + b'ne"')
     bench = press_bench(tmp_path)
-    (bench / "ssm" / "other.json").write_bytes(text)
-    with open(bench / "tasks.jsonl", "a") as fh:
-        fh.write(json.dumps(task("e3", "other", "S1")) + "\n")
+    add_device(bench, "other", text)
     run = write_run(tmp_path / "run", [episode(f"e{i}") for i in range(4)])
     done = vge_here("validate", bench)
     ssm = bench / "ssm" / "other.json"
@@ -80,11 +87,7 @@ def test_an_ssm_not_utf8_quarantines_its_episodes(tmp_path, vge_here) -> None:
         f"error   {ssm}:2: invalid UTF-8 (byte {text.index(BAD)})",
         f"error   {bench / 'tasks.jsonl'}:4 [episode 'e3']: device 'other' has an invalid SSM",
     ]
-    out = tmp_path / "out"
-    done = vge_here("replay", run, "--bench", bench, "--out", out)
-    assert done.returncode == 2, done.stderr
-    assert quarantine(out) == [(4, "invalid_ssm")]
-    assert counts(out).replayed == 3
+    replays_all_but(vge_here, run, bench, tmp_path / "out", (4, "invalid_ssm"))
 
 
 def test_a_run_json_not_utf8_is_refused_in_one_line(tmp_path, vge_here) -> None:
@@ -113,9 +116,8 @@ def test_boxes_the_planner_cannot_take_are_refused_by_validation(
 ) -> None:
     ssm = json.loads(json.dumps(line_ssm(2)))
     ssm["states"]["S0"]["on"]["button"][0]["bbox"][0]["coordinate"] = coordinate
-    bench = press_bench(tmp_path, {"big": ssm})
-    with open(bench / "tasks.jsonl", "a") as fh:
-        fh.write(json.dumps(task("e3", "big", "S1")) + "\n")
+    bench = press_bench(tmp_path)
+    add_device(bench, "big", json.dumps(ssm).encode())
     run = write_run(tmp_path / "run", [episode(f"e{i}") for i in range(4)])
     done = vge_here("validate", bench, run)
     assert done.returncode == 1
@@ -124,11 +126,7 @@ def test_boxes_the_planner_cannot_take_are_refused_by_validation(
         f"error   {bench / 'ssm' / 'big.json'} [state 'S0', component 'button', transition 0, "
         f"bbox 0]: coordinate [{numbers}] holds a number past 16,777,216 pixels"
     )
-    out = tmp_path / "out"
-    done = vge_here("replay", run, "--bench", bench, "--out", out)
-    assert done.returncode == 2, done.stderr
-    assert quarantine(out) == [(4, "invalid_ssm")]
-    assert counts(out).replayed == 3
+    replays_all_but(vge_here, run, bench, tmp_path / "out", (4, "invalid_ssm"))
 
 
 def test_a_box_at_the_bound_replays(tmp_path, vge_here) -> None:

@@ -31,6 +31,24 @@ def _limited(limit: int):
     return start
 
 
+def vge_replay(*args: object, limit: int | None = None) -> subprocess.CompletedProcess[str]:
+    """`vge replay ARGS` as a real process, under a file-size limit if given."""
+    return subprocess.run(
+        [*VGE, "replay", *map(str, args)],
+        preexec_fn=None if limit is None else _limited(limit),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+def one_press_run(tmp_path: Path) -> tuple[Path, Path]:
+    """A benchmark of the device `press` with task e0, and a run of e0 (run id `r`)."""
+    bench = write_bench(tmp_path / "bench", {"press": line_ssm(2)}, [task("e0", "press", "S1")])
+    return bench, write_run(tmp_path / "run", [episode("e0")], run_id="r")
+
+
 def snapshot(out: Path) -> dict[str, bytes]:
     return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
 
@@ -42,18 +60,10 @@ def test_a_disk_full_at_the_manifest_changes_nothing_and_names_it(tmp_path) -> N
     small = write_run(tmp_path / "a", [episode("e0")], run_id="a")
     wide = write_run(tmp_path / "b", [episode(f"e{i}") for i in range(DEVICES)], run_id="b")
     out = tmp_path / "out"
-    first = subprocess.run([*VGE, "replay", small, "--bench", bench, "--out", out], check=False)
-    assert first.returncode == 0
+    assert vge_replay(small, "--bench", bench, "--out", out).returncode == 0
     before = snapshot(out)
 
-    done = subprocess.run(
-        [*VGE, "replay", small, wide, "--bench", bench, "--out", out],
-        preexec_fn=_limited(30_000),
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = vge_replay(small, wide, "--bench", bench, "--out", out, limit=30_000)
     assert done.returncode == 1
     assert done.stderr.strip().splitlines() == [
         f"error: {out / 'manifest.json'}: cannot write: File too large"
@@ -62,23 +72,15 @@ def test_a_disk_full_at_the_manifest_changes_nothing_and_names_it(tmp_path) -> N
     manifest = replay.read_manifest(out)
     assert manifest is not None and [r.run_id for r in manifest.runs] == ["a"]
 
-    again = subprocess.run([*VGE, "replay", small, wide, "--bench", bench, "--out", out], check=False)
+    again = vge_replay(small, wide, "--bench", bench, "--out", out)
     assert again.returncode == 0  # the next replay, with room, completes it
     assert [r.run_id for r in replay.read_manifest(out).runs] == ["a", "b"]
 
 
 def test_a_disk_full_in_a_part_names_the_part(tmp_path) -> None:
-    bench = write_bench(tmp_path / "bench", {"press": line_ssm(2)}, [task("e0", "press", "S1")])
-    run = write_run(tmp_path / "run", [episode("e0")], run_id="r")
+    bench, run = one_press_run(tmp_path)
     out = tmp_path / "out"
-    done = subprocess.run(
-        [*VGE, "replay", run, "--bench", bench, "--out", out],
-        preexec_fn=_limited(2_000),
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = vge_replay(run, "--bench", bench, "--out", out, limit=2_000)
     assert done.returncode == 1
     (line,) = done.stderr.strip().splitlines()
     assert line.startswith(f"error: {out / '.replay' / 'staging' / 'r'}/")
@@ -90,17 +92,10 @@ def test_a_disk_full_in_a_part_names_the_part(tmp_path) -> None:
 def test_a_second_writer_into_one_out_is_refused_in_one_line(tmp_path) -> None:
     """The lock a running `vge replay` holds (taken here by this process) refuses a second
     one before it writes anything."""
-    bench = write_bench(tmp_path / "bench", {"press": line_ssm(2)}, [task("e0", "press", "S1")])
-    run = write_run(tmp_path / "run", [episode("e0")], run_id="r")
+    bench, run = one_press_run(tmp_path)
     out = tmp_path / "out"
     with replay.io._outdir.OutputLock(replay.io._fs.location(out / ".replay")):
-        done = subprocess.run(
-            [*VGE, "replay", run, "--bench", bench, "--out", out],
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=False,
-        )
+        done = vge_replay(run, "--bench", bench, "--out", out)
     assert done.returncode == 1
     assert done.stderr.strip().splitlines() == [
         f"error: {out}: another vge replay is writing to this directory"
@@ -109,20 +104,13 @@ def test_a_second_writer_into_one_out_is_refused_in_one_line(tmp_path) -> None:
 
 
 def test_a_link_in_place_of_the_lock_is_never_followed(tmp_path) -> None:
-    bench = write_bench(tmp_path / "bench", {"press": line_ssm(2)}, [task("e0", "press", "S1")])
-    run = write_run(tmp_path / "run", [episode("e0")], run_id="r")
+    bench, run = one_press_run(tmp_path)
     target = tmp_path / "precious.txt"
     target.write_text("keep me")
     out = tmp_path / "out"
     (out / ".replay").mkdir(parents=True)
     (out / ".replay" / "lock").symlink_to(target)
-    done = subprocess.run(
-        [*VGE, "replay", run, "--bench", bench, "--out", out],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = vge_replay(run, "--bench", bench, "--out", out)
     assert done.returncode == 1
     assert done.stderr.strip().splitlines() == [
         f"error: {out / '.replay' / 'lock'}: cannot take the writer lock: Too many levels of "
