@@ -412,6 +412,106 @@ def metric_file_bound(work: Path) -> list[str]:
     return rows
 
 
+def _said(text: str | bytes, work: Path) -> str:
+    """A message, its paths relative to the case's folder."""
+    text = text.decode() if isinstance(text, bytes) else text
+    return " ".join(text.replace(f"{work}/", "").split())
+
+
+def _one_bad_among_good(work: Path) -> tuple[Path, Path]:
+    """Benchmark and run of e0, e1, e2 on `press` (a case then spoils one of them)."""
+    bench = _press_bench(work, ["e0", "e1", "e2"])
+    run = gen.write_run(work / "run", [gen.episode(f"e{i}") for i in range(3)])
+    return bench, run
+
+
+def not_utf8(work: Path) -> list[str]:
+    bench, run = _one_bad_among_good(work)
+    bad = gen.episode("e1").replace(b"Thinking", b"Think\xffing")
+    (run / EPISODES).write_bytes(b"\n".join([gen.episode("e0"), bad, gen.episode("e2")]) + b"\n")
+    out = work / "out"
+    done = vge("replay", run, "--bench", bench, "--out", out)
+    rows = [row("an episode line with a byte that is not UTF-8", "vge replay RUN", done, quarantined(out))]
+    lines = (bench / "tasks.jsonl").read_bytes().splitlines()
+    lines[1] = lines[1].replace(b'"e1"', b'"e1\xff"')
+    (bench / "tasks.jsonl").write_bytes(b"\n".join(lines) + b"\n")
+    done = vge("validate", bench)
+    note = _said(done.stdout_head.decode().splitlines()[0], work)
+    rows.append(row("a line of tasks.jsonl with a byte that is not UTF-8", "vge validate BENCH", done, note))
+    return rows
+
+
+def huge_box(work: Path) -> list[str]:
+    bench, run = _one_bad_among_good(work)
+    ssm = json.loads(json.dumps(gen.line_ssm(2)))  # its boxes are one shared dict
+    ssm["states"]["S0"]["on"]["button"][0]["bbox"][0]["coordinate"] = [0, 0, 1e308, 1e308, 1e308, 1e308]
+    (bench / "ssm" / "big.json").write_text(json.dumps(ssm))
+    with open(bench / "tasks.jsonl", "a") as fh:
+        fh.write(json.dumps(gen.task("e3", "big", "S1")) + "\n")
+    with open(run / EPISODES, "ab") as fh:
+        fh.write(gen.episode("e3") + b"\n")
+    done = vge("validate", bench)
+    note = _said(done.stdout_head.decode().splitlines()[0], work).split(": ", 1)[-1]
+    rows = [row("a box of 1e308 in an SSM", "vge validate BENCH", done, note)]
+    out = work / "out"
+    done = vge("replay", run, "--bench", bench, "--out", out)
+    rows.append(row("a box of 1e308 in an SSM", "vge replay RUN", done, quarantined(out)))
+    return rows
+
+
+def wide_meta(work: Path) -> list[str]:
+    bench, run = _one_bad_among_good(work)
+    out = work / "out"
+    first = vge("replay", run, "--bench", bench, "--out", out)
+    assert first.returncode == 0, first.stderr
+    rows = []
+    cases = [
+        ('meta {"x": 2**64}, rerun into an OUT', {"x": 1 << 64}),
+        ("meta of 20,000 keys", {f"key{i:06}": i for i in range(20_000)}),
+        ("meta of 2,500,000 keys", {f"key{i:07}": i for i in range(2_500_000)}),
+    ]
+    for case, meta in cases:
+        header = {"run_id": "run", "model": "m", "agent_kind": "scripted", "meta": meta}
+        (run / "run.json").write_text(json.dumps(header))
+        size = (run / "run.json").stat().st_size
+        done = vge("replay", run, "--bench", bench, "--out", out)
+        note = f"run.json of {size / MiB:.2f} MB; " + _said(done.stderr, work)
+        rows.append(row(case, "vge replay RUN", done, note))
+    return rows
+
+
+def device_paths(work: Path) -> list[str]:
+    tasks = [gen.task("e0", "press", "S1"), gen.task("e1", "../../x", "S1"), gen.task("e2", "d\0x", "S1")]
+    bench = gen.write_bench(work / "bench", {"press": gen.line_ssm(2)}, tasks)
+    with open(work / "x.json", "wb") as fh:  # where ../../x leads: 60 GB, sparse
+        fh.truncate(60 << 30)
+    run = gen.write_run(work / "run", [gen.episode(f"e{i}") for i in range(3)])
+    out = work / "out"
+    done = vge("replay", run, "--bench", bench, "--out", out)
+    case = "task device_ids `../../x` (a sparse file of 60 GB there) and `d\\0x`"
+    return [row(case, "vge replay RUN", done, quarantined(out))]
+
+
+def disk_full(work: Path) -> list[str]:
+    """The manifest cannot be written (a file-size limit of 30 KB stands for a full disk)."""
+    devices = {f"d{i}": gen.line_ssm(2) for i in range(300)}
+    bench = gen.write_bench(work / "bench", devices, [gen.task(f"e{i}", f"d{i}", "S1") for i in range(300)])
+    small = gen.write_run(work / "a", [gen.episode("e0")], run_id="a")
+    wide = gen.write_run(work / "b", [gen.episode(f"e{i}") for i in range(300)], run_id="b")
+    out = work / "out"
+    assert vge("replay", small, "--bench", bench, "--out", out).returncode == 0
+    before = {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+    limited = ["bash", "-c", "trap '' XFSZ; ulimit -f 30; exec \"$@\"", "-", *VGE]
+    args = ["replay", small, wide, "--bench", bench, "--out", out]
+    done = run_bounded([*limited, *map(str, args)], address_space=8 << 30, timeout=600)
+    same = {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()} == before
+    note = f"OUT {'unchanged' if same else 'CHANGED'}; {_said(done.stderr, work)}"
+    return [row("300-device run, disk full at manifest.json", "vge replay A B", done, note)]
+
+
+NEW_CASES = [not_utf8, huge_box, wide_meta, device_paths, disk_full]
+"""The cases of issue 25's decoding, paths and output (`--only new`)."""
+
 CASES: list[Callable[[Path], list[str]]] = [
     large_records,
     long_line,
@@ -429,6 +529,7 @@ CASES: list[Callable[[Path], list[str]]] = [
     live_token_counts,
     bomb_png,
     metric_file_bound,
+    *NEW_CASES,
 ]
 
 
@@ -438,9 +539,13 @@ def main() -> None:
         "--work", type=Path, help="where to generate the inputs (default: a temp dir)"
     )
     parser.add_argument("--keep", action="store_true", help="keep the generated inputs")
-    parser.add_argument("--only", help="the cases to run, comma-separated (default: all)")
+    parser.add_argument(
+        "--only", help="the cases to run, comma-separated; `new`: those of decoding, paths and output"
+    )
     args = parser.parse_args()
     only = None if args.only is None else set(args.only.split(","))
+    if only is not None and "new" in only:
+        only |= {case.__name__ for case in NEW_CASES}
     work = args.work or Path(tempfile.mkdtemp(prefix="vge-hostile-"))
     print(f"{os.cpu_count()} cores; Python {sys.version.split()[0]}; gzip level 1 inputs\n")
     print("| input | command | exit | seconds | peak MB | outcome |")

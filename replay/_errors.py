@@ -21,6 +21,16 @@ class InputError(VGEError):
         super().__init__(f"{where}: {message}")
 
 
+class OutputError(VGEError):
+    """A file that could not be written (a full disk, a quota, a file-size limit): names the
+    output file, never the input being read when it happened."""
+
+    def __init__(self, path: str, message: str) -> None:
+        self.path = str(path)
+        self.message = message
+        super().__init__(f"{self.path}: {message}")
+
+
 class RecordTooLarge(InputError):
     """A record (a line, or a run of blank lines) longer than the maximum size of a record:
     the reading of its file stops there (PROTOCOL §1.5)."""

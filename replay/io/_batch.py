@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import msgspec
 import pyarrow.compute as pc
 
-from .._errors import TaskError, VGEError
+from .._errors import OutputError, TaskError, VGEError
 from ..kernel import BatchTables, EpisodeInput, replay_kernel
 from ..semantics import (
     NO_PRICES,
@@ -40,7 +40,7 @@ from ._file_names import part_name
 from ._files import write_part
 from ._fs import location
 from ._images import ViewImage
-from ._layout import MCAP_DIR, SSM_DIR, SSM_SUFFIX, TABLE_ROWS, TASKS
+from ._layout import MCAP_DIR, TABLE_ROWS, TASKS
 from ._load import episode_decoder
 from ._mcap import mcap_file_name, write_episode_mcap
 from ._quarantine import classify_decode_error, one_line
@@ -149,12 +149,17 @@ class BatchFailure:
     message: str
     details: str
     node: str = ""
+    output: str | None = None
+    """The output file that could not be written (a full disk): the error names it."""
 
 
 def replay_batch(task: BatchTask) -> BatchReport | BatchFailure:
     """Replay a batch and write its parts; every error comes back as data."""
     try:
         return _replay(worker_state(task.bench), task)
+    except OutputError as exc:  # a full disk: the output file is to blame, not the line
+        details = traceback.format_exc()
+        return BatchFailure(task.index, None, exc.message, details, socket.gethostname(), exc.path)
     except Exception as exc:  # a bug or an I/O error: fatal, reported by the main process
         return BatchFailure(
             task.index,
@@ -375,9 +380,9 @@ def _prepare_line(
         return
     task = entry.task
     device = task.device_id
-    if device not in bench.ssm_paths:
-        where = f"{SSM_DIR}/{device}{SSM_SUFFIX}"
-        reason = f"device {device!r} ({TASKS} line {entry.line}) has no SSM file {where}"
+    missing = bench.no_machine(device)
+    if missing is not None:
+        reason = one_line(f"device {device!r} ({TASKS} line {entry.line}) {missing}")
         outcomes.append(LineOutcome(number, eid, True, "unknown_device", reason))
         return
     try:

@@ -21,6 +21,7 @@ stops with one line naming it.
 
 from __future__ import annotations
 
+import errno
 import os
 import secrets
 import shutil
@@ -31,9 +32,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO
 
-from .._errors import ConfigError
+from .._errors import ConfigError, OutputError
 
 _CREATE = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+_FULL = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+"""What a full disk, a quota or a file-size limit raises: the output file is named."""
 _ATTEMPTS = 100
 """Temporary names tried before giving up (each a random 64-bit suffix: one is enough)."""
 
@@ -55,6 +58,8 @@ def append_record(path: Path, data: bytes, *, create: bool = False) -> None:
     fd = os.open(path, flags, 0o644)
     try:
         write_all(fd, data)
+    except OSError as exc:
+        raise output_error(path, exc) from exc
     finally:
         os.close(fd)
 
@@ -79,22 +84,71 @@ def _publish(tmp: Path, path: Path, sync: bool) -> None:
         fsync_dir(path.parent)
 
 
+class FileSet:
+    """Files written whole under temporary names beside their destinations, then renamed in
+    together by `commit`, in the order they were written (or removed by `discard`): what
+    fails while they are written (a full disk, a late error) changes none of them. With
+    `sync`, each is flushed to disk before the renames and its folder after them."""
+
+    def __init__(self, *, sync: bool = True) -> None:
+        self.sync = sync
+        self._written: list[tuple[Path, Path]] = []
+
+    @contextmanager
+    def file(self, path: Path) -> Iterator[BinaryIO]:
+        """A stream to write `path` through; it is held back until `commit`."""
+        fd, tmp = _temporary(path)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                yield fh
+                if self.sync:
+                    fh.flush()
+                    os.fsync(fh.fileno())
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise output_error(path, exc) from exc
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+        self._written.append((tmp, path))
+
+    def commit(self) -> None:
+        """Rename every file written over its destination (a link there is replaced, not
+        followed); renames take no space, so a full disk cannot stop them half-way."""
+        for tmp, path in self._written:
+            os.replace(tmp, path)
+        if self.sync:
+            for folder in dict.fromkeys(path.parent for _, path in self._written):
+                fsync_dir(folder)
+        self._written.clear()
+
+    def discard(self) -> None:
+        for tmp, _ in self._written:
+            tmp.unlink(missing_ok=True)
+        self._written.clear()
+
+
 @contextmanager
 def atomic_file(path: Path, *, sync: bool = True) -> Iterator[BinaryIO]:
     """A file to write `path` through: the block writes a temporary file beside it, which
     replaces `path` when the block ends without an error (and is removed when it does not).
-    `sync`: flushed to disk before the rename, the folder after it."""
-    fd, tmp = _temporary(path)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            yield fh
-            if sync:
-                fh.flush()
-                os.fsync(fh.fileno())
-        _publish(tmp, path, sync)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    `sync`: flushed to disk before the rename, the folder after it. A full disk raises an
+    `OutputError` naming `path`."""
+    files = FileSet(sync=sync)
+    with files.file(path) as fh:
+        yield fh
+    files.commit()
+
+
+def output_error(path: Path | str, exc: OSError) -> OSError | OutputError:
+    """A full disk (a quota, a file-size limit) while writing `path` as one line naming it;
+    another error as it was."""
+    code = exc.errno
+    if code is None and "No space left" in str(exc):  # pyarrow keeps only the message
+        code = errno.ENOSPC
+    if code not in _FULL:
+        return exc
+    return OutputError(str(path), f"cannot write: {os.strerror(code)}")
 
 
 def write_atomic(path: Path, data: bytes, *, sync: bool = True) -> None:

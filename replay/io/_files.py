@@ -15,9 +15,7 @@ files depend only on the input, never on timing or the number of workers.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 from pathlib import Path
-from typing import BinaryIO
 
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -32,16 +30,6 @@ ROW_GROUP_ROWS = 65_536
 COMPRESSION = "zstd"
 PLAIN_TEXT_COLUMNS = frozenset({"output", "thinking", "action_raw"})
 """Long free-text columns: written without trying a dictionary."""
-
-
-def atomic_write(path: Location, write: Callable[[BinaryIO], None]) -> None:
-    """Write `path` whole through `write(stream)` (see `Location.writer`)."""
-    with path.writer() as fh:
-        write(fh)
-
-
-def atomic_write_bytes(path: Location, data: bytes) -> None:
-    path.write_bytes(data)
 
 
 def write_part(table: pa.Table, path: Location, row_group_rows: int) -> None:

@@ -272,6 +272,15 @@ def remove_local(path: Path) -> None:
         shutil.rmtree(path)
 
 
+def confined(root: Location, path: Location) -> bool:
+    """Whether `path`, its links followed, is inside the directory `root` (PROTOCOL §1.1: what
+    a benchmark names is read from the benchmark). A store has no links: always."""
+    if root.local is None or path.local is None:
+        return True
+    top = os.path.realpath(root.local)
+    return os.path.realpath(path.local).startswith(os.path.join(top, ""))
+
+
 def location(given: str | os.PathLike[str] | Location) -> Location:
     """The location named by a local path or a URI; raises `InputError` naming it when no
     filesystem opens the URI (unknown scheme, bad options, unreachable store)."""
@@ -309,4 +318,4 @@ def _open(
     return fs, path
 
 
-__all__ = ["IMPLICIT_DIRECTORIES", "Location", "is_uri", "location", "remove_local"]
+__all__ = ["IMPLICIT_DIRECTORIES", "Location", "confined", "is_uri", "location", "remove_local"]

@@ -21,8 +21,8 @@ from typing import TYPE_CHECKING, NamedTuple
 
 from .._errors import PictureError
 from ..semantics import Machine
-from ._fs import Location, location
-from ._layout import image_paths
+from ._fs import Location, confined, location
+from ._layout import image_paths, not_a_file_name, relative_inside
 
 if TYPE_CHECKING:
     from PIL import Image
@@ -152,11 +152,14 @@ def _read(path: Location) -> ViewImage | None:
 
 
 def _candidates(root: Location, machine: Machine, view: str) -> Iterator[Location]:
-    """The files that may hold the view's picture, in the order of PROTOCOL §1.1."""
+    """The files that may hold the view's picture, in the order of PROTOCOL §1.1. Only a file
+    inside BENCH: a view that cannot name a file, an `images` path that leaves BENCH
+    (absolute, `..`, a link out) is no candidate."""
     view = view.lower()
-    yield from image_paths(root, machine.device_id, view)
+    if not_a_file_name(view) is None:
+        yield from (path for path in image_paths(root, machine.device_id, view) if confined(root, path))
     ref = machine.images.get(view)
-    if ref is not None:
+    if ref is not None and relative_inside(ref[0]) and confined(root, root / ref[0]):
         yield root / ref[0]
 
 

@@ -11,7 +11,7 @@ import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 
-from .._errors import InputError, RecordTooLarge
+from .._errors import InputError, OutputError, RecordTooLarge
 from .._version import ENGINE_VERSION
 from ..semantics import arrow_schema
 from ._batch import (
@@ -30,6 +30,7 @@ from ._layout import (
     EPISODES_TABLE,
     GOALS_TABLE,
     MCAP_DIR,
+    QUARANTINE,
     STEPS_TABLE,
     TABLE_ROWS,
     listed_mcap,
@@ -204,6 +205,8 @@ class RunJob:
 
     def _checked(self, result: BatchReport | BatchFailure) -> BatchReport:
         if isinstance(result, BatchFailure):
+            if result.output is not None:
+                raise OutputError(result.output, result.message)
             raise InputError(self.ctx.file, result.message, result.line) from RuntimeError(
                 result.details
             )
@@ -234,20 +237,27 @@ class RunJob:
         """The run's parts of a table as the manifest lists them, sorted."""
         return [listed_part(table, self.ctx.run_id, f) for f in sorted(self.parts[table])]
 
-    def commit(self, inputs: RunInputs) -> RunEntry:
-        """Commit the run's partitions and quarantine records into OUT; its manifest entry
-        (also kept as `entry`)."""
-        self._commit_files()
-        self.entry = self._entry(inputs)
-        return self.entry
-
-    def _commit_files(self) -> None:
-        run_id = self.ctx.run_id
+    def stage(self, inputs: RunInputs) -> tuple[RunEntry, Location]:
+        """Finish the run's files in staging (an empty part for a table with none, its
+        quarantine records): its manifest entry (also kept as `entry`) and where its
+        quarantine records are staged. Nothing in OUT changes yet."""
         for name, row_type in TABLE_ROWS.items():
             if not self.parts[name]:  # every run has at least one (empty) part per table
                 table = arrow_schema(row_type).empty_table()
                 write_part(table, self.staging / name / part_name(0), self.ctx.row_group_rows)
                 self.parts[name].append(part_name(0))
+        staged = self.staging / QUARANTINE
+        self._quarantine.seek(0)
+        with staged.writer() as fh:
+            shutil.copyfileobj(self._quarantine, fh)
+        self._quarantine.close()
+        self.entry = self._entry(inputs)
+        return self.entry, staged
+
+    def swap_in(self) -> None:
+        """Move the staged run into OUT: its partitions, its MCAP folder, its quarantine
+        records (renames on disk, `commit_dir`)."""
+        run_id = self.ctx.run_id
         trash = self.state_dir / "trash"
         for name in TABLE_ROWS:
             commit_dir(self.staging / name, partition_dir(self.out, name, run_id), trash)
@@ -257,10 +267,7 @@ class RunJob:
             remove_dir(mcap_dir(self.out, run_id), trash)
         qdir = self.state_dir / "quarantine"
         qdir.mkdir()
-        self._quarantine.seek(0)
-        with (qdir / f"{run_id}.jsonl").writer() as fh:
-            shutil.copyfileobj(self._quarantine, fh)
-        self._quarantine.close()
+        (self.staging / QUARANTINE).replace(qdir / f"{run_id}.jsonl")
         self.staging.rmtree()
 
     def _entry(self, inputs: RunInputs) -> RunEntry:

@@ -65,6 +65,23 @@ MANIFEST = "manifest.json"
 _P = TypeVar("_P", Path, "Location")
 
 
+def not_a_file_name(name: str) -> str | None:
+    """Why an id (a device, a view) cannot be one file or folder name inside BENCH (PROTOCOL
+    §1.5), or None when it can: it would leave its folder or fail to open."""
+    if name in ("", ".", ".."):
+        return "is not a name"
+    if any(c in name for c in "/\\\0"):
+        return "holds '/', '\\' or a NUL byte"
+    return None
+
+
+def relative_inside(ref: str) -> bool:
+    """Whether a path an SSM names (`images`) stays inside BENCH as written: relative, no
+    `..`, no NUL byte (PROTOCOL §1.1). Links are judged where the file is read."""
+    parts = ref.replace("\\", "/").split("/")
+    return bool(ref) and "\0" not in ref and not ref.startswith("/") and ".." not in parts
+
+
 def ssm_path(bench: _P, device_id: str) -> _P:
     """`BENCH/ssm/<device_id>.json`."""
     return bench / SSM_DIR / f"{device_id}{SSM_SUFFIX}"

@@ -21,11 +21,12 @@ from ..semantics import (
     StateMachine,
     Task,
     compile_machine,
+    meta_problem,
     setup_episode,
     validate_machine,
 )
 from ._decode import decode
-from ._fs import Location, location
+from ._fs import Location, confined, location
 from ._images import bench_image_problem
 from ._layout import (
     EPISODES,
@@ -35,8 +36,9 @@ from ._layout import (
     SSM_SUFFIX,
     TASKS,
     UCSM_DIR,
+    not_a_file_name,
+    relative_inside,
     run_json_path,
-    ssm_path,
     tasks_path,
 )
 from ._lines import MAX_RECORD_BYTES, iter_lines, read_whole
@@ -82,9 +84,16 @@ def load_machine(path: str | Path | Location, device_id: str | None = None) -> M
     return compile_machine(ssm, device_id=device_id or path.stem, source=str(path))
 
 
+MAX_RUN_JSON_BYTES = 1 << 20
+"""The most bytes a run.json may take (PROTOCOL §1.5): a header, a bounded meta and room to
+indent it; a wider one is refused before its meta is decoded."""
+
+
 def read_run_header(run_dir: str | Path | Location) -> RunHeader:
+    """run.json, decoded and checked: an empty run_id, or a meta too wide or with a number
+    the tables cannot hold, is refused in one line naming the file (PROTOCOL §1.5)."""
     path = run_json_path(location(run_dir))
-    data = read_whole(path)
+    data = read_whole(path, MAX_RUN_JSON_BYTES)
     try:
         header = decode(_run_decoder, data)
     except msgspec.DecodeError as exc:
@@ -92,6 +101,9 @@ def read_run_header(run_dir: str | Path | Location) -> RunHeader:
         raise InputError(str(path), msg, _line_of(data, msg)) from None
     if not header.run_id.strip():
         raise InputError(str(path), "run_id is empty")
+    problem = meta_problem(header.meta)
+    if problem is not None:
+        raise InputError(str(path), problem)
     return header
 
 
@@ -127,6 +139,8 @@ class Benchmark:
     tasks: dict[str, TaskEntry] = field(default_factory=dict)
     task_problems: list[Problem] = field(default_factory=list)
     ssm_paths: dict[str, Location] = field(default_factory=dict)
+    outside: set[str] = field(default_factory=set)
+    """Devices whose SSM file is a link out of BENCH (never read)."""
     _machines: dict[str, Machine | VGEError] = field(default_factory=dict, repr=False)
 
     @classmethod
@@ -138,12 +152,18 @@ class Benchmark:
         if not ssm_dir.is_dir():
             raise InputError(str(ssm_dir), f"benchmark has no {SSM_DIR}/ directory")
         bench = cls(root=root)
-        bench.ssm_paths = {
-            Path(n).stem: ssm_dir / n for n in ssm_dir.names() if n.endswith(SSM_SUFFIX)
-        }
+        for name in ssm_dir.names():
+            if name.endswith(SSM_SUFFIX):
+                path = ssm_dir / name
+                if confined(root, path):
+                    bench.ssm_paths[Path(name).stem] = path
+                else:  # a link out of BENCH: never read, not even hashed
+                    bench.outside.add(Path(name).stem)
         tasks = tasks_path(root)
         if not tasks.exists():
             raise InputError(str(tasks), "file not found")
+        if not confined(root, tasks):
+            raise InputError(str(tasks), "resolves outside the benchmark directory (a link)")
         for number, line in iter_lines(tasks):
             try:
                 task = decode(_task_decoder, line)
@@ -169,13 +189,26 @@ class Benchmark:
     def tasks_path(self) -> Location:
         return tasks_path(self.root)
 
+    def no_machine(self, device_id: str) -> str | None:
+        """Why a device has no SSM file to read (PROTOCOL §1.5), in words that follow its
+        name; None when it has one. An id that cannot name a file is never made a path."""
+        if device_id in self.ssm_paths:
+            return None
+        why = not_a_file_name(device_id)
+        if why is not None:
+            return f"cannot name an SSM file (it {why})"
+        where = f"{SSM_DIR}/{device_id}{SSM_SUFFIX}"
+        if device_id in self.outside:
+            return f"has an SSM file {where} that links outside the benchmark directory"
+        return f"has no SSM file {where}"
+
     def machine(self, device_id: str) -> Machine:
         """The compiled machine of a device; raises the (cached) load error."""
         got = self._machines.get(device_id)
         if got is None:
             path = self.ssm_paths.get(device_id)
             if path is None:
-                got = InputError(str(ssm_path(self.root, device_id)), "unknown device: no such SSM file")
+                got = InputError(str(self.root), f"device {device_id!r} {self.no_machine(device_id)}")
             else:
                 try:
                     got = load_machine(path, device_id)
@@ -198,6 +231,9 @@ def validate_benchmark(root: str | Path | Location) -> list[Problem]:
     problems: list[Problem] = []
     for device_id, path in bench.ssm_paths.items():
         problems.extend(_ssm_problems(root, device_id, path))
+    for device_id in sorted(bench.outside):
+        why = bench.no_machine(device_id)
+        problems.append(Problem(str(root / SSM_DIR), f"device {device_id!r}", f"it {why}"))
     ucsm_dir = root / UCSM_DIR
     if ucsm_dir.is_dir():
         for path in [ucsm_dir / n for n in ucsm_dir.names() if n.endswith(SSM_SUFFIX)]:
@@ -248,7 +284,15 @@ def _ssm_problems(root: Location, device_id: str, path: Location) -> list[Proble
             )
         )
     for view, ref in (ssm.images or {}).items():
-        if not (root / ref.path).exists():
+        if not relative_inside(ref.path) or not confined(root, root / ref.path):
+            problems.append(
+                Problem(
+                    str(path),
+                    f"images.{view}",
+                    f"image file {ref.path!r} is outside the benchmark directory; it is never read",
+                )
+            )
+        elif not (root / ref.path).exists():
             problems.append(
                 Problem(
                     str(path), f"images.{view}", f"image file {ref.path!r} not found", "warning"
@@ -263,11 +307,15 @@ def _task_problems(bench: Benchmark, episode_id: str, entry: TaskEntry) -> list[
     where = f"{bench.tasks_path}:{entry.line}"
     episode = f"episode {episode_id!r}"
     task = entry.task
+    device = task.device_id
+    missing = bench.no_machine(device)
+    if missing is not None:
+        named = not_a_file_name(device) is None and device not in bench.outside
+        said = f"unknown device {device!r}" if named else f"device {device!r} {missing}"
+        return [Problem(where, episode, said)]
     try:
         machine = bench.machine(task.device_id)
-    except InputError:
-        return [Problem(where, episode, f"unknown device {task.device_id!r}")]
-    except VGEError:
+    except VGEError:  # an SSM that does not decode or does not validate
         return [Problem(where, episode, f"device {task.device_id!r} has an invalid SSM")]
     try:
         setup = setup_episode(machine, task)

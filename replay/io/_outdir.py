@@ -6,9 +6,11 @@ local disk only: object stores have no lock, docs/SCALE.md)."""
 from __future__ import annotations
 
 import fcntl
+import io
+import os
 import shutil
 from collections import defaultdict
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import BinaryIO
 
 import pyarrow.parquet as pq
@@ -16,11 +18,13 @@ import pyarrow.parquet as pq
 from .._errors import ConfigError
 from .._version import ENGINE_VERSION
 from ..semantics import SCHEMA_VERSION
-from ._files import STATE_DIR, atomic_write, atomic_write_bytes
-from ._fs import Location, location
+from ._durable import FileSet
+from ._files import STATE_DIR
+from ._fs import Location, confined, location
 from ._layout import (
     RUNS_TABLE,
     manifest_path,
+    not_a_file_name,
     quarantine_path,
     run_json_path,
     runs_path,
@@ -28,6 +32,7 @@ from ._layout import (
     tasks_path,
 )
 from ._manifest import (
+    FileRef,
     Hasher,
     ManifestFile,
     RunEntry,
@@ -41,14 +46,22 @@ from ._reading import RunInput
 
 
 def run_inputs(run: RunInput, bench_dir: str, hasher: Hasher, devices: Iterable[str]) -> RunInputs:
+    """The inputs of a run and their sha256, an SSM for each device its tasks name (a device
+    with no SSM yet too: one added later makes the run replay again). A device id that
+    cannot name a file, or an SSM linked out of BENCH, is never made a path nor read."""
     bench = location(bench_dir)
+    ssm: dict[str, FileRef] = {}
+    for d in sorted(devices):
+        if not_a_file_name(d) is None:
+            path = ssm_path(bench, d)
+            ssm[d] = hasher.ref(path) if confined(bench, path) else FileRef(str(path), None)
     return RunInputs(
         run_dir=run.run_dir,
         run_json=hasher.ref(run_json_path(location(run.run_dir))),
         episodes=hasher.ref(run.episodes),
         bench=bench_dir,
         tasks=hasher.ref(tasks_path(bench)),
-        ssm={d: hasher.ref(ssm_path(bench, d)) for d in sorted(devices)},
+        ssm=ssm,
     )
 
 
@@ -94,32 +107,77 @@ def _all_present(out: Location, paths: list[str]) -> bool:
 # ------------------------------------------------------------------------- publishing
 
 
-def publish(out: Location, entries: dict[str, RunEntry]) -> ManifestFile:
-    """Rewrite quarantine.jsonl, runs/runs.parquet and manifest.json (last: the commit
-    marker) from the run entries."""
+class Publishing:
+    """quarantine.jsonl, runs/runs.parquet and manifest.json, written whole but not yet in
+    place: `commit` puts them there, the manifest (the commit marker) last."""
+
+    def __init__(self, manifest: ManifestFile, commit: Callable[[], None]) -> None:
+        self.manifest = manifest
+        self.commit = commit
+
+
+def prepare_publish(
+    out: Location, entries: dict[str, RunEntry], staged: dict[str, Location] | None = None
+) -> Publishing:
+    """Make OUT's three files from the run entries (a run's quarantine records from
+    `staged` if there, else from OUT's state), changing nothing in OUT: what fails here (a
+    full disk, a meta the runs table cannot hold) leaves OUT as it was. On the local disk
+    they are temporary files beside their places; elsewhere, bytes in memory."""
     runs = [entries[k] for k in sorted(entries)]
     qdir = out / STATE_DIR / "quarantine"
     present = set(qdir.names())
+    staged = staged or {}
 
     def write_quarantine(fh: BinaryIO) -> None:
         for r in runs:
             name = f"{r.run_id}.jsonl"
-            if name in present:
-                with (qdir / name).open_read() as src:
+            source = staged.get(r.run_id) or (qdir / name if name in present else None)
+            if source is not None:
+                with source.open_read() as src:
                     shutil.copyfileobj(src, fh)
 
-    atomic_write(quarantine_path(out), write_quarantine)
-    (out / RUNS_TABLE).mkdir()
     table = runs_table(runs)
-    atomic_write(runs_path(out), lambda fh: pq.write_table(table, fh))
     manifest = ManifestFile(
         engine_version=ENGINE_VERSION,
         schema_version=SCHEMA_VERSION,
         totals=totals_of(runs),
         runs=runs,
     )
-    atomic_write_bytes(manifest_path(out), encode_manifest(manifest))
-    return manifest
+    writers: list[tuple[Location, Callable[[BinaryIO], object]]] = [
+        (quarantine_path(out), write_quarantine),
+        (runs_path(out), lambda fh: pq.write_table(table, fh)),
+        (manifest_path(out), lambda fh: fh.write(encode_manifest(manifest))),
+    ]
+    (out / RUNS_TABLE).mkdir()
+    if out.local is None:  # uploaded whole, one after the other, when committed
+        made = []
+        for path, write in writers:
+            buffer = io.BytesIO()
+            write(buffer)
+            made.append((path, buffer.getvalue()))
+
+        def upload() -> None:
+            for path, data in made:
+                path.write_bytes(data)
+
+        return Publishing(manifest, upload)
+    files = FileSet()
+    try:
+        for path, write in writers:
+            with files.file(path.local) as fh:  # type: ignore[arg-type]
+                write(fh)
+    except BaseException:
+        files.discard()
+        raise
+    return Publishing(manifest, files.commit)
+
+
+def publish(out: Location, entries: dict[str, RunEntry]) -> ManifestFile:
+    """Rewrite quarantine.jsonl, runs/runs.parquet and manifest.json (last: the commit
+    marker) from the run entries, all three or none."""
+    publishing = prepare_publish(out, entries)
+    publishing.commit()
+    return publishing.manifest
 
 
 class OutputLock:
@@ -134,7 +192,12 @@ class OutputLock:
     def __enter__(self) -> OutputLock:
         if self.path is None:
             return self
-        self._fh = open(self.path, "wb")  # noqa: SIM115
+        # never through a link left there (opening it "wb" would truncate its target)
+        try:
+            fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666)
+        except OSError as exc:
+            raise ConfigError(f"{self.path}: cannot take the writer lock: {exc.strerror}") from None
+        self._fh = os.fdopen(fd, "wb")
         try:
             fcntl.flock(self._fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -17,7 +17,8 @@ QUARANTINE_KINDS: dict[str, str] = {
     "invalid_record": "valid JSON, but not an episode record (a missing field, a wrong type)",
     "step_not_object": "an element of `steps` is not a JSON object",
     "unknown_episode": "the episode id is not in the benchmark's tasks.jsonl",
-    "unknown_device": "the task's device has no SSM file in BENCH/ssm/",
+    "unknown_device": "the task's device has no SSM file in BENCH/ssm/ (or its id cannot "
+    "name one, or the file links out of BENCH)",
     "invalid_ssm": "the device's SSM file does not load or does not validate",
     "task_error": "the task cannot be played on its device (bad goals, unplannable...)",
     "duplicate_episode": "the episode id already appeared earlier in the same run",

@@ -26,7 +26,7 @@ import msgspec
 from .._errors import InputError
 from ..semantics import RunHeader
 from ._decode import decode
-from ._durable import append_record, truncate, write_atomic
+from ._durable import append_record, atomic_file, truncate, write_atomic
 from ._layout import EPISODES, RUN_JSON
 from ._load import episode_decoder, read_run_header, run_header_bytes
 
@@ -108,12 +108,12 @@ class RunDirectory:
         """A new episodes file to write line by line (`episodes.jsonl.gz` when `compress`:
         no name or time in the gzip header, so the bytes depend on the lines alone)."""
         self.root.mkdir(parents=True, exist_ok=True)
-        if not compress:
-            with open(self.episodes_path, "wb") as fh:
+        if not compress:  # whole or not at all, never through a link (`atomic_file`)
+            with atomic_file(self.episodes_path, sync=False) as fh:
                 yield fh
             return
         with (
-            open(self.root / f"{EPISODES}.gz", "wb") as raw,
+            atomic_file(self.root / f"{EPISODES}.gz", sync=False) as raw,
             gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0, compresslevel=6) as gz,
         ):
             yield gz  # type: ignore[misc]

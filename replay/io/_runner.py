@@ -35,8 +35,8 @@ from ._job import RunJob
 from ._layout import manifest_path
 from ._lines import MAX_RECORD_BYTES
 from ._load import Benchmark
-from ._manifest import Hasher, Manifest, RunEntry, RunOptions, read_manifest
-from ._outdir import OutputLock, publish, run_inputs, up_to_date
+from ._manifest import Hasher, Manifest, RunEntry, RunInputs, RunOptions, read_manifest
+from ._outdir import OutputLock, prepare_publish, publish, run_inputs, up_to_date
 from ._reading import RunInput, read_runs
 from ._worker import WorkerState, adopt
 
@@ -165,11 +165,9 @@ def replay_runs(
                     bar.console.print(f"{run_id}: up to date, skipped (use --force)")
             for job in _replay_all(
                 todo, bench, bench_given, out, options, image_source, hasher, executor, bar,
-                functools.partial(_withdraw, out, entries),
+                functools.partial(_commit, out, entries),
             ):  # fmt: skip
-                entries[job.ctx.run_id] = job.entry
                 replayed.append(job.ctx.run_id)
-                publish(out, entries)
             content = publish(out, entries)
         finally:
             if bar is not None:
@@ -204,12 +202,23 @@ def _previous_entries(out: Location) -> dict[str, RunEntry]:
     return {e.run_id: e for e in previous.runs} if previous else {}
 
 
-def _withdraw(out: Location, entries: dict[str, RunEntry], run_id: str) -> None:
-    """Without renames a run's files are replaced one by one: take the run out of the
-    manifest (the commit marker) first, so no reader trusts a half-replaced run and an
-    interruption leaves it to be replayed."""
+def _commit(out: Location, entries: dict[str, RunEntry], job: RunJob, inputs: RunInputs) -> None:
+    """Put a replayed run into OUT so that its partitions, the runs table and the manifest
+    change together or not at all: everything is written first (the run in staging, OUT's
+    three files beside their places), then moved in by renames, the manifest last. A full
+    disk or a late error while writing leaves OUT as it was.
+
+    Without renames (an object store) a run's files are replaced one by one: the run is
+    taken out of the manifest (the commit marker) first, so no reader trusts a half-replaced
+    run and an interruption leaves it to be replayed."""
+    run_id = job.ctx.run_id
     if out.local is None and entries.pop(run_id, None) is not None:
         publish(out, entries)
+    entry, quarantine = job.stage(inputs)
+    publishing = prepare_publish(out, {**entries, run_id: entry}, {run_id: quarantine})
+    job.swap_in()
+    publishing.commit()
+    entries[run_id] = entry
 
 
 def _runs_to_replay(
@@ -247,10 +256,10 @@ def _replay_all(
     hasher: Hasher,
     executor: Executor,
     bar: Progress | None,
-    withdraw: Callable[[str], None],
+    commit: Callable[[RunJob, RunInputs], None],
 ) -> Iterator[RunJob]:
-    """Replay the runs, yielding each run's job once it is committed (in order);
-    `withdraw(run_id)` is called just before a run's commit."""
+    """Replay the runs, yielding each run's job once `commit(job, inputs)` put it into OUT
+    (in order)."""
     open_jobs: list[RunJob] = []
     bars: dict[str, TaskID] = {}
 
@@ -279,8 +288,7 @@ def _replay_all(
                 continue
             job.finish_reading()
             inputs = run_inputs(job.run, bench_given, hasher, job.devices)
-            withdraw(job.ctx.run_id)
-            job.commit(inputs)
+            commit(job, inputs)
             open_jobs.remove(job)
             if bar is not None:
                 task_id = bars[job.ctx.run_id]

@@ -11,6 +11,7 @@ from pathlib import Path
 import msgspec
 
 from ..semantics import INPUT_RECORDS, OUTPUT_RECORDS
+from ._durable import write_atomic
 from ._manifest import ManifestFile
 from ._quarantine import QuarantineRecord
 
@@ -46,6 +47,6 @@ def write_schemas(directory: str | Path) -> list[Path]:
     written = []
     for name, data in sorted(schema_documents().items()):
         path = directory / name
-        path.write_bytes(data)
+        write_atomic(path, data)
         written.append(path)
     return written

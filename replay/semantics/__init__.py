@@ -78,12 +78,14 @@ from ._records import (
     StateMachine,
     Task,
     Transition,
+    meta_problem,
 )
 from ._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
 from ._step import Outcome, SimState, apply_transition, reset, step
 from ._tables import arrow_schema, rows_to_table, table_rows, table_tuples
 from ._usage import (
     COMPLETION_PRICE_KEY,
+    MAX_PRICE,
     NO_PRICES,
     ORIGINS,
     PROMPT_PRICE_KEY,
@@ -169,6 +171,7 @@ __all__ = [
     "FEEDBACK_KINDS",
     "INTERACTIONS",
     "INVALID_DETAILS",
+    "MAX_PRICE",
     "ORIGINS",
     "ORTHOGRAPHIC_VIEWS",
     "PARSE_DETAILS",
@@ -206,6 +209,7 @@ __all__ = [
     "StateMachine",
     "Task",
     "Transition",
+    "meta_problem",
     # the machine
     "CompiledTransition",
     "Machine",

@@ -7,6 +7,7 @@ simulator, planner and classifier only read these tables.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -318,9 +319,19 @@ def _immediate_cycles(ssm: StateMachine) -> list[list[str]]:
     return cycles
 
 
+MAX_PIXELS = 1 << 24
+"""The largest number a box or a dashboard region may hold, in pixels (PROTOCOL §1.5): a
+picture is far smaller, and the planner's arithmetic on the 0..1000 scale stays finite."""
+
+
 def _check_coordinate(coord: list[float], where: str, err) -> None:
     if len(coord) != 6:
         err(where, f"coordinate must be [x, y, w, h, W, H], got {len(coord)} numbers")
+        return
+    if not all(math.isfinite(v) and abs(v) <= MAX_PIXELS for v in coord):
+        # normalising multiplies by the scale: a larger number overflows to inf, then NaN
+        numbers = ", ".join(f"{v:g}" for v in coord)
+        err(where, f"coordinate [{numbers}] holds a number past {MAX_PIXELS:,} pixels")
         return
     x, y, w, h, width, height = (f"{v:g}" for v in coord)
     if coord[4] <= 0 or coord[5] <= 0:

@@ -139,6 +139,36 @@ class RunHeader(msgspec.Struct):
     schema_version: Annotated[int, _doc("Record format version")] = SCHEMA_VERSION
 
 
+MAX_META_KEYS = 256
+"""The most keys a run.json's meta may hold (PROTOCOL §1.5): each scalar one is a column of
+the runs table, which every command and page reads."""
+MAX_META_BYTES = 1 << 16
+"""The most bytes a run.json's meta may take, as compact JSON (PROTOCOL §1.5)."""
+INT64 = (-(1 << 63), (1 << 63) - 1)
+"""The integers the tables can hold: a meta integer outside them is refused (PROTOCOL §1.5)."""
+
+
+def meta_problem(meta: dict[str, Any]) -> str | None:
+    """What makes a run.json's meta too wide or unwritable (PROTOCOL §1.5), in one line; None
+    when nothing does. The walk is linear in what the decoder already read."""
+    if len(meta) > MAX_META_KEYS:
+        return f"meta has {len(meta):,} keys; at most {MAX_META_KEYS}"
+    stack: list[tuple[str, Any]] = [("meta", meta)]
+    while stack:
+        where, value = stack.pop()
+        if isinstance(value, int) and not INT64[0] <= value <= INT64[1]:
+            bits = value.bit_length() + (value < 0)
+            return f"{where} is an integer of {bits} bits; the tables hold 64 (signed)"
+        if isinstance(value, dict):
+            stack.extend((f"{where}.{k}", v) for k, v in reversed(value.items()))
+        elif isinstance(value, list):
+            stack.extend((f"{where}[{i}]", v) for i, v in reversed(list(enumerate(value))))
+    size = len(msgspec.json.encode(meta))
+    if size > MAX_META_BYTES:
+        return f"meta takes {size:,} bytes as JSON; at most {MAX_META_BYTES:,}"
+    return None
+
+
 MAX_TOKENS = 1 << 40
 """The most tokens a step may record (PROTOCOL §1.4): sums over the steps of a record of at most
 64 MiB stay far within the 64-bit integers of the tables."""

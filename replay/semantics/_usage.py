@@ -15,6 +15,10 @@ PROMPT_PRICE_KEY = "prompt_price_per_mtok"
 COMPLETION_PRICE_KEY = "completion_price_per_mtok"
 """The keys of run.json's meta holding the prices, USD per million tokens (PROTOCOL §1.4)."""
 
+MAX_PRICE = 1e6
+"""The dearest price a run may give, USD per million tokens (PROTOCOL §1.4): a thousand times
+any model's, and low enough that the costs of the largest token counts stay finite."""
+
 ORIGINS = ("prefix", "fix", "agent")
 """A step's origin (PROTOCOL §7.2): repeated from the source run, the planner's fix, or the
 run's own agent (every step of an ordinary run)."""
@@ -44,9 +48,11 @@ def run_prices(meta: dict[str, Any]) -> Prices:
             isinstance(value, bool)
             or not isinstance(value, (int, float))
             or not math.isfinite(value)
-            or value < 0
+            or not 0 <= value <= MAX_PRICE
         ):
-            raise ValueError(f"meta.{key} must be a non-negative number of USD, not {value!r}")
+            raise ValueError(
+                f"meta.{key} must be a number of USD from 0 to {MAX_PRICE:,.0f}, not {value!r}"
+            )
         found.append(None if value is None else float(value))
     return Prices(*found)
 

@@ -19,7 +19,6 @@ import random
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import msgspec
@@ -33,6 +32,7 @@ import replay
 from replay.io import _lines
 from tests.bounded import run_bounded
 
+from .outcomes import counts, one_line_error, quarantine
 from .processes import children, left_after
 from .replay_inputs import (
     append_gzip,
@@ -67,30 +67,6 @@ def vge_bounded(*args: str | Path, timeout: float = 60.0):
     return run_bounded([*VGE, *map(str, args)], timeout=timeout)
 
 
-@dataclass(frozen=True)
-class Ran:
-    returncode: int
-    stdout: str
-    stderr: str
-    seconds: float
-
-
-@pytest.fixture
-def vge_here(capsys: pytest.CaptureFixture[str]):
-    """`vge` in this process (what needs no memory bound: no start-up paid)."""
-    from vge_analytics.cli import main
-
-    def run(*args: str | Path | int) -> Ran:
-        capsys.readouterr()
-        started = time.monotonic()
-        code = main([str(a) for a in args])
-        seconds = time.monotonic() - started
-        shown = capsys.readouterr()
-        return Ran(code, shown.out, shown.err, seconds)
-
-    return run
-
-
 @pytest.fixture(scope="module")
 def baseline(bench: Path, tmp_path_factory: pytest.TempPathFactory):
     """`vge replay` of three good records: the process's own size and start-up time."""
@@ -99,23 +75,6 @@ def baseline(bench: Path, tmp_path_factory: pytest.TempPathFactory):
     done = vge_bounded("replay", run, "--bench", bench, "--out", root / "out")
     assert done.returncode == 0, done.stderr
     return done
-
-
-def quarantine(out: Path) -> list[tuple[int, str]]:
-    lines = (out / "quarantine.jsonl").read_text().splitlines()
-    return [(r["line"], r["kind"]) for r in map(json.loads, lines)]
-
-
-def counts(out: Path) -> replay.io._manifest.RunCounts:
-    manifest = replay.read_manifest(out)
-    assert manifest is not None
-    return manifest.runs[0].counts
-
-
-def one_line_error(stderr: str) -> str:
-    lines = stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: "), stderr
-    return lines[0]
 
 
 # ------------------------------------------------------------------- limits in bytes

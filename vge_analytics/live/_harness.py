@@ -211,14 +211,9 @@ def run_live(
     )
 
 
-MAX_PRICE = 1e9
-"""The most a price may be, USD per million tokens: with a step's token counts within their
-bound (2^40 each, PROTOCOL §1.4) every cost and every sum of them stays a finite number."""
-
-
 def _check_options(options: RunOptions) -> None:
-    """The options' bounds; a price is what run.json may hold (PROTOCOL §1.4: a finite
-    number of USD, at least 0) and at most `MAX_PRICE`, so every cost is a number too."""
+    """The options' bounds; a price is what run.json may hold (PROTOCOL §1.4: a finite number
+    of USD from 0 to `replay.semantics.MAX_PRICE`, so every cost is a number too)."""
     if options.concurrency < 1:
         raise RunDirError("--concurrency must be at least 1")
     if options.max_consecutive_failures < 0:
@@ -229,14 +224,11 @@ def _check_options(options: RunOptions) -> None:
     ):
         try:
             replay.semantics.run_prices({replay.semantics.PROMPT_PRICE_KEY: price})
-            fits = price is None or price <= MAX_PRICE
         except ValueError:
-            fits = False
-        if not fits:
             raise RunDirError(
                 f"{option}: a price is a number of USD per million tokens from 0 to "
-                f"{MAX_PRICE:,.0f}, not {price!r}"
-            )
+                f"{replay.semantics.MAX_PRICE:,.0f}, not {price!r}"
+            ) from None
 
 
 def _continuing(options: RunOptions) -> tuple[RunOptions, Source]:

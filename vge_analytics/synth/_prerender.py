@@ -6,7 +6,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import replay
-from replay.io import IMAGES_DIR, SSM_DIR, SSM_SUFFIX
+from replay.io import IMAGES_DIR, SSM_DIR, SSM_SUFFIX, write_atomic
 
 from ._foreign import render_foreign
 from ._instantiate import scene_of
@@ -24,7 +24,7 @@ def render_device(ssm_path: Path, out_dir: Path) -> int:
             img = render_view(geometry, view)
         else:
             img = render_foreign(machine.ssm, machine.category, view)
-        (target / f"{view}.png").write_bytes(png_bytes(img))
+        write_atomic(target / f"{view}.png", png_bytes(img), sync=False)
     return len(machine.views)
 
 

@@ -95,7 +95,7 @@ def test_usage_columns_and_completeness(tmp_path: Path, monkeypatch: pytest.Monk
     assert completeness == {"plain": (None, None), "priced": (False, 3)}
 
 
-@pytest.mark.parametrize("price", ["2.5", -1, True])
+@pytest.mark.parametrize("price", ["2.5", -1, True, 1e308, 1_000_001])
 def test_a_price_that_is_not_one_stops_the_replay(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], price: object
 ) -> None:
@@ -105,7 +105,10 @@ def test_a_price_that_is_not_one_stops_the_replay(
     err = capsys.readouterr().err.strip()
     assert code == 1 and "\n" not in err
     assert str(run / "run.json") in err
-    assert f"meta.prompt_price_per_mtok must be a non-negative number of USD, not {price!r}" in err
+    assert (
+        f"meta.prompt_price_per_mtok must be a number of USD from 0 to 1,000,000, not {price!r}"
+        in err
+    )
 
 
 @pytest.mark.parametrize(

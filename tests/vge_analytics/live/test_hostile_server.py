@@ -244,11 +244,11 @@ def test_answers_that_cannot_be_parsed_are_retried_then_failed(
     assert reasons[1] == "a compressed answer (gzip), though none was asked for"
 
 
-@pytest.mark.parametrize("price", ["-1", "nan", "inf", "1e300", "1000000001"])
+@pytest.mark.parametrize("price", ["-1", "nan", "inf", "1e300", "1000001"])
 def test_a_price_past_its_bound_is_refused_before_the_server_is_asked(
     kettle_bench: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], price: str
 ) -> None:
-    """A price is at most 10^9 USD per million tokens: 10^300 times 2^40 tokens would be a
+    """A price is at most 10^6 USD per million tokens (PROTOCOL §1.4): 10^300 times 2^40 tokens would be a
     cost of infinity (written as null, shown as $inf)."""
     run = tmp_path / "run"
     with chat_server(list(GOOD)) as server:
@@ -257,19 +257,19 @@ def test_a_price_past_its_bound_is_refused_before_the_server_is_asked(
     [line] = capsys.readouterr().err.strip().splitlines()
     assert line.endswith(
         f"--completion-price: a price is a number of USD per million tokens from 0 to "
-        f"1,000,000,000, not {float(price)!r}"
+        f"1,000,000, not {float(price)!r}"
     )
 
 
 def test_the_costliest_step_at_the_highest_price_is_a_number(
     kettle_bench: Path, tmp_path: Path
 ) -> None:
-    """2^40 prompt tokens at 10^9 USD per million: (2^40 x 10^9) / 10^6 = 2^40 x 1000 USD."""
+    """2^40 prompt tokens at 10^6 USD per million: (2^40 x 10^6) / 10^6 = 2^40 USD."""
     run = tmp_path / "run"
     with chat_server([_usage(2**40, 0), answer(PUSH_POWER), answer(WAIT)]) as server:
-        assert main(_args(kettle_bench, run, server.url, "--prompt-price", "1e9")) == 0
-    # open-lid's one step; boil's two of 1000 prompt tokens: 2 x 1000 x 10^9 / 10^6 USD.
-    usd = 2**40 * 1000 + 2e6
+        assert main(_args(kettle_bench, run, server.url, "--prompt-price", "1e6")) == 0
+    # open-lid's one step; boil's two of 1000 prompt tokens: 2 x 1000 x 10^6 / 10^6 USD.
+    usd = 2**40 + 2000
     assert replay.read_run_header(run).meta["cost_usd"] == pytest.approx(usd, rel=1e-12)
     out = tmp_path / "out"
     _replays_whole(run, kettle_bench, out, 2)
