@@ -204,9 +204,9 @@ def replayed(sample: Sample, tmp_path_factory: pytest.TempPathFactory):
 
 
 @pytest.fixture
-def vge(monkeypatch: pytest.MonkeyPatch):
-    """`vge` with only the replay command registered (other commands' state is not ours)."""
+def vge():
+    """`vge`'s entry point (its commands are registered on first use, all of them: a
+    registration of only some would stay for the other tests of this process)."""
     from vge_analytics import cli
 
-    monkeypatch.setattr(cli, "COMMAND_MODULES", ("replay",))
     return cli.main
