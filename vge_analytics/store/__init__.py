@@ -1,12 +1,16 @@
 """Reading OUT safely (PROTOCOL §9): a DuckDB connection that opens no file, over exactly the
 Parquet files the manifest lists; the limits of user SQL, queries in a process of their own,
-the read-only guard; filters and groupings; the tables as frames."""
+the read-only guard; filters and groupings; the tables as frames; the metric cache."""
 
 from typing import TYPE_CHECKING
 
 from replay import lazy_names
 
 if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ._cache import (
+        cache_folder,
+        cached_store,
+    )
     from ._isolated import (
         IsolatedResult,
         run_isolated,
@@ -93,6 +97,8 @@ __all__ = [
     "default_max_queries",
     "describe_filters",
     "Batches",
+    "cache_folder",
+    "cached_store",
     "build_scope",
     "check_columns",
     "check_runs",

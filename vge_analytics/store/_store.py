@@ -18,6 +18,7 @@ store is cached per (directory, memory limits).
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import itertools
 import json
 import os
@@ -87,6 +88,9 @@ class Store:
     Arrow tables in memory (`memory_store`)."""
     limits: SqlLimits | None = None
     """The memory limits its connection was opened with."""
+    digest: str | None = None
+    """The sha256 of OUT's manifest as read (a local OUT with one; what the metric cache is
+    keyed by), else None."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
@@ -160,14 +164,20 @@ def resolve_input(out: str | Path | replay.Location, recorded: str) -> Path | re
 
 def _read_manifest(out: Path | replay.Location) -> dict | None:
     """OUT's manifest; None when it has none."""
+    return _manifest_and_digest(out)[0]
+
+
+def _manifest_and_digest(out: Path | replay.Location) -> tuple[dict | None, str | None]:
+    """OUT's manifest and the sha256 of its bytes; (None, None) when it has none."""
     path = manifest_path(out)
     if not path.exists():
-        return None
+        return None, None
     try:
-        data = json.loads(path.read_bytes().decode("utf-8"))
+        raw = path.read_bytes()
+        data = json.loads(raw.decode("utf-8"))
     except (OSError, ValueError) as exc:
         raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
-    return data if isinstance(data, dict) else {}
+    return (data if isinstance(data, dict) else {}), hashlib.sha256(raw).hexdigest()
 
 
 def _entry(runs: list, run_id: str, out: object) -> dict:
@@ -197,17 +207,22 @@ def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Locat
     return bench
 
 
-def _store(out: Path | replay.Location, manifest: dict | None, limits: SqlLimits) -> Store:
-    """The store over OUT's tables (`manifest` None: a local OUT without one)."""
+def _store(
+    out: Path | replay.Location, manifest: dict | None, limits: SqlLimits, digest: str | None = None
+) -> Store:
+    """The store over OUT's tables (`manifest` None: a local OUT without one; `digest`: the
+    sha256 of a local manifest's bytes)."""
     try:
         sources = table_sources(replay.location(out), manifest)
     except (OSError, ValueError, pa.ArrowException) as exc:  # pyarrow's ArrowInvalid: both
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise OutputDirError(f"{out}: cannot read the Parquet tables ({first})") from None
     try:
-        return _opened(out, manifest or {}, sources, limits)
+        store = _opened(out, manifest or {}, sources, limits)
     except duckdb.Error as exc:
         raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
+    store.digest = digest
+    return store
 
 
 def _opened(
@@ -249,7 +264,8 @@ def _open(out: Path, limits: SqlLimits) -> Store:
             f"{out}: not a replay output directory (no {'/, '.join(missing)}/); "
             "run `vge replay ... --out` first"
         )
-    return _store(out, _read_manifest(out), limits)
+    manifest, digest = _manifest_and_digest(out)
+    return _store(out, manifest, limits, digest)
 
 
 def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:
