@@ -69,17 +69,33 @@ def _refuse(out: replay.Location, what: str) -> OutputDirError:
     return OutputDirError(f"{manifest_path(out)}: {what}")
 
 
-def _checked(out: replay.Location, table: str, name: object, who: str) -> str:
+def _real(path: str, folders: dict[str, str]) -> str:
+    """`os.path.realpath(path)`, each folder resolved once (`folders` keeps them): a file
+    that is no link is its resolved folder's entry."""
+    folder, _, entry = path.rpartition("/")
+    if folder not in folders:
+        folders[folder] = os.path.realpath(folder)
+    if os.path.islink(path):
+        return os.path.realpath(path)
+    return f"{folders[folder]}/{entry}"
+
+
+def _checked(
+    out: replay.Location, table: str, name: object, who: str, folders: dict[str, str]
+) -> str:
     """`name` if it is the path of a file of `table` inside OUT, else the error; `who`: what
-    listed it, as the message says it (`OUT/manifest.json: run 'x' lists`)."""
+    listed it, as the message says it (`OUT/manifest.json: run 'x' lists`); `folders`: the
+    folders resolved so far (`_real`; OUT's own under "")."""
     if not isinstance(name, str):
         raise OutputDirError(f"{who} {name!r} as a {table} file (not a path)")
     parts = PurePosixPath(name).parts
     if name.startswith("/") or ".." in parts or parts[:1] != (table,):
         raise OutputDirError(f"{who} {name!r}, which is not a file of {table}/ in OUT")
     if out.local is not None:
-        inside = os.path.realpath(out.local)
-        real = os.path.realpath(out.local / name)
+        if "" not in folders:
+            folders[""] = os.path.realpath(out.local)
+        inside = folders[""]
+        real = _real(os.path.join(out.local, name), folders)
         if os.path.commonpath([inside, real]) != inside:
             raise OutputDirError(f"{who} {name!r}, which leads outside OUT ({real})")
     return name
@@ -91,6 +107,7 @@ def _listed(out: replay.Location, manifest: Mapping, table: str) -> list[tuple[s
     if not isinstance(runs, list):
         raise _refuse(out, "'runs' is not a list")
     found: list[tuple[str, str | None]] = []
+    folders: dict[str, str] = {}
     for run in runs:
         run_id = run.get("run_id") if isinstance(run, dict) else None
         outputs = run.get("outputs") if isinstance(run, dict) else None
@@ -98,7 +115,7 @@ def _listed(out: replay.Location, manifest: Mapping, table: str) -> list[tuple[s
         if not isinstance(run_id, str) or not isinstance(names, list):
             raise _refuse(out, f"a run without a run_id and its {table} files ({str(run)[:80]})")
         who = f"{manifest_path(out)}: run {run_id!r} lists"
-        found += [(_checked(out, table, name, who), run_id) for name in names]
+        found += [(_checked(out, table, name, who, folders), run_id) for name in names]
     return sorted(found)
 
 
@@ -112,7 +129,9 @@ def table_files(
         names = [f"{table}/{rel}" for rel in (out / table).files() if rel.endswith(".parquet")]
     else:
         return _listed(out, manifest, table)
-    return [(_checked(out, table, name, f"{out}: OUT holds"), None) for name in names]
+    folders: dict[str, str] = {}
+    who = f"{out}: OUT holds"
+    return [(_checked(out, table, name, who, folders), None) for name in names]
 
 
 def _dictionary_columns(fragments: Iterable[pads.ParquetFileFragment], schema: pa.Schema) -> set:
@@ -161,8 +180,8 @@ def _dataset(out: replay.Location, files: list[tuple[str, str | None]]) -> pads.
         )
         for path, (_, run) in zip(paths, files, strict=True)
     ]
-    for fragment in fragments:  # the footer again (these read as dictionaries), kept now
-        fragment.ensure_complete_metadata()
+    # The footer of each is read again when the fragment is first scanned, and kept (a
+    # query that reads no file of a table, one the metric cache answers, reads none).
     return _Dataset(fragments, schema, read_as, fs)
 
 

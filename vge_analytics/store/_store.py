@@ -18,6 +18,7 @@ store is cached per (directory, memory limits).
 from __future__ import annotations
 
 import contextlib
+import gc
 import hashlib
 import itertools
 import json
@@ -264,8 +265,23 @@ def _open(out: Path, limits: SqlLimits) -> Store:
             f"{out}: not a replay output directory (no {'/, '.join(missing)}/); "
             "run `vge replay ... --out` first"
         )
-    manifest, digest = _manifest_and_digest(out)
-    return _store(out, manifest, limits, digest)
+    with _no_collection():
+        manifest, digest = _manifest_and_digest(out)
+        return _store(out, manifest, limits, digest)
+
+
+@contextlib.contextmanager
+def _no_collection():
+    """The garbage collector paused: a manifest of many runs is millions of objects, which
+    the collector would otherwise walk again and again while they are made (none is a
+    cycle)."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
 
 
 def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:
