@@ -81,6 +81,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         quarantine_path,
         run_json_path,
         runs_path,
+        schema_cache_path,
         ssm_path,
         tasks_path,
     )
@@ -190,6 +191,7 @@ __all__ = [
     "manifest_path",
     "mcap_dir",
     "metric_cache_path",
+    "schema_cache_path",
     "partition",
     "partition_dir",
     "quarantine_path",

@@ -113,6 +113,12 @@ def metric_cache_path(out: _P, grain: str, manifest_key: str, definitions_key: s
     return out / METRIC_CACHE_DIR / f"{grain}-{manifest_key}-{definitions_key}.parquet"
 
 
+def schema_cache_path(out: _P, table: str, contents_key: str) -> _P:
+    """`OUT/.metric-cache/schema-<table>-<contents_key>.arrow`: a table's schema as its files
+    unify it, kept for one content of OUT."""
+    return out / METRIC_CACHE_DIR / f"schema-{table}-{contents_key}.arrow"
+
+
 def runs_path(out: _P) -> _P:
     """`OUT/runs/runs.parquet`."""
     return out / RUNS_TABLE / RUNS_FILE

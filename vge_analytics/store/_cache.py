@@ -33,7 +33,6 @@ import contextlib
 import dataclasses
 import hashlib
 import json
-import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -66,27 +65,13 @@ def _cacheable(store: Store, grain: str, by: Sequence[str], where: Filters) -> b
     (without, the rows of every run are summed at once, in one level)."""
     columns = [*by, *(where or {})]
     per_run = [c for c in columns if run_level(store, grain, c)]
-    return all(c == "run_id" or c in per_run for c in columns) and (
-        "run_id" in by or bool(per_run)
-    )
-
-
-def contents_key(store: Store) -> str:
-    """A hash of OUT's manifest (its sha256) and of the size and modification time of every
-    table file the store reads: a replay changes the first, a file changed by hand the
-    second."""
-    h = hashlib.sha256(str(store.digest).encode())
-    for table in sorted(store.sources):
-        for name in sorted(getattr(store.sources[table], "files", [])):
-            st = os.stat(name)
-            h.update(f"\0{name}\0{st.st_size}\0{st.st_mtime_ns}".encode())
-    return h.hexdigest()[:16]
+    return all(c == "run_id" or c in per_run for c in columns) and ("run_id" in by or bool(per_run))
 
 
 def _where(store: Store) -> Path | None:
     """The local OUT whose terms may be cached, or None (in memory, in object storage, or
     without a manifest)."""
-    if store.digest is None or not isinstance(store.out, Path):
+    if store.contents is None or not isinstance(store.out, Path):
         return None
     return store.out
 
@@ -164,10 +149,7 @@ def cached_store(
     out = _where(store)
     if out is None:
         return store, {}
-    try:
-        key = contents_key(store)
-    except OSError:  # a file gone since the store was opened: the tables answer (or fail)
-        return store, {}
+    key = store.contents
     sources: dict[str, object] = {}
     catalogue: dict[str, dict[str, str]] = {}
     for grain in dict.fromkeys(r.grain for r in ratios):
@@ -203,7 +185,5 @@ __all__ = [
     "cache_folder",
     "cached_store",
     "cached_terms",
-    "contents_key",
     "definitions_key",
 ]
-

@@ -39,6 +39,7 @@ from replay.io import (
 )
 
 from .._errors import OutputDirError
+from ._kept import contents_key, keep_schema, kept_schema
 
 SCAN_OPTIONS: Mapping[str, int] = {
     "batch_size": 16_384,
@@ -150,49 +151,69 @@ def _dictionary_columns(fragments: Iterable[pads.ParquetFileFragment], schema: p
     return columns
 
 
-def _dataset(out: replay.Location, files: list[tuple[str, str | None]]) -> pads.Dataset:
-    """One dataset over `files`, their schemas unified by column name as DuckDB's
-    `union_by_name` does (a column some files lack is null there)."""
-    fs = out.fs if out.fs is not None else pafs.LocalFileSystem()
-    base = out.path.rstrip("/")
-    paths = [f"{base}/{name}" for name, _ in files]
+def _unified(fs: pafs.FileSystem, paths: list[str]) -> pa.Schema:
+    """The schema of the files at `paths`, unified by column name, a string column stored
+    with a dictionary in every file typed as a dictionary (read as one)."""
     plain = pads.ParquetFileFormat()
     first = [plain.make_fragment(p, fs) for p in paths]
     schema = pa.unify_schemas([f.physical_schema for f in first], promote_options="permissive")
     dictionaries = _dictionary_columns(first, schema)
+    return pa.schema(
+        f.with_type(pa.dictionary(pa.int32(), f.type)) if f.name in dictionaries else f
+        for f in schema
+    ).with_metadata(schema.metadata)
+
+
+def _dataset(
+    out: replay.Location, files: list[tuple[str, str | None]], schema: pa.Schema | None = None
+) -> pads.Dataset:
+    """One dataset over `files`, their schemas unified by column name as DuckDB's
+    `union_by_name` does (a column some files lack is null there); `schema`: that unified
+    schema when it is known (`_kept`), else read from every file's footer."""
+    fs = out.fs if out.fs is not None else pafs.LocalFileSystem()
+    base = out.path.rstrip("/")
+    paths = [f"{base}/{name}" for name, _ in files]
+    if schema is None:
+        schema = _unified(fs, paths)
+    dictionaries = [f.name for f in schema if pa.types.is_dictionary(f.type)]
     read_as = pads.ParquetFileFormat(
-        read_options=pads.ParquetReadOptions(dictionary_columns=sorted(dictionaries)),
+        read_options=pads.ParquetReadOptions(dictionary_columns=dictionaries),
         # On the local disk, a row group's columns are read when it is scanned: pre-buffering
         # reads every scanned column of the whole file at once, so memory grew with the part
         # (a part of long responses held all of them). A store fetches them ahead, to save
         # round trips.
-        default_fragment_scan_options=pads.ParquetFragmentScanOptions(
-            pre_buffer=out.local is None
-        ),
+        default_fragment_scan_options=pads.ParquetFragmentScanOptions(pre_buffer=out.local is None),
     )
-    schema = pa.schema(
-        f.with_type(pa.dictionary(pa.int32(), f.type)) if f.name in dictionaries else f
-        for f in schema
-    ).with_metadata(schema.metadata)
     fragments = [
         read_as.make_fragment(
             path, fs, partition_expression=None if run is None else pc.field("run_id") == run
         )
         for path, (_, run) in zip(paths, files, strict=True)
     ]
-    # The footer of each is read again when the fragment is first scanned, and kept (a
-    # query that reads no file of a table, one the metric cache answers, reads none).
+    # A fragment's footer is read when it is first scanned, and kept (a query that reads no
+    # file of a table, one the metric cache answers, reads none).
     return _Dataset(fragments, schema, read_as, fs)
 
 
-def table_sources(out: replay.Location, manifest: Mapping | None) -> dict[str, object]:
+def table_sources(
+    out: replay.Location, manifest: Mapping | None, digest: str | None = None
+) -> tuple[dict[str, object], str | None]:
     """Each table of OUT as an Arrow dataset over its files (an empty Arrow table when it has
-    none). Raises `OutputDirError` for a path outside OUT; pyarrow's errors pass through."""
+    none), and the key of OUT's contents (`_kept.contents_key`; `digest`: the sha256 of its
+    manifest). Raises `OutputDirError` for a path outside OUT; pyarrow's errors pass
+    through."""
+    files = {table: table_files(out, manifest, table) for table in TABLES}
+    key = contents_key(out, files, digest)
     sources: dict[str, object] = {}
     for table in TABLES:
-        files = table_files(out, manifest, table)
-        sources[table] = _dataset(out, files) if files else empty_table(table)
-    return sources
+        if not files[table]:
+            sources[table] = empty_table(table)
+            continue
+        schema = kept_schema(out, table, key)
+        sources[table] = _dataset(out, files[table], schema)
+        if schema is None:
+            keep_schema(out, table, key, sources[table].schema)
+    return sources, key
 
 
 __all__ = ["SCAN_OPTIONS", "empty_table", "table_files", "table_sources"]

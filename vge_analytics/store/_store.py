@@ -90,8 +90,10 @@ class Store:
     limits: SqlLimits | None = None
     """The memory limits its connection was opened with."""
     digest: str | None = None
-    """The sha256 of OUT's manifest as read (a local OUT with one; what the metric cache is
-    keyed by), else None."""
+    """The sha256 of OUT's manifest as read (a local OUT with one), else None."""
+    contents: str | None = None
+    """The key of OUT's contents (`_kept.contents_key`: what the metric cache is keyed by),
+    None where nothing is cached."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
@@ -214,7 +216,7 @@ def _store(
     """The store over OUT's tables (`manifest` None: a local OUT without one; `digest`: the
     sha256 of a local manifest's bytes)."""
     try:
-        sources = table_sources(replay.location(out), manifest)
+        sources, contents = table_sources(replay.location(out), manifest, digest)
     except (OSError, ValueError, pa.ArrowException) as exc:  # pyarrow's ArrowInvalid: both
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise OutputDirError(f"{out}: cannot read the Parquet tables ({first})") from None
@@ -222,7 +224,7 @@ def _store(
         store = _opened(out, manifest or {}, sources, limits)
     except duckdb.Error as exc:
         raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
-    store.digest = digest
+    store.digest, store.contents = digest, contents
     return store
 
 

@@ -3,7 +3,7 @@ file that is really read, and a new file when OUT or a metric's definition chang
 
 from __future__ import annotations
 
-import json
+import os
 import shutil
 from pathlib import Path
 
@@ -16,7 +16,7 @@ import vge_analytics as va
 from replay.io import METRIC_CACHE_DIR
 from tests.vge_analytics.conftest import replay_to
 from vge_analytics.metrics import metric_set
-from vge_analytics.store import _cache
+from vge_analytics.store import _cache, _kept
 
 GROUPINGS = (
     (("run_id", "model"), None),
@@ -48,8 +48,12 @@ def test_cached_values_are_the_tables_values_on_the_sample(sample_out: Path, tmp
         again = va.metrics(out, by=by, where=where)  # reads it
         assert first.equals(plain), (by, where)
         assert again.equals(plain), (by, where)
-    # One file per grain (episodes, steps, goals), the same for every grouping above.
-    assert [name.split("-")[0] for name in _files(out)] == ["episodes", "goals", "steps"]
+    # One file per grain (episodes, steps, goals), the same for every grouping above, and
+    # the schema of each table.
+    terms = [n.split("-")[0] for n in _files(out) if n.endswith(".parquet")]
+    assert terms == ["episodes", "goals", "steps"]
+    schemas = [n.split("-")[1] for n in _files(out) if n.endswith(".arrow")]
+    assert schemas == ["episodes", "goals", "runs", "steps"]
 
 
 def test_cached_values_on_synthetic_runs(pair_out: Path, hand_out: Path, tmp_path: Path):
@@ -59,7 +63,7 @@ def test_cached_values_on_synthetic_runs(pair_out: Path, hand_out: Path, tmp_pat
             plain = va.metrics(out, by=by, cache=False)
             assert va.metrics(out, by=by).equals(plain), by
             assert va.metrics(out, by=by).equals(plain), by
-        assert len(_files(out)) == 3
+        assert len([n for n in _files(out) if n.endswith(".parquet")]) == 3
 
 
 def test_the_cache_file_is_what_answers(pair_out: Path, tmp_path: Path):
@@ -97,7 +101,7 @@ def test_a_run_replayed_again_makes_a_new_file(pair: dict, tmp_path: Path):
     assert got["SR"].to_list() == pytest.approx([100 / 9, 700 / 11])
     assert got.equals(va.metrics(out, by="run_id", metrics="SR", cache=False))
     new = _files(out)
-    assert len(new) == 1 and not set(new) & set(old)  # the old file is gone
+    assert len(new) == 5 and not set(new) & set(old)  # the old files are gone
 
 
 def test_a_changed_metric_file_makes_a_new_file(pair_out: Path, tmp_path: Path):
@@ -139,6 +143,7 @@ def test_an_out_that_cannot_be_written_is_read_without_cache(
         raise PermissionError(13, "Read-only file system")
 
     monkeypatch.setattr(_cache, "atomic_file", refuse)
+    monkeypatch.setattr(_kept, "atomic_file", refuse)
     got = va.metrics(out, by="run_id")
     assert got.equals(va.metrics(out, by="run_id", cache=False))
     assert _files(out) == []
@@ -148,10 +153,14 @@ def test_a_broken_cache_file_is_computed_again(pair_out: Path, tmp_path: Path):
     out = _copy(pair_out, tmp_path / "out")
     want = va.metrics(out, by="run_id")
     for name in _files(out):
-        (out / METRIC_CACHE_DIR / name).write_bytes(b"not parquet")
+        (out / METRIC_CACHE_DIR / name).write_bytes(b"not parquet, not arrow")
+    va.clear_cache()
     assert va.metrics(out, by="run_id").equals(want)
     for name in _files(out):
-        assert pq.read_table(out / METRIC_CACHE_DIR / name).num_rows == 2
+        if name.endswith(".parquet"):
+            assert pq.read_table(out / METRIC_CACHE_DIR / name).num_rows == 2
+        else:
+            assert pa.ipc.read_schema(pa.py_buffer((out / METRIC_CACHE_DIR / name).read_bytes()))
 
 
 def test_no_cache_without_a_manifest(pair_out: Path, tmp_path: Path):
@@ -166,5 +175,22 @@ def test_keys_name_what_the_values_come_from(pair_out: Path):
     metrics = list(metric_set(None))
     assert _cache.definitions_key(metrics) == _cache.definitions_key(list(metrics))
     assert _cache.definitions_key(metrics) != _cache.definitions_key(metrics[1:])
-    assert len(_cache.contents_key(store)) == 16
-    assert json.loads(json.dumps(store.digest)) == store.digest
+    assert len(store.contents) == 16 and len(store.digest) == 64
+
+
+def test_an_out_opened_again_reads_no_footer_before_a_scan(pair_out: Path, tmp_path: Path):
+    """The second opening builds its datasets from the kept schemas: a footer made
+    unreadable after the first (its size and time kept, so OUT's key is the same) is not
+    read until a query scans that file."""
+    out = _copy(pair_out, tmp_path / "out")
+    want = va.metrics(out, by="run_id")
+    va.clear_cache()
+    (part,) = sorted((out / "steps" / "run_id=A").glob("*.parquet"))
+    st = part.stat()
+    data = bytearray(part.read_bytes())
+    data[-12:-4] = b"\xff" * 8  # the footer's length: no longer a footer
+    part.write_bytes(bytes(data))
+    os.utime(part, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert va.metrics(out, by="run_id").equals(want)  # the cache answers; no footer read
+    with pytest.raises(va.QueryError):
+        va.sql(out, "SELECT count(*) FROM steps")
