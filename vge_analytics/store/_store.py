@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import duckdb
+import msgspec
 import pyarrow as pa
 
 import replay
@@ -84,6 +85,8 @@ class Store:
     columns: dict[str, dict[str, str]]
     """table -> {column: DuckDB type}, in table order."""
     manifest: dict
+    """What the store read of OUT's manifest: each run's id, files and benchmark, the totals,
+    the engine version (`run_entry` reads a run's whole entry)."""
     sources: Mapping[str, object] = field(default_factory=dict)
     """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`), or
     Arrow tables in memory (`memory_store`)."""
@@ -167,17 +170,63 @@ def resolve_input(out: str | Path | replay.Location, recorded: str) -> Path | re
 
 def _read_manifest(out: Path | replay.Location) -> dict | None:
     """OUT's manifest; None when it has none."""
-    return _manifest_and_digest(out)[0]
+    path = manifest_path(out)
+    if not path.exists():
+        return None
+    try:
+        data = json.loads(path.read_bytes().decode("utf-8"))
+    except (OSError, ValueError) as exc:
+        raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
+    return data if isinstance(data, dict) else {}
+
+
+class _Inputs(msgspec.Struct):
+    bench: object = msgspec.UNSET
+
+
+class _Run(msgspec.Struct):
+    run_id: object = None
+    outputs: object = None
+    inputs: _Inputs | msgspec.UnsetType = msgspec.UNSET
+
+
+class _Manifest(msgspec.Struct):
+    """What a store reads of a manifest: each run's id, files and benchmark, the totals and
+    the engine version (the inputs' digests, most of a large manifest, are skipped)."""
+
+    runs: list[_Run] = []
+    totals: object = msgspec.UNSET
+    engine_version: object = msgspec.UNSET
+
+
+def _store_manifest(raw: bytes) -> dict | None:
+    """The parts of a manifest a store reads (`_Manifest`) as the dict `json` would give,
+    or None when it does not have that shape (then it is read whole, and checked)."""
+    try:
+        doc = msgspec.json.decode(raw, type=_Manifest)
+    except msgspec.MsgspecError:
+        return None
+    runs = []
+    for run in doc.runs:
+        entry = {"run_id": run.run_id, "outputs": run.outputs}
+        if run.inputs is not msgspec.UNSET and run.inputs.bench is not msgspec.UNSET:
+            entry["inputs"] = {"bench": run.inputs.bench}
+        runs.append(entry)
+    fields = {"totals": doc.totals, "engine_version": doc.engine_version}
+    return {**{k: v for k, v in fields.items() if v is not msgspec.UNSET}, "runs": runs}
 
 
 def _manifest_and_digest(out: Path | replay.Location) -> tuple[dict | None, str | None]:
-    """OUT's manifest and the sha256 of its bytes; (None, None) when it has none."""
+    """What a store reads of OUT's manifest (`_store_manifest`) and the sha256 of its
+    bytes; (None, None) when it has none."""
     path = manifest_path(out)
     if not path.exists():
         return None, None
     try:
         raw = path.read_bytes()
-        data = json.loads(raw.decode("utf-8"))
+        data = _store_manifest(raw)
+        if data is None:
+            data = json.loads(raw.decode("utf-8"))
     except (OSError, ValueError) as exc:
         raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
     return (data if isinstance(data, dict) else {}), hashlib.sha256(raw).hexdigest()
