@@ -70,15 +70,20 @@ def _refuse(out: replay.Location, what: str) -> OutputDirError:
     return OutputDirError(f"{manifest_path(out)}: {what}")
 
 
-def _real(path: str, folders: dict[str, str]) -> str:
-    """`os.path.realpath(path)`, each folder resolved once (`folders` keeps them): a file
-    that is no link is its resolved folder's entry."""
+def _real(path: str, folders: dict[str, str], *, keep: bool = False) -> str:
+    """`os.path.realpath(path)`, built from its folder's, each folder resolved once
+    (`folders` keeps them, `keep`): a path that is no link is its resolved folder's entry."""
+    hit = folders.get(path)
+    if hit is not None:
+        return hit
     folder, _, entry = path.rpartition("/")
-    if folder not in folders:
-        folders[folder] = os.path.realpath(folder)
-    if os.path.islink(path):
-        return os.path.realpath(path)
-    return f"{folders[folder]}/{entry}"
+    if not folder or os.path.islink(path):
+        real = os.path.realpath(path)
+    else:
+        real = f"{_real(folder, folders, keep=True).rstrip('/')}/{entry}"
+    if keep:
+        folders[path] = real
+    return real
 
 
 def _checked(
@@ -96,7 +101,7 @@ def _checked(
         if "" not in folders:
             folders[""] = os.path.realpath(out.local)
         inside = folders[""]
-        real = _real(os.path.join(out.local, name), folders)
+        real = os.path.normpath(_real(os.path.join(out.local, name), folders))
         if os.path.commonpath([inside, real]) != inside:
             raise OutputDirError(f"{who} {name!r}, which leads outside OUT ({real})")
     return name
