@@ -44,6 +44,7 @@ import pyarrow.parquet as pq
 from replay.io import METRIC_CACHE_DIR, atomic_file, metric_cache_path
 
 from .._errors import QueryError
+from ._kept import own_folder
 from ._ratios import Ratio, term_name
 from ._scope import Filters, grouped_aggregate, quote_ident, run_level
 from ._sql import analytics_timeout, guarded_cursor
@@ -69,9 +70,9 @@ def _cacheable(store: Store, grain: str, by: Sequence[str], where: Filters) -> b
 
 
 def _where(store: Store) -> Path | None:
-    """The local OUT whose terms may be cached, or None (in memory, in object storage, or
-    without a manifest)."""
-    if store.contents is None or not isinstance(store.out, Path):
+    """The local OUT whose terms may be cached, or None (in memory, in object storage,
+    without a manifest, or its cache folder a link)."""
+    if store.contents is None or not isinstance(store.out, Path) or not own_folder(store.out):
         return None
     return store.out
 

@@ -17,11 +17,12 @@ import contextlib
 import hashlib
 import os
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import pyarrow as pa
 
 import replay
-from replay.io import atomic_file, schema_cache_path
+from replay.io import METRIC_CACHE_DIR, atomic_file, schema_cache_path
 
 Files = Mapping[str, Sequence[tuple[str, str | None]]]
 """table -> (path relative to OUT, run) of each of its files (`_datasets.table_files`)."""
@@ -44,9 +45,16 @@ def contents_key(out: replay.Location, files: Files, digest: str | None) -> str 
     return h.hexdigest()[:16]
 
 
+def own_folder(out: Path) -> bool:
+    """Whether `OUT/.metric-cache` may be used: absent, or a folder that is no link (one
+    planted as a link to elsewhere would have the cache write and delete files there)."""
+    folder = out / METRIC_CACHE_DIR
+    return not folder.is_symlink() and (folder.is_dir() or not folder.exists())
+
+
 def kept_schema(out: replay.Location, table: str, key: str | None) -> pa.Schema | None:
     """The unified schema of `table` kept for contents `key`, or None."""
-    if key is None:
+    if key is None or not own_folder(out.local):
         return None
     path = schema_cache_path(out.local, table, key)
     try:
@@ -59,7 +67,7 @@ def kept_schema(out: replay.Location, table: str, key: str | None) -> pa.Schema 
 def keep_schema(out: replay.Location, table: str, key: str | None, schema: pa.Schema) -> None:
     """Keep `schema` for contents `key` (nothing when OUT cannot be written), and remove the
     schemas of `table` kept for other contents."""
-    if key is None:
+    if key is None or not own_folder(out.local):
         return
     path = schema_cache_path(out.local, table, key)
     with contextlib.suppress(OSError):
@@ -71,4 +79,4 @@ def keep_schema(out: replay.Location, table: str, key: str | None, schema: pa.Sc
                 old.unlink()
 
 
-__all__ = ["Files", "contents_key", "keep_schema", "kept_schema"]
+__all__ = ["Files", "contents_key", "keep_schema", "kept_schema", "own_folder"]

@@ -194,3 +194,13 @@ def test_an_out_opened_again_reads_no_footer_before_a_scan(pair_out: Path, tmp_p
     assert va.metrics(out, by="run_id").equals(want)  # the cache answers; no footer read
     with pytest.raises(va.QueryError):
         va.sql(out, "SELECT count(*) FROM steps")
+
+
+def test_a_cache_folder_that_is_a_link_is_left_alone(pair_out: Path, tmp_path: Path):
+    out = _copy(pair_out, tmp_path / "out")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "episodes-0-0.parquet").write_bytes(b"someone's file")
+    (out / METRIC_CACHE_DIR).symlink_to(elsewhere)
+    assert va.metrics(out, by="run_id").equals(va.metrics(out, by="run_id", cache=False))
+    assert sorted(p.name for p in elsewhere.iterdir()) == ["episodes-0-0.parquet"]
