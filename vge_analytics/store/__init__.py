@@ -8,7 +8,6 @@ from replay import lazy_names
 
 if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._cache import (
-        cache_folder,
         cached_store,
     )
     from ._isolated import (
@@ -97,7 +96,6 @@ __all__ = [
     "default_max_queries",
     "describe_filters",
     "Batches",
-    "cache_folder",
     "cached_store",
     "build_scope",
     "check_columns",

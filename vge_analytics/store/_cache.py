@@ -41,7 +41,7 @@ import pyarrow as pa
 import pyarrow.dataset as pads
 import pyarrow.parquet as pq
 
-from replay.io import METRIC_CACHE_DIR, atomic_file, metric_cache_path
+from replay.io import atomic_file, metric_cache_path
 
 from .._errors import QueryError
 from ._kept import own_folder
@@ -177,13 +177,7 @@ def cached_terms(ratios: Sequence[Ratio]) -> list[tuple[str, str]]:
     return [(f"coalesce(sum({quote_ident(n)}), 0)", n) for n in names]
 
 
-def cache_folder(out: str | Path) -> Path:
-    """`OUT/.metric-cache`: delete it to clear the cache."""
-    return Path(out) / METRIC_CACHE_DIR
-
-
 __all__ = [
-    "cache_folder",
     "cached_store",
     "cached_terms",
     "definitions_key",
