@@ -15,10 +15,12 @@ from it) and the switch classes per run. It is timed
   with the CPU seconds of all threads (stable under load from other processes),
 
 at 1x and at `--times` x: OUT copied `times` times into `benchmarks/_work/metrics_x<N>/`
-with distinct run ids (`<run_id>~<k>`), i.e. `times` times the steps, episodes, goals and
-runs, each copy a real Parquet file (no symlinks), so the queries read `times` times the
-bytes and produce `times` times the groups. The polars implementation is timed as well, for
-reference. Prints a table and, with `--json`, the numbers as JSON.
+(or `--work`) with distinct run ids (`<run_id>~<k>`) and a manifest listing the copies, i.e.
+`times` times the steps, episodes, goals and runs, each copy a real Parquet file (no
+symlinks), so the queries read `times` times the bytes and produce `times` times the groups.
+The metrics read the metric cache (`OUT/.metric-cache/`, written by the cold call); the
+metrics from the tables alone (`cache=False`) and the polars implementation are timed once
+each, warm, for reference. Prints a table and, with `--json`, the numbers as JSON.
 """
 
 from __future__ import annotations
@@ -37,7 +39,14 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 import vge_analytics as va
-from replay.io import PARTITIONED, RUNS_TABLE, STEPS_TABLE, manifest_path, partition
+from replay.io import (
+    PARTITIONED,
+    RUNS_TABLE,
+    STEPS_TABLE,
+    listed_part,
+    manifest_path,
+    partition,
+)
 from vge_analytics.reports import groups_of
 
 WORK = Path(__file__).resolve().parent / "_work"
@@ -73,6 +82,9 @@ def measure(out: Path, repeats: int) -> dict:
     cold = suite(out)
     warm = [suite(out) for _ in range(repeats)]
     t = time.perf_counter()
+    va.metrics(out, by=BY, cache=False)  # the tables alone (no metric cache)
+    uncached_s = time.perf_counter() - t
+    t = time.perf_counter()
     va.polars_metrics(out, by=BY)
     polars_s = time.perf_counter() - t
     rows = va.sql(out, "SELECT (SELECT count(*) FROM steps) AS steps, "
@@ -90,6 +102,7 @@ def measure(out: Path, repeats: int) -> dict:
             k: statistics.median(w[k] for w in warm)
             for k in ("metrics", "errors", "switch_classes")
         },
+        "metrics_uncached_s": uncached_s,
         "polars_metrics_s": polars_s,
     }
 
@@ -111,9 +124,31 @@ def _copy_table(src: Path, dst: Path, times: int, partitioned: bool) -> None:
             pq.write_table(copy, target)
 
 
-def build_copies(out: Path, times: int) -> Path:
-    """OUT repeated `times` times under new run ids (rebuilt when OUT's manifest changed)."""
-    dst = WORK / f"metrics_x{times}"
+def _copied_manifest(out: Path, times: int) -> dict:
+    """OUT's manifest with each run repeated `times` times under its new id, listing the
+    copies' files (what a replay of that many runs writes; a real lab's manifest is as large:
+    every run lists the digests of its inputs)."""
+    manifest = json.loads(manifest_path(out).read_bytes())
+    runs = []
+    for k in range(times):
+        for entry in manifest["runs"]:
+            run_id = f"{entry['run_id']}~{k}"
+            outputs = {
+                table: [
+                    listed_part(table, run_id, name.rsplit("/", 1)[-1])
+                    for name in entry["outputs"][table]
+                ]
+                for table in PARTITIONED
+            }
+            runs.append({**entry, "run_id": run_id, "outputs": {**entry["outputs"], **outputs}})
+    totals = {k: v * times for k, v in manifest["totals"].items()}
+    return {**manifest, "totals": totals, "runs": runs}
+
+
+def build_copies(out: Path, times: int, work: Path = WORK) -> Path:
+    """OUT repeated `times` times under new run ids, with its manifest (rebuilt when OUT's
+    manifest changed)."""
+    dst = work / f"metrics_x{times}"
     stamp = dst / "source.json"
     source = {"out": str(out.resolve()), "manifest_mtime": manifest_path(out).stat().st_mtime}
     if stamp.exists() and json.loads(stamp.read_text()) == source:
@@ -122,6 +157,7 @@ def build_copies(out: Path, times: int) -> Path:
     for table in PARTITIONED:
         _copy_table(out / table, dst / table, times, partitioned=True)
     _copy_table(out / RUNS_TABLE, dst / RUNS_TABLE, times, partitioned=False)
+    manifest_path(dst).write_text(json.dumps(_copied_manifest(out, times), indent=2) + "\n")
     stamp.write_text(json.dumps(source))
     return dst
 
@@ -132,13 +168,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--times", type=int, default=10, help="repetition factor (10)")
     parser.add_argument("--repeats", type=int, default=7, help="warm repeats (7)")
     parser.add_argument("--json", action="store_true", help="print the numbers as JSON")
+    parser.add_argument(
+        "--work", type=Path, default=WORK, help=f"where the copies are made ({WORK})"
+    )
     args = parser.parse_args(argv)
     if not (args.out / STEPS_TABLE).is_dir():
         print(f"error: {args.out}: not a replay output directory", file=sys.stderr)
         return 1
     results = [measure(args.out, args.repeats)]
     t = time.perf_counter()
-    big = build_copies(args.out, args.times)
+    big = build_copies(args.out, args.times, args.work)
     print(f"({args.times}x copy ready in {time.perf_counter() - t:.1f} s: {big})", file=sys.stderr)
     results.append(measure(big, args.repeats))
     load = os.getloadavg()[0]  # after the runs: the load they ran under (incl. themselves)
@@ -147,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     print(f"cpus {os.cpu_count()}, load average (1 min) {load:.2f}")
     header = ("scale", "steps", "episodes", "runs", "open", "cold", "warm med", "warm best",
-              "warm cpu", "polars")  # fmt: skip
+              "warm cpu", "metrics uncached", "polars")  # fmt: skip
     print(" | ".join(header))
     for scale, r in zip(("1x", f"{args.times}x"), results, strict=True):
         print(
@@ -162,6 +201,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"{r['warm_median_s']:.3f}",
                     f"{r['warm_best_s']:.3f}",
                     f"{r['warm_cpu_median_s']:.3f}",
+                    f"{r['metrics_uncached_s']:.3f}",
                     f"{r['polars_metrics_s']:.3f}",
                 ]
             )

@@ -61,6 +61,9 @@ MCAP_DIR = "mcap"
 """`OUT/mcap/<run_id>/<episode>.mcap` (§7.8)."""
 QUARANTINE = "quarantine.jsonl"
 MANIFEST = "manifest.json"
+METRIC_CACHE_DIR = ".metric-cache"
+"""`OUT/.metric-cache/`: the metrics' per-episode terms, kept by the analytics (PROTOCOL §7.1;
+docs/METRICS.md); never read by the replay, safe to delete."""
 
 _P = TypeVar("_P", Path, "Location")
 
@@ -119,6 +122,18 @@ def partition_dir(out: _P, table: str, run_id: str) -> _P:
 def listed_part(table: str, run_id: str, file: str) -> str:
     """`<table>/run_id=<run_id>/<file>`: a Parquet part as the manifest lists it."""
     return f"{table}/{partition(run_id)}/{file}"
+
+
+def metric_cache_path(out: _P, grain: str, manifest_key: str, definitions_key: str) -> _P:
+    """`OUT/.metric-cache/<grain>-<manifest_key>-<definitions_key>.parquet`: the per-episode
+    terms of the metrics of one grain, for one manifest and one set of definitions."""
+    return out / METRIC_CACHE_DIR / f"{grain}-{manifest_key}-{definitions_key}.parquet"
+
+
+def schema_cache_path(out: _P, table: str, contents_key: str) -> _P:
+    """`OUT/.metric-cache/schema-<table>-<contents_key>.arrow`: a table's schema as its files
+    unify it, kept for one content of OUT."""
+    return out / METRIC_CACHE_DIR / f"schema-{table}-{contents_key}.arrow"
 
 
 def runs_path(out: _P) -> _P:

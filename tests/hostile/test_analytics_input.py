@@ -199,10 +199,11 @@ WRITES = {
 @pytest.mark.parametrize("case", list(WRITES))
 def test_the_store_connection_itself_refuses_writes(guarded: Path, case: str):
     """Past the statement check (a cursor of the store, as every query of the analytics
-    uses), DuckDB refuses: OUT's files stay byte for byte as they were."""
-    before = _tree(guarded)
+    uses), DuckDB refuses: OUT's files stay byte for byte as they were (as the store left
+    them: opening it keeps the tables' schemas in OUT/.metric-cache)."""
     statement, says = WRITES[case]
     cursor = va.open_store(guarded).cursor()
+    before = _tree(guarded)
     with pytest.raises(duckdb.Error, match=says):
         cursor.execute(statement.format(out=guarded))
     cursor.close()

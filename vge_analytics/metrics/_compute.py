@@ -19,8 +19,10 @@ from ..store import (
     Filters,
     GroupBy,
     Store,
+    cached_store,
     open_store,
     parse_by,
+    query_bounds,
     ratio_query,
     run_query,
 )
@@ -58,9 +60,11 @@ def _computed(
     metrics_dir: MetricsSource,
     *,
     terms: bool = False,
+    cache: bool = False,
 ) -> tuple[pl.DataFrame, list[Metric]]:
     """The metrics `names` of the set `metrics_dir` per group of `by` (or their terms), and
-    the metrics chosen: checked here, composed and run by the store."""
+    the metrics chosen: checked here, composed and run by the store; with `cache`, from the
+    episodes' terms kept beside OUT where they can answer (`store.cached_store`)."""
     store = open_store(out)
     available = metric_set(metrics_dir)
     chosen = available.resolve(names)
@@ -70,8 +74,17 @@ def _computed(
             f"metric {clash[0]!r} has the name of a grouping column; group by other columns"
         )
     _check_grains(store, [*by, *(where or {})], chosen, available)
-    sql, params = ratio_query(store, by, chosen, where, terms=terms)
-    return run_query(store, sql, params, sources=available.files_of(chosen)), chosen
+    cached: dict[str, str] = {}
+    sources = available.files_of(chosen)
+    bounds = query_bounds()
+    if cache and not (bounds is not None and bounds.isolated and sources):
+        # (a server runs a query holding a metric file's SQL in a process of its own, which
+        # opens OUT afresh, without the cache's tables: there the tables answer)
+        store, cached = cached_store(
+            store, chosen, list(available), by, where, files_of=available.files_of
+        )
+    sql, params = ratio_query(store, by, chosen, where, terms=terms, cached=cached)
+    return run_query(store, sql, params, sources=sources), chosen
 
 
 def metrics(
@@ -81,6 +94,7 @@ def metrics(
     where: Filters = None,
     *,
     metrics_dir: MetricsSource = None,
+    cache: bool = True,
 ) -> pl.DataFrame:
     """PROTOCOL §6 metrics per group, as a polars DataFrame.
 
@@ -94,10 +108,13 @@ def metrics(
     - `where`: `{column: value or list of values}` filters (bound, never formatted).
     - `metrics_dir`: a folder of metric files (overriding built-ins, adding metrics), or a
       loaded `MetricSet`; default `$VGE_METRICS_DIR`, else the built-ins alone.
+    - `cache`: read the metrics' per-episode terms kept in `OUT/.metric-cache/` (computed and
+      written there on first use; docs/METRICS.md, The metric cache); False reads the tables
+      alone. The values are the same either way.
 
     Columns: the group columns, then one Float64 column per metric (null for an empty group).
     """
-    df, chosen = _computed(out, parse_by(by), metrics, where, metrics_dir)
+    df, chosen = _computed(out, parse_by(by), metrics, where, metrics_dir, cache=cache)
     return df.with_columns(pl.col(m.name).cast(pl.Float64) for m in chosen)
 
 

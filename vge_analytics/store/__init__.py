@@ -1,6 +1,6 @@
 """Reading OUT safely (PROTOCOL §9): a DuckDB connection that opens no file, over exactly the
 Parquet files the manifest lists; the limits of user SQL, queries in a process of their own,
-the read-only guard; filters and groupings; the tables as frames."""
+the read-only guard; filters and groupings; the tables as frames; the metric cache."""
 
 from typing import TYPE_CHECKING
 
@@ -13,6 +13,9 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         query_bounds,
         query_limits,
         query_time_limit,
+    )
+    from ._cache import (
+        cached_store,
     )
     from ._isolated import (
         IsolatedResult,
@@ -104,6 +107,7 @@ __all__ = [
     "default_max_queries",
     "describe_filters",
     "Batches",
+    "cached_store",
     "build_scope",
     "check_columns",
     "check_runs",

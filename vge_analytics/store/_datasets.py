@@ -39,6 +39,7 @@ from replay.io import (
 )
 
 from .._errors import OutputDirError
+from ._kept import contents_key, keep_schema, kept_schema
 
 SCAN_OPTIONS: Mapping[str, int] = {
     "batch_size": 16_384,
@@ -69,17 +70,38 @@ def _refuse(out: replay.Location, what: str) -> OutputDirError:
     return OutputDirError(f"{manifest_path(out)}: {what}")
 
 
-def _checked(out: replay.Location, table: str, name: object, who: str) -> str:
+def _real(path: str, folders: dict[str, str], *, keep: bool = False) -> str:
+    """`os.path.realpath(path)`, built from its folder's, each folder resolved once
+    (`folders` keeps them, `keep`): a path that is no link is its resolved folder's entry."""
+    hit = folders.get(path)
+    if hit is not None:
+        return hit
+    folder, _, entry = path.rpartition("/")
+    if not folder or os.path.islink(path):
+        real = os.path.realpath(path)
+    else:
+        real = f"{_real(folder, folders, keep=True).rstrip('/')}/{entry}"
+    if keep:
+        folders[path] = real
+    return real
+
+
+def _checked(
+    out: replay.Location, table: str, name: object, who: str, folders: dict[str, str]
+) -> str:
     """`name` if it is the path of a file of `table` inside OUT, else the error; `who`: what
-    listed it, as the message says it (`OUT/manifest.json: run 'x' lists`)."""
+    listed it, as the message says it (`OUT/manifest.json: run 'x' lists`); `folders`: the
+    folders resolved so far (`_real`; OUT's own under "")."""
     if not isinstance(name, str):
         raise OutputDirError(f"{who} {name!r} as a {table} file (not a path)")
     parts = PurePosixPath(name).parts
     if name.startswith("/") or ".." in parts or parts[:1] != (table,):
         raise OutputDirError(f"{who} {name!r}, which is not a file of {table}/ in OUT")
     if out.local is not None:
-        inside = os.path.realpath(out.local)
-        real = os.path.realpath(out.local / name)
+        if "" not in folders:
+            folders[""] = os.path.realpath(out.local)
+        inside = folders[""]
+        real = os.path.normpath(_real(os.path.join(out.local, name), folders))
         if os.path.commonpath([inside, real]) != inside:
             raise OutputDirError(f"{who} {name!r}, which leads outside OUT ({real})")
     return name
@@ -91,6 +113,7 @@ def _listed(out: replay.Location, manifest: Mapping, table: str) -> list[tuple[s
     if not isinstance(runs, list):
         raise _refuse(out, "'runs' is not a list")
     found: list[tuple[str, str | None]] = []
+    folders: dict[str, str] = {}
     for run in runs:
         run_id = run.get("run_id") if isinstance(run, dict) else None
         outputs = run.get("outputs") if isinstance(run, dict) else None
@@ -98,7 +121,7 @@ def _listed(out: replay.Location, manifest: Mapping, table: str) -> list[tuple[s
         if not isinstance(run_id, str) or not isinstance(names, list):
             raise _refuse(out, f"a run without a run_id and its {table} files ({str(run)[:80]})")
         who = f"{manifest_path(out)}: run {run_id!r} lists"
-        found += [(_checked(out, table, name, who), run_id) for name in names]
+        found += [(_checked(out, table, name, who, folders), run_id) for name in names]
     return sorted(found)
 
 
@@ -112,7 +135,9 @@ def table_files(
         names = [f"{table}/{rel}" for rel in (out / table).files() if rel.endswith(".parquet")]
     else:
         return _listed(out, manifest, table)
-    return [(_checked(out, table, name, f"{out}: OUT holds"), None) for name in names]
+    folders: dict[str, str] = {}
+    who = f"{out}: OUT holds"
+    return [(_checked(out, table, name, who, folders), None) for name in names]
 
 
 def _dictionary_columns(fragments: Iterable[pads.ParquetFileFragment], schema: pa.Schema) -> set:
@@ -131,49 +156,69 @@ def _dictionary_columns(fragments: Iterable[pads.ParquetFileFragment], schema: p
     return columns
 
 
-def _dataset(out: replay.Location, files: list[tuple[str, str | None]]) -> pads.Dataset:
-    """One dataset over `files`, their schemas unified by column name as DuckDB's
-    `union_by_name` does (a column some files lack is null there)."""
-    fs = out.fs if out.fs is not None else pafs.LocalFileSystem()
-    base = out.path.rstrip("/")
-    paths = [f"{base}/{name}" for name, _ in files]
+def _unified(fs: pafs.FileSystem, paths: list[str]) -> pa.Schema:
+    """The schema of the files at `paths`, unified by column name, a string column stored
+    with a dictionary in every file typed as a dictionary (read as one)."""
     plain = pads.ParquetFileFormat()
     first = [plain.make_fragment(p, fs) for p in paths]
     schema = pa.unify_schemas([f.physical_schema for f in first], promote_options="permissive")
     dictionaries = _dictionary_columns(first, schema)
+    return pa.schema(
+        f.with_type(pa.dictionary(pa.int32(), f.type)) if f.name in dictionaries else f
+        for f in schema
+    ).with_metadata(schema.metadata)
+
+
+def _dataset(
+    out: replay.Location, files: list[tuple[str, str | None]], schema: pa.Schema | None = None
+) -> pads.Dataset:
+    """One dataset over `files`, their schemas unified by column name as DuckDB's
+    `union_by_name` does (a column some files lack is null there); `schema`: that unified
+    schema when it is known (`_kept`), else read from every file's footer."""
+    fs = out.fs if out.fs is not None else pafs.LocalFileSystem()
+    base = out.path.rstrip("/")
+    paths = [f"{base}/{name}" for name, _ in files]
+    if schema is None:
+        schema = _unified(fs, paths)
+    dictionaries = [f.name for f in schema if pa.types.is_dictionary(f.type)]
     read_as = pads.ParquetFileFormat(
-        read_options=pads.ParquetReadOptions(dictionary_columns=sorted(dictionaries)),
+        read_options=pads.ParquetReadOptions(dictionary_columns=dictionaries),
         # On the local disk, a row group's columns are read when it is scanned: pre-buffering
         # reads every scanned column of the whole file at once, so memory grew with the part
         # (a part of long responses held all of them). A store fetches them ahead, to save
         # round trips.
-        default_fragment_scan_options=pads.ParquetFragmentScanOptions(
-            pre_buffer=out.local is None
-        ),
+        default_fragment_scan_options=pads.ParquetFragmentScanOptions(pre_buffer=out.local is None),
     )
-    schema = pa.schema(
-        f.with_type(pa.dictionary(pa.int32(), f.type)) if f.name in dictionaries else f
-        for f in schema
-    ).with_metadata(schema.metadata)
     fragments = [
         read_as.make_fragment(
             path, fs, partition_expression=None if run is None else pc.field("run_id") == run
         )
         for path, (_, run) in zip(paths, files, strict=True)
     ]
-    for fragment in fragments:  # the footer again (these read as dictionaries), kept now
-        fragment.ensure_complete_metadata()
+    # A fragment's footer is read when it is first scanned, and kept (a query that reads no
+    # file of a table, one the metric cache answers, reads none).
     return _Dataset(fragments, schema, read_as, fs)
 
 
-def table_sources(out: replay.Location, manifest: Mapping | None) -> dict[str, object]:
+def table_sources(
+    out: replay.Location, manifest: Mapping | None, digest: str | None = None
+) -> tuple[dict[str, object], str | None]:
     """Each table of OUT as an Arrow dataset over its files (an empty Arrow table when it has
-    none). Raises `OutputDirError` for a path outside OUT; pyarrow's errors pass through."""
+    none), and the key of OUT's contents (`_kept.contents_key`; `digest`: the sha256 of its
+    manifest). Raises `OutputDirError` for a path outside OUT; pyarrow's errors pass
+    through."""
+    files = {table: table_files(out, manifest, table) for table in TABLES}
+    key = contents_key(out, files, digest)
     sources: dict[str, object] = {}
     for table in TABLES:
-        files = table_files(out, manifest, table)
-        sources[table] = _dataset(out, files) if files else empty_table(table)
-    return sources
+        if not files[table]:
+            sources[table] = empty_table(table)
+            continue
+        schema = kept_schema(out, table, key)
+        sources[table] = _dataset(out, files[table], schema)
+        if schema is None:
+            keep_schema(out, table, key, sources[table].schema)
+    return sources, key
 
 
 __all__ = ["SCAN_OPTIONS", "empty_table", "table_files", "table_sources"]

@@ -12,7 +12,7 @@ whole text is composed here.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Protocol
 
 from replay.io import GRAINS
@@ -54,8 +54,17 @@ def _term(ratio: Ratio, part: str) -> str:
 
 
 def _grain_query(
-    store: Store, grain: str, ratios: list[Ratio], by: Sequence[str], where: Filters
+    store: Store,
+    grain: str,
+    ratios: list[Ratio],
+    by: Sequence[str],
+    where: Filters,
+    cached: str | None = None,
 ) -> tuple[str, list]:
+    if cached is not None:  # the episodes' terms, added up (`_cache`)
+        from ._cache import cached_terms
+
+        return grouped_aggregate(store, cached, by, where, cached_terms(ratios))
     # Each expression on lines of its own, as the metric check binds it: a trailing `--`
     # comment in a metric file ends with its line.
     terms = []
@@ -92,18 +101,21 @@ def ratio_query(
     where: Filters = None,
     *,
     terms: bool = False,
+    cached: Mapping[str, str] | None = None,
 ) -> tuple[str, list]:
     """The SQL text and bound parameters computing `ratios` per group of `by` (columns of
     runs, episodes, or of the grain tables; checked here), filtered by `where`.
 
     With `terms=True` the result holds each ratio's numerator and denominator
-    (`"<name>:num"`, `"<name>:den"`) instead of its value."""
+    (`"<name>:num"`, `"<name>:den"`) instead of its value. `cached`: {grain: table} of the
+    grains read from their cached per-episode terms (`_cache.cached_store`)."""
     grains = [g for g in GRAINS if any(r.grain == g for r in ratios)]
     check_columns(store, [*by, *(where or {})], grains, "grouping/filter")
     ctes: list[str] = []
     params: list[object] = []
     for grain in grains:
-        sql, p = _grain_query(store, grain, [r for r in ratios if r.grain == grain], by, where)
+        chosen = [r for r in ratios if r.grain == grain]
+        sql, p = _grain_query(store, grain, chosen, by, where, (cached or {}).get(grain))
         ctes.append(f"agg_{grain} AS ({sql})")
         params.extend(p)
     keys_sql, keys_params = _keys(store, by, where, grains)

@@ -228,7 +228,7 @@ RUN_COPIES: tuple[str, ...] = ("model", "agent_kind")
 """Columns that steps, episodes and goals copy from the run header: determined by run_id."""
 
 
-def _run_level(store: Store, grain: str, column: str) -> bool:
+def run_level(store: Store, grain: str, column: str) -> bool:
     """A column whose value is fixed per run: taken from `runs`, after aggregation."""
     if column == "run_id" or not store.has_column(RUNS_TABLE, column):
         return False
@@ -257,7 +257,7 @@ def grouped_aggregate(
     run column row by row. Columns must have been checked (`check_columns`).
     """
     where = dict(where or {})
-    run_cols = [c for c in dict.fromkeys([*by, *where]) if _run_level(store, grain, c)]
+    run_cols = [c for c in dict.fromkeys([*by, *where]) if run_level(store, grain, c)]
     inner_by = [c for c in by if c not in run_cols]
     inner_where = {c: v for c, v in where.items() if c not in run_cols}
     outer_where = {c: v for c, v in where.items() if c in run_cols}
@@ -286,7 +286,11 @@ def grouped_aggregate(
     out_keys = [f"r.{quote_ident(c)}" if c in run_cols else f"i.{quote_ident(c)}" for c in by]
     out_sel = [f"{e} AS {quote_ident(c)}" for e, c in zip(out_keys, by, strict=True)]
     out_sel += [f"i.{quote_ident(name)}" for _, name in extra_keys]
-    out_sel += [f"sum(i.{quote_ident(name)}) AS {quote_ident(name)}" for _, name in terms]
+    # Added in the order of the runs: a sum of floating-point terms depends in its last bits
+    # on the order of its rows, which a hash aggregate does not fix.
+    out_sel += [
+        f"sum(i.{quote_ident(name)} ORDER BY i.run_id) AS {quote_ident(name)}" for _, name in terms
+    ]
     out_group = out_keys + [f"i.{quote_ident(name)}" for _, name in extra_keys]
     sql = (
         f"SELECT {', '.join(out_sel)} FROM ({inner_sql}) AS i "
@@ -329,5 +333,6 @@ __all__ = [
     "parse_by",
     "quote_ident",
     "run_keys_scope",
+    "run_level",
     "source_table",
 ]

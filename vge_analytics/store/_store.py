@@ -18,6 +18,8 @@ store is cached per (directory, memory limits).
 from __future__ import annotations
 
 import contextlib
+import gc
+import hashlib
 import itertools
 import json
 import os
@@ -28,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import duckdb
+import msgspec
 import pyarrow as pa
 
 import replay
@@ -83,6 +86,8 @@ class Store:
     columns: dict[str, dict[str, str]]
     """table -> {column: DuckDB type}, in table order."""
     manifest: dict
+    """What the store read of OUT's manifest: each run's id, files and benchmark, the totals,
+    the engine version (`run_entry` reads a run's whole entry)."""
     sources: Mapping[str, object] = field(default_factory=dict)
     """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`), or
     Arrow tables in memory (`memory_store`)."""
@@ -91,6 +96,11 @@ class Store:
     query process is handed the tables, not OUT."""
     limits: SqlLimits | None = None
     """The memory limits its connection was opened with."""
+    digest: str | None = None
+    """The sha256 of OUT's manifest as read (a local OUT with one), else None."""
+    contents: str | None = None
+    """The key of OUT's contents (`_kept.contents_key`: what the metric cache is keyed by),
+    None where nothing is cached."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
@@ -174,6 +184,58 @@ def _read_manifest(out: Path | replay.Location) -> dict | None:
     return data if isinstance(data, dict) else {}
 
 
+class _Inputs(msgspec.Struct):
+    bench: object = msgspec.UNSET
+
+
+class _Run(msgspec.Struct):
+    run_id: object = None
+    outputs: object = None
+    inputs: _Inputs | msgspec.UnsetType = msgspec.UNSET
+
+
+class _Manifest(msgspec.Struct):
+    """What a store reads of a manifest: each run's id, files and benchmark, the totals and
+    the engine version (the inputs' digests, most of a large manifest, are skipped)."""
+
+    runs: list[_Run] = []
+    totals: object = msgspec.UNSET
+    engine_version: object = msgspec.UNSET
+
+
+def _store_manifest(raw: bytes) -> dict | None:
+    """The parts of a manifest a store reads (`_Manifest`) as the dict `json` would give,
+    or None when it does not have that shape (then it is read whole, and checked)."""
+    try:
+        doc = msgspec.json.decode(raw, type=_Manifest)
+    except msgspec.MsgspecError:
+        return None
+    runs = []
+    for run in doc.runs:
+        entry = {"run_id": run.run_id, "outputs": run.outputs}
+        if run.inputs is not msgspec.UNSET and run.inputs.bench is not msgspec.UNSET:
+            entry["inputs"] = {"bench": run.inputs.bench}
+        runs.append(entry)
+    fields = {"totals": doc.totals, "engine_version": doc.engine_version}
+    return {**{k: v for k, v in fields.items() if v is not msgspec.UNSET}, "runs": runs}
+
+
+def _manifest_and_digest(out: Path | replay.Location) -> tuple[dict | None, str | None]:
+    """What a store reads of OUT's manifest (`_store_manifest`) and the sha256 of its
+    bytes; (None, None) when it has none."""
+    path = manifest_path(out)
+    if not path.exists():
+        return None, None
+    try:
+        raw = path.read_bytes()
+        data = _store_manifest(raw)
+        if data is None:
+            data = json.loads(raw.decode("utf-8"))
+    except (OSError, ValueError) as exc:
+        raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
+    return (data if isinstance(data, dict) else {}), hashlib.sha256(raw).hexdigest()
+
+
 def _entry(runs: list, run_id: str, out: object) -> dict:
     for entry in runs:
         if entry.get("run_id") == run_id:
@@ -201,17 +263,22 @@ def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Locat
     return bench
 
 
-def _store(out: Path | replay.Location, manifest: dict | None, limits: SqlLimits) -> Store:
-    """The store over OUT's tables (`manifest` None: a local OUT without one)."""
+def _store(
+    out: Path | replay.Location, manifest: dict | None, limits: SqlLimits, digest: str | None = None
+) -> Store:
+    """The store over OUT's tables (`manifest` None: a local OUT without one; `digest`: the
+    sha256 of a local manifest's bytes)."""
     try:
-        sources = table_sources(replay.location(out), manifest)
+        sources, contents = table_sources(replay.location(out), manifest, digest)
     except (OSError, ValueError, pa.ArrowException) as exc:  # pyarrow's ArrowInvalid: both
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise OutputDirError(f"{out}: cannot read the Parquet tables ({first})") from None
     try:
-        return _opened(out, manifest or {}, sources, limits)
+        store = _opened(out, manifest or {}, sources, limits)
     except duckdb.Error as exc:
         raise OutputDirError(f"{out}: cannot read the Parquet tables ({exc})") from None
+    store.digest, store.contents = digest, contents
+    return store
 
 
 def _opened(
@@ -266,7 +333,23 @@ def _open(out: Path, limits: SqlLimits) -> Store:
             f"{out}: not a replay output directory (no {'/, '.join(missing)}/); "
             "run `vge replay ... --out` first"
         )
-    return _store(out, _read_manifest(out), limits)
+    with _no_collection():
+        manifest, digest = _manifest_and_digest(out)
+        return _store(out, manifest, limits, digest)
+
+
+@contextlib.contextmanager
+def _no_collection():
+    """The garbage collector paused: a manifest of many runs is millions of objects, which
+    the collector would otherwise walk again and again while they are made (none is a
+    cycle)."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
 
 
 def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:

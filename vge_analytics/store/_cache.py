@@ -1,0 +1,197 @@
+"""The metric cache: the metrics' terms per run, computed once per OUT and kept beside it.
+
+Every metric is `scale * sum(numerator) / sum(denominator)` over the rows of its grain, both
+terms additive (PROTOCOL §6). A grouping by run columns (run_id, model, agent_kind, a facet)
+is already computed in two levels (`grouped_aggregate`): each run's terms over the big table,
+then those few rows added up per group. The cache keeps the first level: the first such
+computation over a grain scans that table once for every metric of the set on it and writes
+one row per run (run_id, each metric's numerator and denominator, exactly the values the
+first level computes) to `OUT/.metric-cache/<grain>-<manifest>-<definitions>.parquet`
+(`replay.io.metric_cache_path`); later computations add those rows up as the second level
+does, so their values are the same bits. (Per-episode terms would serve groupings by episode
+columns too, but a distance summed per episode and then over episodes rounds differently,
+in its last bit, from one compensated sum over the steps: measured on the sample.)
+
+The file's name holds what it was computed from: a hash of OUT's contents (the sha256 of its
+manifest, which every replay rewrites with its inputs' sha256, options and engine version,
+and the size and modification time of every table file) and a hash of the definitions
+(name, grain, numerator, denominator) of the metrics in it. A change to either
+names another file: nothing stale is ever read. When a file is written, the files of that
+grain made from another manifest are removed (they can never be read again).
+
+The cache answers only what it answers with the same bits: a local OUT with a manifest,
+grouped by run_id or by a column fixed per run, filtered on such columns; anything else
+(a column of episodes, steps or goals, no run column at all) reads the tables as before.
+A file is written whole or not at all (`replay.io.atomic_file`); when OUT cannot be written
+(read-only, full), or the terms cannot be computed, nothing is cached and the query runs on
+the tables.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import json
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import duckdb
+import pyarrow as pa
+import pyarrow.dataset as pads
+import pyarrow.parquet as pq
+
+from replay.io import atomic_file, metric_cache_path
+
+from .._errors import QueryError, QueryLimitError
+from ._kept import own_folder
+from ._ratios import Ratio, term_name
+from ._scope import Filters, grouped_aggregate, quote_ident, run_level
+from ._sql import run_query
+from ._store import Store
+
+CACHE_ROW_GROUP = 65_536
+"""Rows per row group of a cache file (batches of the query's result written as they come)."""
+
+
+def definitions_key(ratios: Sequence[Ratio]) -> str:
+    """A hash of what the terms of `ratios` are computed from."""
+    doc = [[r.name, r.grain, r.numerator, r.denominator] for r in ratios]
+    return hashlib.sha256(json.dumps(doc).encode()).hexdigest()[:16]
+
+
+def _cacheable(store: Store, grain: str, by: Sequence[str], where: Filters) -> bool:
+    """Whether the query grouping `grain` rows by `by`, filtered by `where`, adds up per-run
+    terms: every column run_id or fixed per run, and run_id or such a column among them
+    (without, the rows of every run are summed at once, in one level)."""
+    columns = [*by, *(where or {})]
+    per_run = [c for c in columns if run_level(store, grain, c)]
+    return all(c == "run_id" or c in per_run for c in columns) and ("run_id" in by or bool(per_run))
+
+
+def _where(store: Store) -> Path | None:
+    """The local OUT whose terms may be cached, or None (in memory, in object storage,
+    without a manifest, or its cache folder a link)."""
+    if store.contents is None or not isinstance(store.out, Path) or not own_folder(store.out):
+        return None
+    return store.out
+
+
+def _write(
+    store: Store, grain: str, ratios: Sequence[Ratio], path: Path, sources: Sequence[str]
+) -> None:
+    """Compute the per-run terms of `ratios` over `grain` and write them to `path`: one query
+    as any other of the analytics (`run_query`, within the bounds of the block around it;
+    `sources`, the metric files it holds, named if it is stopped); its result is a row a run."""
+    terms = []
+    for r in ratios:
+        terms.append((f"coalesce(\n{r.numerator}\n, 0)", term_name(r, "num")))
+        terms.append((f"coalesce(\n{r.denominator}\n, 0)", term_name(r, "den")))
+    sql, params = grouped_aggregate(store, grain, ("run_id",), None, terms)
+    sql += " ORDER BY run_id"
+    table = run_query(store, sql, params, sources=sources).to_arrow()
+    path.parent.mkdir(exist_ok=True)
+    with atomic_file(path, sync=False) as fh:
+        pq.write_table(table, fh, row_group_size=CACHE_ROW_GROUP)
+    for old in path.parent.glob(f"{grain}-*.parquet"):  # made from another manifest: dead
+        if old.name.split("-")[1] != path.name.split("-")[1]:
+            with contextlib.suppress(OSError):
+                old.unlink()
+
+
+def _read(path: Path, names: Sequence[str]) -> pads.Dataset | None:
+    """The cache file at `path` if it holds the keys and every term in `names`, else None."""
+    try:
+        read_as = pads.ParquetFileFormat(
+            read_options=pads.ParquetReadOptions(dictionary_columns=["run_id"])
+        )
+        data = pads.dataset(str(path), format=read_as)
+    except (OSError, pa.ArrowException):
+        return None
+    schema = data.schema
+    wanted = ["run_id", *names]
+    if any(schema.get_field_index(n) < 0 for n in wanted):
+        return None
+    numeric = all(
+        pa.types.is_integer(schema.field(n).type)
+        or pa.types.is_floating(schema.field(n).type)
+        or pa.types.is_decimal(schema.field(n).type)
+        for n in names
+    )
+    return data if numeric else None
+
+
+def _terms_source(
+    store: Store,
+    grain: str,
+    ratio_set: Sequence[Ratio],
+    out: Path,
+    key: str,
+    sources: Sequence[str],
+) -> pads.Dataset | None:
+    """The cached per-run terms of every ratio of `ratio_set` over `grain` (computed and written
+    first when missing), or None when they cannot be had."""
+    names = [term_name(r, p) for r in ratio_set for p in ("num", "den")]
+    path = metric_cache_path(out, grain, key, definitions_key(ratio_set))
+    data = _read(path, names) if path.is_file() else None
+    if data is not None:
+        return data
+    try:
+        _write(store, grain, ratio_set, path, sources)
+    except QueryLimitError:
+        raise  # a bound stopped it: the tables would be stopped the same way
+    except (OSError, duckdb.Error, pa.ArrowException, QueryError):
+        return None  # read-only or full OUT, or a term that fails: the tables answer
+    return _read(path, names)
+
+
+def cached_store(
+    store: Store,
+    ratios: Sequence[Ratio],
+    ratio_set: Sequence[Ratio],
+    by: Sequence[str],
+    where: Filters,
+    *,
+    files_of: Callable[[Sequence[Ratio]], Sequence[str]] = lambda ratios: (),
+) -> tuple[Store, dict[str, str]]:
+    """`store` with the cached per-run terms of each grain of `ratios` that can answer
+    grouping `by` and filtering `where` (as tables `__terms_<grain>`), and {grain: table}.
+    `ratio_set`: every ratio whose terms a cache file holds (a superset of `ratios`, so that
+    any choice among them reads one file per grain). `files_of`: the metric files that define
+    some ratios (named when a bound stops the query computing their terms)."""
+    out = _where(store)
+    if out is None:
+        return store, {}
+    key = store.contents
+    sources: dict[str, object] = {}
+    catalogue: dict[str, dict[str, str]] = {}
+    for grain in dict.fromkeys(r.grain for r in ratios):
+        if not _cacheable(store, grain, by, where):
+            continue
+        on_grain = [r for r in ratio_set if r.grain == grain]
+        data = _terms_source(store, grain, on_grain, out, key, files_of(on_grain))
+        if data is not None:
+            sources[f"__terms_{grain}"] = data
+    if not sources:
+        return store, {}
+    derived = dataclasses.replace(store, sources={**store.sources, **sources})
+    with derived.cursor() as cursor:
+        for name in sources:
+            rows = cursor.execute(f"DESCRIBE {name}").fetchall()  # our own names
+            catalogue[name] = {r[0]: str(r[1]) for r in rows}
+    derived.columns = {**store.columns, **catalogue}
+    return derived, {name.removeprefix("__terms_"): name for name in sources}
+
+
+def cached_terms(ratios: Sequence[Ratio]) -> list[tuple[str, str]]:
+    """The aggregate terms of `ratios` over a cache table: the runs' terms added
+    up with `sum`, as the second level of `grouped_aggregate` adds them."""
+    names = [term_name(r, part) for r in ratios for part in ("num", "den")]
+    return [(f"coalesce(sum({quote_ident(n)}), 0)", n) for n in names]
+
+
+__all__ = [
+    "cached_store",
+    "cached_terms",
+    "definitions_key",
+]

@@ -1,0 +1,82 @@
+"""What the store keeps beside a local OUT, in `OUT/.metric-cache/` (docs/METRICS.md, The
+metric cache): the key of OUT's contents, and each table's schema as its files unify it.
+
+Opening an OUT reads the footer of every Parquet file to unify their schemas: 8,200 footers
+at 100 times the full benchmark, seconds. The unified schema (its dictionary columns marked)
+is kept in `schema-<table>-<contents>.arrow`; an OUT opened again with the same contents
+builds its datasets from it, and a file's footer is read only when the file is first
+scanned. `<contents>` is `contents_key`: the sha256 of the manifest and the size and
+modification time of every table file, so a replay, or a file changed by hand, names
+another schema file. Nothing is kept for an OUT without a manifest or one in object storage;
+an OUT that cannot be written keeps nothing and is read as before.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import pyarrow as pa
+
+import replay
+from replay.io import METRIC_CACHE_DIR, atomic_file, schema_cache_path
+
+Files = Mapping[str, Sequence[tuple[str, str | None]]]
+"""table -> (path relative to OUT, run) of each of its files (`_datasets.table_files`)."""
+
+
+def contents_key(out: replay.Location, files: Files, digest: str | None) -> str | None:
+    """A hash of OUT's manifest (`digest`, its sha256) and of the size and modification time
+    of every table file; None for an OUT in object storage or without a manifest, or when a
+    file cannot be looked at."""
+    if out.local is None or digest is None:
+        return None
+    h = hashlib.sha256(digest.encode())
+    try:
+        for table in sorted(files):
+            for name, _ in files[table]:
+                st = os.stat(os.path.join(out.local, name))
+                h.update(f"\0{name}\0{st.st_size}\0{st.st_mtime_ns}".encode())
+    except OSError:
+        return None
+    return h.hexdigest()[:16]
+
+
+def own_folder(out: Path) -> bool:
+    """Whether `OUT/.metric-cache` may be used: absent, or a folder that is no link (one
+    planted as a link to elsewhere would have the cache write and delete files there)."""
+    folder = out / METRIC_CACHE_DIR
+    return not folder.is_symlink() and (folder.is_dir() or not folder.exists())
+
+
+def kept_schema(out: replay.Location, table: str, key: str | None) -> pa.Schema | None:
+    """The unified schema of `table` kept for contents `key`, or None."""
+    if key is None or not own_folder(out.local):
+        return None
+    path = schema_cache_path(out.local, table, key)
+    try:
+        with open(path, "rb") as fh:
+            return pa.ipc.read_schema(pa.py_buffer(fh.read(1 << 20)))
+    except (OSError, pa.ArrowException):
+        return None
+
+
+def keep_schema(out: replay.Location, table: str, key: str | None, schema: pa.Schema) -> None:
+    """Keep `schema` for contents `key` (nothing when OUT cannot be written), and remove the
+    schemas of `table` kept for other contents."""
+    if key is None or not own_folder(out.local):
+        return
+    path = schema_cache_path(out.local, table, key)
+    with contextlib.suppress(OSError):
+        path.parent.mkdir(exist_ok=True)
+        with atomic_file(path, sync=False) as fh:
+            fh.write(schema.serialize().to_pybytes())
+        for old in path.parent.glob(f"schema-{table}-*.arrow"):
+            if old.name != path.name:
+                old.unlink()
+
+
+__all__ = ["Files", "contents_key", "keep_schema", "kept_schema", "own_folder"]
