@@ -12,10 +12,12 @@ full-scale benchmark's 968 devices hold about 46 MB).
 
 from __future__ import annotations
 
+import base64
 import hashlib
 import io
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 from PIL import Image
@@ -44,6 +46,11 @@ class Picture:
     def name(self) -> str:
         """A file name for it, from its content (the same picture, the same name)."""
         return hashlib.sha256(self.data).hexdigest()[:20] + ".jpg"
+
+    @cached_property
+    def data_url(self) -> str:
+        """The picture as a `data:` URL (made once: a view is shown at many steps)."""
+        return f"data:{self.media_type};base64," + base64.b64encode(self.data).decode("ascii")
 
 
 def shrink(data: bytes) -> Picture:
