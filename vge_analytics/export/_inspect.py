@@ -315,7 +315,13 @@ def _truncate(text: str) -> str:
 
 
 def _thin_text(text: str) -> str:
-    return textwrap.shorten(text[: 8 * SUMMARY_FIELD], width=SUMMARY_FIELD, placeholder="...")
+    """inspect_ai's `thin_text`: whitespace collapsed, shortened to SUMMARY_FIELD characters
+    at a word's end (`textwrap.shorten`, which a text that fits once collapsed skips)."""
+    text = text[: 8 * SUMMARY_FIELD]
+    collapsed = " ".join(text.split())
+    if len(collapsed) <= SUMMARY_FIELD:
+        return collapsed
+    return textwrap.shorten(text, width=SUMMARY_FIELD, placeholder="...")
 
 
 def _thin(value: Any, encode_indented: Any) -> Any:

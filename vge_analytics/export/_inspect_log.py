@@ -22,7 +22,6 @@ finish say so here too.
 
 from __future__ import annotations
 
-import re
 import zipfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -43,21 +42,43 @@ ZIP64_VERSION = 45
 ZSTANDARD = 93
 
 _ENCODER = msgspec.json.Encoder()
-_UNSIGNED_EXPONENT = re.compile(rb"[0-9]e[0-9]")
-"""msgspec writes 1e16 where pydantic (inspect_ai's serializer) writes 1e+16."""
+LARGE = 1e16
+"""From here on msgspec writes a float as 1e16 where pydantic (inspect_ai's serializer)
+writes 1e+16; it writes NaN and the infinities as null, pydantic as NaN and Infinity."""
 
 
-def to_json(value: Any, indent: int | None = None) -> bytes:
-    """`value` as inspect_ai writes it (pydantic-core's JSON): msgspec's encoding, which is
-    the same but for floats of 1e16 and beyond (rare enough to encode such a value twice);
-    `indent`: pydantic's indented form, for the summaries' measures."""
-    if indent is None:
+def plain_numbers(values: Iterable[Any]) -> bool:
+    """Whether `values` (strings, integers, floats, lists of strings or integers: a row of
+    the replay's tables) hold no float msgspec writes otherwise than pydantic."""
+    return all(type(v) is not float or -LARGE < v < LARGE for v in values)
+
+
+def _plain(value: Any) -> bool:
+    """`plain_numbers` for any JSON value, however nested (a header, a run's settings)."""
+    if isinstance(value, dict):
+        return all(_plain(v) for v in value.values())
+    if isinstance(value, list | tuple):
+        return all(_plain(v) for v in value)
+    return type(value) is not float or -LARGE < value < LARGE
+
+
+def _plain_sample(sample: dict[str, Any]) -> bool:
+    """Where a sample's floats are: the episode's row, the steps' rows (on the answers),
+    and what is derived from them (scores, usage: sums and ratios of those)."""
+    return plain_numbers(sample["metadata"].values()) and all(
+        plain_numbers(m["metadata"].values()) for m in sample["messages"] if "metadata" in m
+    )
+
+
+def to_json(value: Any, *, plain: bool | None = None, indent: int | None = None) -> bytes:
+    """`value` as inspect_ai writes it (pydantic-core's JSON): msgspec's encoding, the same
+    but for the floats `plain` says are absent (None: look); `indent`: pydantic's indented
+    form, for the summaries' measures."""
+    if indent is None and (plain if plain is not None else _plain(value)):
         try:
-            data = _ENCODER.encode(value)
+            return _ENCODER.encode(value)
         except UnicodeEncodeError:  # a lone surrogate: inspect_ai escapes it, as below
-            data = b""
-        if data and not _UNSIGNED_EXPONENT.search(data):
-            return data
+            pass
     import pydantic_core
 
     try:
@@ -134,7 +155,9 @@ def write_eval(
         size = 0
         for sample, chars in samples:
             name = f"samples/{sample['id']}_epoch_{sample['epoch']}.json"
-            held.append((name, to_json(sample), to_json(sample_summary(sample, _indented))))
+            plain = _plain_sample(sample)  # and so its summary, which holds less
+            summary = sample_summary(sample, _indented)
+            held.append((name, to_json(sample, plain=plain), to_json(summary, plain=plain)))
             size += chars
             if len(held) == FLUSH_EVERY or size >= FLUSH_BYTES:
                 log.group(held)
@@ -146,4 +169,4 @@ def write_eval(
         raise
 
 
-__all__ = ["FLUSH_BYTES", "FLUSH_EVERY", "ZIP_EPOCH", "to_json", "write_eval"]
+__all__ = ["FLUSH_BYTES", "FLUSH_EVERY", "ZIP_EPOCH", "plain_numbers", "to_json", "write_eval"]
