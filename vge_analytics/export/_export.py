@@ -4,7 +4,7 @@ episode for a progress bar."""
 
 from __future__ import annotations
 
-import importlib
+import importlib.util
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,13 +44,12 @@ def check_choice(value: str, allowed: Sequence[str], option: str) -> None:
 
 
 def require(fmt: str) -> None:
-    """The format's package, or one line saying how to install it."""
-    try:
-        importlib.import_module(NEEDS[fmt])
-    except ImportError:
+    """The format's package, or one line saying how to install it (found, not imported:
+    the Inspect writer needs none of inspect_ai's modules, only its dependencies)."""
+    if importlib.util.find_spec(NEEDS[fmt]) is None:
         raise replay.ConfigError(
             f"--format {fmt} needs the {NEEDS[fmt]} package: pip install 'vge-analytics[export]'"
-        ) from None
+        )
 
 
 def export(

@@ -2,7 +2,7 @@
 member for member and byte for byte, written once.
 
 A log is a zip file of JSON members, each compressed with Zstandard (compression method 93,
-through `zipfile_zstd`, as inspect_ai writes and reads them): `_journal/start.json` (the
+which inspect_ai reads and writes through `zipfile_zstd`): `_journal/start.json` (the
 spec and plan), then the samples (`samples/<id>_epoch_<epoch>.json`) in groups of
 `FLUSH_EVERY` (or fewer, once they hold `FLUSH_BYTES` characters of text and pictures), each
 group followed by its summaries (`_journal/summaries/<n>.json`), and at the end every
@@ -23,12 +23,13 @@ finish say so here too.
 from __future__ import annotations
 
 import zipfile
+import zlib
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
 import msgspec
-import zipfile_zstd  # noqa: F401  (teaches zipfile method 93, Zstandard, as inspect_ai does)
+import zstandard
 
 from ._inspect import sample_summary
 
@@ -40,6 +41,9 @@ ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 """The earliest time a zip file can record: every member's stamp."""
 ZIP64_VERSION = 45
 ZSTANDARD = 93
+"""The zip compression method of Zstandard."""
+ZSTD_LEVEL = 3
+"""inspect_ai's (zipfile_zstd's default)."""
 
 _ENCODER = msgspec.json.Encoder()
 LARGE = 1e16
@@ -106,14 +110,30 @@ class _Log:
 
     def __init__(self, path: Path) -> None:
         self.zip = zipfile.ZipFile(path, "w")
+        # one compressor for every member, each a frame of its own: the bytes
+        # zipfile_zstd's compressor (level 3, threaded) gives, without its 12 threads
+        # started for each member
+        self.zstd = zstandard.ZstdCompressor(level=ZSTD_LEVEL, threads=1)
         self.summaries: list[bytes] = []
         self.groups = 0
 
     def member(self, name: str, data: bytes) -> None:
+        """Write `data` as the member `name`: its local header (`ZipInfo.FileHeader`, what
+        `ZipFile.writestr` writes), its compressed bytes, and its entry for the central
+        directory, which `ZipFile.close` writes after the last member."""
+        packer = self.zstd.compressobj()
+        packed = packer.compress(data) + packer.flush()
         info = zipfile.ZipInfo(name, date_time=ZIP_EPOCH)
         info.compress_type = ZSTANDARD
         info.external_attr = 0o600 << 16  # what ZipFile.writestr gives a member named by str
-        self.zip.writestr(info, data)
+        info.file_size, info.compress_size, info.CRC = len(data), len(packed), zlib.crc32(data)
+        fh = self.zip.fp
+        info.header_offset = fh.tell()
+        fh.write(info.FileHeader(zip64=False))
+        fh.write(packed)
+        self.zip.filelist.append(info)
+        self.zip.NameToInfo[name] = info
+        self.zip.start_dir = fh.tell()  # where the central directory goes
 
     def group(self, samples: list[tuple[str, bytes, bytes]]) -> None:
         """Write a group of samples ((file name, JSON, summary's JSON)) and their summaries."""

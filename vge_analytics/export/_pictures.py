@@ -23,7 +23,6 @@ from pathlib import Path
 from PIL import Image
 
 import replay
-from vge_analytics.synth import image_source
 
 MAX_SIDE = 512
 """Longest side of an embedded picture, in pixels: the views stay readable, the logs small."""
@@ -68,7 +67,8 @@ class Views:
 
     def __init__(self, bench: Path | replay.Location) -> None:
         self.bench = replay.Benchmark.open(bench)
-        self._source = image_source(bench)
+        self._where = bench
+        self._source: replay.BenchImages | None = None  # made with the first picture asked
         self._names: dict[str, tuple[str, ...]] = {}
         self._pictures: OrderedDict[tuple[str, str], Picture | None] = OrderedDict()
         self._held = 0  # bytes of the pictures kept
@@ -86,6 +86,10 @@ class Views:
         if key in self._pictures:
             self._pictures.move_to_end(key)
             return self._pictures[key]
+        if self._source is None:  # the renderer's modules: only an export with pictures
+            from vge_analytics.synth import image_source
+
+            self._source = image_source(self._where)
         found = self._source(self.bench.machine(device_id), view)
         got = shrink(found.data) if found is not None else None
         self._pictures[key] = got
