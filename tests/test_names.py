@@ -125,7 +125,7 @@ ALLOWED: dict[tuple[str, str], str] = {
     ("replay/semantics/_records.py", "front"): "the task's default initial view, in its record "
     "declaration (the JSON Schema shows it); the vocabulary sits below the rule modules, not "
     "the records",
-    ("vge_analytics/export/_inspect_log.py", "success"): "Inspect's status of a finished log",
+    ("vge_analytics/export/_inspect.py", "success"): "Inspect's status of a finished log",
     ("vge_analytics/play/_page.py", "success"): "Streamlit's `st.success`, the tone of info",
     ("vge_analytics/synth/_thinking.py", "left"): "where a part sits in the picture, in the "
     "simulated agent's words",

@@ -4,10 +4,14 @@ trajectories, for the transcript tools that read them (docs/EXPORT.md)."""
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import typer
 
 from ._options import episode_ids, ids_option, metrics_dir_option, out_argument
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 
 def export_command(
@@ -31,7 +35,11 @@ def export_command(
         "it was shown; none: text only (much faster and smaller).",
     ),
     metrics_dir: str = metrics_dir_option(),
-    progress: bool = typer.Option(True, "--progress/--no-progress", help="Progress bar on a TTY."),
+    progress: bool = typer.Option(
+        True,
+        "--progress/--no-progress",
+        help="A progress bar on a terminal; elsewhere (a pipe, a log) a line per run.",
+    ),
 ) -> None:
     """Write replayed runs as Inspect logs or ATIF trajectories.
 
@@ -54,9 +62,12 @@ def export_command(
         disable=not (progress and console.is_terminal),
     )
     task = bar.add_task(fmt, total=None)
+    lines = _RunLines(console) if progress and not console.is_terminal else None
 
     def tick(run_id: str, done: int, total: int) -> None:
         bar.update(task, description=f"export {escape(run_id)}", completed=done, total=total)
+        if lines is not None:
+            lines.tick(run_id, done, total)
 
     started = time.perf_counter()
     with bar:
@@ -70,6 +81,8 @@ def export_command(
             metrics_dir=metrics_dir,
             progress=tick,
         )
+    if lines is not None:
+        lines.close()
     what = "log(s)" if fmt == "inspect" else "trajectories"
     console.print(
         f"wrote {summary.files:,} {what} ({summary.runs} run(s), {summary.episodes:,} episodes, "
@@ -78,6 +91,36 @@ def export_command(
     )
     if fmt == "inspect":
         console.print(f"open them:  inspect view --log-dir {escape(str(dest))}", soft_wrap=True)
+
+
+class _RunLines:
+    """Progress in a pipe or a log: a line per run, once it is written (a run is written
+    when the next one starts, or the export ends)."""
+
+    def __init__(self, console: Console) -> None:
+        self.console = console
+        self.run: str | None = None
+        self.first = self.done = self.total = 0
+        self.started = time.perf_counter()
+
+    def tick(self, run_id: str, done: int, total: int) -> None:
+        if run_id != self.run:
+            self.close()
+            self.run, self.first = run_id, done - 1
+        self.done, self.total = done, total
+
+    def close(self) -> None:
+        if self.run is None:
+            return
+        from rich.markup import escape
+
+        now = time.perf_counter()
+        self.console.print(
+            f"exported {escape(self.run)}: {self.done - self.first:,} episodes in "
+            f"{now - self.started:.1f} s ({self.done:,} of {self.total:,})",
+            soft_wrap=True,
+        )
+        self.run, self.started = None, now
 
 
 def register(app: typer.Typer) -> None:

@@ -4,7 +4,7 @@ episode for a progress bar."""
 
 from __future__ import annotations
 
-import importlib
+import importlib.util
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,13 +44,12 @@ def check_choice(value: str, allowed: Sequence[str], option: str) -> None:
 
 
 def require(fmt: str) -> None:
-    """The format's package, or one line saying how to install it."""
-    try:
-        importlib.import_module(NEEDS[fmt])
-    except ImportError:
+    """The format's package, or one line saying how to install it (found, not imported:
+    the Inspect writer needs none of inspect_ai's modules, only its dependencies)."""
+    if importlib.util.find_spec(NEEDS[fmt]) is None:
         raise replay.ConfigError(
             f"--format {fmt} needs the {NEEDS[fmt]} package: pip install 'vge-analytics[export]'"
-        ) from None
+        )
 
 
 def export(
@@ -118,33 +117,41 @@ def _write_inspect(
     images: str,
     metrics_dir: str | Path | None,
 ) -> Path:
-    from inspect_ai.log import EvalResults, EvalSample, EvalStats
-    from inspect_ai.model import ModelUsage
-
-    from ._inspect import eval_plan, eval_results, eval_sample, eval_spec, eval_stats
+    from ._inspect import (
+        LOG_VERSION,
+        add_usage,
+        eval_header,
+        eval_plan,
+        eval_results,
+        eval_sample,
+        eval_spec,
+        eval_stats,
+    )
     from ._inspect_log import write_eval
 
     pictures = views if images == "embed" else None
-    usage: list[ModelUsage] = []  # the run's, summed as the samples go by
+    usage: list[dict] = []  # the run's, summed as the samples go by
 
-    def samples() -> Iterator[EvalSample]:
+    def samples() -> Iterator[tuple[dict, int]]:
         for episode in episodes:
-            sample = eval_sample(run, episode, views.names(episode.row["device_id"]), pictures)
-            recorded = sample.model_usage.get(run.model)
+            sample, size = eval_sample(
+                run, episode, views.names(episode.row["device_id"]), pictures
+            )
+            recorded = sample["model_usage"].get(run.model)
             if recorded is not None:
-                usage.append(usage.pop() + recorded if usage else recorded)
-            yield sample
+                usage.append(add_usage(usage.pop(), recorded) if usage else recorded)
+            yield sample, size
 
-    def finish() -> tuple[EvalResults, EvalStats]:
+    spec, plan = eval_spec(run, images), eval_plan(run)
+
+    def finish() -> dict:
         results = eval_results(run, load_metrics(metrics_dir))
-        return results, eval_stats(run, usage[0] if usage else None)
+        return eval_header(spec, plan, results, eval_stats(run, usage[0] if usage else None))
 
     path = root / f"{replay.io.safe_file_name(run.run_id)}.eval"
-    spec, plan = eval_spec(run, images), eval_plan(run)
-    # inspect_ai's recorder opens the file by name: it writes into a private folder, and the
-    # finished log replaces `path` (a link there is replaced, never written through)
+    start = {"version": LOG_VERSION, "eval": spec, "plan": plan}
     with staged_path(path, sync=False) as staged:
-        write_eval(staged, spec, plan, samples(), finish, condense=pictures is not None)
+        write_eval(staged, start, samples(), finish)
     return path
 
 

@@ -13,14 +13,15 @@ machines (`replay.Benchmark.machine`: a full-scale benchmark's 968 devices hold 
 
 from __future__ import annotations
 
+import base64
 import hashlib
 import io
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import replay
-from vge_analytics.synth import image_source
 
 MAX_SIDE = 512
 """Longest side of an embedded picture, in pixels: the views stay readable, the logs small."""
@@ -44,6 +45,11 @@ class Picture:
         """A file name for it, from its content (the same picture, the same name)."""
         return hashlib.sha256(self.data).hexdigest()[:20] + ".jpg"
 
+    @cached_property
+    def data_url(self) -> str:
+        """The picture as a `data:` URL (made once: a view is shown at many steps)."""
+        return f"data:{self.media_type};base64," + base64.b64encode(self.data).decode("ascii")
+
 
 def shrink(data: bytes) -> Picture:
     """The picture scaled down to MAX_SIDE (never up), as JPEG. Raises `replay.PictureError`
@@ -61,7 +67,8 @@ class Views:
 
     def __init__(self, bench: Path | replay.Location) -> None:
         self.bench = replay.Benchmark.open(bench)
-        self._source = image_source(bench)
+        self._where = bench
+        self._source: replay.BenchImages | None = None  # made with the first picture asked
         self._names: dict[str, tuple[str, ...]] = {}
         self._pictures: OrderedDict[tuple[str, str], Picture | None] = OrderedDict()
         self._held = 0  # bytes of the pictures kept
@@ -79,6 +86,10 @@ class Views:
         if key in self._pictures:
             self._pictures.move_to_end(key)
             return self._pictures[key]
+        if self._source is None:  # the renderer's modules: only an export with pictures
+            from vge_analytics.synth import image_source
+
+            self._source = image_source(self._where)
         found = self._source(self.bench.machine(device_id), view)
         try:
             got = shrink(found.data) if found is not None else None

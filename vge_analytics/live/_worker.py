@@ -117,7 +117,9 @@ class Worker:
             try:
                 reply = player.act(obs)
             except ContextExceededError:
-                ended = replay.semantics.CONTEXT_EXCEEDED  # an outcome of the agent's settings, not a failure
+                ended = (
+                    replay.semantics.CONTEXT_EXCEEDED
+                )  # an outcome of the agent's settings, not a failure
                 break
             except InfrastructureError as exc:
                 if self.stop.is_set():
@@ -173,7 +175,9 @@ class Worker:
         )
         session = self.env.session
         assert session is not None
-        return Finished(episode_id, episode_line(log), log, session.termination == replay.semantics.SUCCESS)
+        return Finished(
+            episode_id, episode_line(log), log, session.termination == replay.semantics.SUCCESS
+        )
 
     def _copy(self, cut: Cut, steps: list[replay.LogStep]) -> None:
         """The source's episode as it was, replayed for what this run records: steps after

@@ -6,11 +6,8 @@ the steps table has it, the same bytes twice."""
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
-import pyarrow as pa
-import pyarrow.parquet as pq
 import pytest
 from atif import Trajectory
 from inspect_ai.log import read_eval_log_sample
@@ -122,32 +119,6 @@ def test_the_same_bytes_twice(hand_out, hand_atif, tmp_path):
     assert first == second and len(first) == 12 + 5
     for rel in first:
         assert (dest / rel).read_bytes() == (tmp_path / rel).read_bytes()
-
-
-USAGE = {"prompt_tokens": 1000, "completion_tokens": 50, "latency_s": 1.25, "cost_usd": 0.002}
-
-
-@pytest.fixture(scope="module")
-def out_with_usage(hand_out, tmp_path_factory) -> Path:
-    """hand_out with the steps table's usage columns filled, as the replay of a harness that
-    records them fills them: a value on the kettle run's scored steps, null on its truncated
-    ones and on the oven run (a human run has no model call)."""
-    out = tmp_path_factory.mktemp("usage") / "out"
-    shutil.copytree(hand_out, out)
-    for part in (out / "steps").rglob("*.parquet"):
-        table = pq.read_table(part)
-        kettle = [r == "kettle-vlm" for r in table["run_id"].to_pylist()]
-        truncated = table["truncated"].to_pylist()
-        for name, value in USAGE.items():
-            kind = pa.int64() if isinstance(value, int) else pa.float64()
-            values = [
-                value if k and not t else None for k, t in zip(kettle, truncated, strict=True)
-            ]
-            at = table.schema.get_field_index(name)
-            table = table.set_column(at, name, pa.array(values, kind))
-        pq.write_table(table, part)
-    va.clear_cache()
-    return out
 
 
 def test_usage_per_step_when_recorded(out_with_usage, tmp_path):

@@ -25,10 +25,25 @@ def test_writes_and_says_where(hand_out, tmp_path, capsys):
         f"hw_dash_{c}.json" for c in "abcde"
     ]
     lines = err.strip().splitlines()
-    assert len(lines) == 1  # not a terminal: no progress bar
-    assert lines[0].startswith(
+    assert len(lines) == 2  # not a terminal: no progress bar, a line per run
+    assert lines[0].startswith("exported oven-human: 5 episodes in ")
+    assert lines[0].endswith(" s (5 of 5)")
+    assert lines[1].startswith(
         f"wrote 5 trajectories (1 run(s), 5 episodes, 32 steps) to {tmp_path} in "
     )
+    code, out, err = _run(
+        capsys, str(hand_out), "-f", "inspect", "--out", str(tmp_path), "--images", "none"
+    )
+    lines = err.strip().splitlines()
+    assert [line.split(" in ")[0] for line in lines[:2]] == [
+        "exported kettle-vlm: 7 episodes",
+        "exported oven-human: 5 episodes",
+    ]
+    assert [line.split(" s ")[-1] for line in lines[:2]] == ["(7 of 12)", "(12 of 12)"]
+    code, out, err = _run(
+        capsys, str(hand_out), "-f", "inspect", "--out", str(tmp_path), "--no-progress"
+    )
+    assert not err.startswith("exported")
     code, out, err = _run(
         capsys, str(hand_out), "-f", "inspect", "--out", str(tmp_path), "--episodes", "hw_dash_e"
     )
