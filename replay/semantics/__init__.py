@@ -65,6 +65,7 @@ from ._plan import (
 )
 from ._records import (
     INPUT_RECORDS,
+    RUN_TOTALS,
     SCHEMA_VERSION,
     ActionRecord,
     BBox,
@@ -174,6 +175,7 @@ __all__ = [
     "MAX_PRICE",
     "ORIGINS",
     "ORTHOGRAPHIC_VIEWS",
+    "RUN_TOTALS",
     "PARSE_DETAILS",
     "PROMPT_PRICE_KEY",
     "SCALE",

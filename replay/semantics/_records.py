@@ -139,6 +139,22 @@ class RunHeader(msgspec.Struct):
     schema_version: Annotated[int, _doc("Record format version")] = SCHEMA_VERSION
 
 
+RUN_TOTALS: tuple[str, ...] = (
+    "episodes_selected",
+    "episodes",
+    "infrastructure_failures",
+    "tasks_skipped",
+    "complete",
+    "steps",
+    "prompt_tokens",
+    "completion_tokens",
+    "latency_seconds",
+    "cost_usd",
+    "source_lines_unread",
+)
+"""Keys of run.json's meta that count what a run did or was asked to play (PROTOCOL §10.2),
+not how it was set up: `vge run` writes them, and runs that differ only in them (and the
+seed) are repeats of one setting."""
 MAX_META_KEYS = 256
 """The most keys a run.json's meta may hold (PROTOCOL §1.5): each scalar one is a column of
 the runs table, which every command and page reads."""

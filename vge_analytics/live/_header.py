@@ -16,19 +16,7 @@ from .._errors import RunDirError
 from ._agents import AGENT_KINDS, LiveAgent
 from ._continue import ContinueFrom
 
-TOTAL_KEYS = (
-    "episodes_selected",
-    "episodes",
-    "infrastructure_failures",
-    "tasks_skipped",
-    "complete",
-    "steps",
-    "prompt_tokens",
-    "completion_tokens",
-    "latency_seconds",
-    "cost_usd",
-    "source_lines_unread",
-)
+TOTAL_KEYS = replay.semantics.RUN_TOTALS
 """Keys of run.json's meta that count what the run did or was asked to play (the others are
 its settings). The selection is one of them: `--resume` may extend it."""
 CONNECTION_KEYS = ("base_url", "request_timeout_seconds", "max_response_bytes", "retries")

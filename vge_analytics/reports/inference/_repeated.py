@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
+from replay.semantics import RUN_TOTALS
+
 from ..._errors import AnalyticsError
 from ...store import Store, check_same_benchmark, open_store, run_query
 from ._clusters import (
@@ -38,20 +40,6 @@ from ._passk import pass_at_k, pass_hat_k
 SEED_KEY = "seed"
 MAX_K = 1000
 """The largest k asked for (rows for k above a group's runs are notes, one per k)."""
-RUN_TOTALS: tuple[str, ...] = (
-    "episodes_selected",
-    "episodes",
-    "infrastructure_failures",
-    "tasks_skipped",
-    "complete",
-    "steps",
-    "prompt_tokens",
-    "completion_tokens",
-    "latency_seconds",
-    "cost_usd",
-)
-"""run.json's totals (PROTOCOL §10.2): what a run did, not how it was set up; `vge run`
-writes them (`live.TOTAL_KEYS`, which a test holds equal)."""
 
 
 def _setting_key(row: dict) -> str:
