@@ -208,5 +208,5 @@ def vge(monkeypatch: pytest.MonkeyPatch):
     """`vge` with only the replay command registered (other commands' state is not ours)."""
     from vge_analytics import cli
 
-    monkeypatch.setattr(cli, "COMMAND_MODULES", ("replay",))
+    monkeypatch.setattr(cli, "COMMAND_MODULES", (cli.replay,))
     return cli.main
