@@ -10,9 +10,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import sys
-import threading
-import warnings
 from collections import Counter, deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -75,28 +72,8 @@ class _Share:
         self.fn = self.task = None  # the task's lines are no longer needed
 
 
-FORK_UNSAFE = ("polars", "duckdb", "ray")
-"""Libraries whose state a forked child cannot use (their own threads and connections): a
-process that has imported one starts its workers fresh."""
-
-
-def can_fork() -> bool:
-    """Whether worker processes may be forked from this one now: on Linux, with no Python
-    thread but this one and none of `FORK_UNSAFE` imported. The other threads such a process
-    has are the native pools of OpenBLAS and Arrow, which reset themselves in a forked child
-    (their `pthread_atfork` handlers)."""
-    return (
-        sys.platform == "linux"
-        and "fork" in multiprocessing.get_all_start_methods()
-        and threading.active_count() == 1
-        and not any(name in sys.modules for name in FORK_UNSAFE)
-    )
-
-
 class WorkerProcesses:
-    """N workers: this process and N - 1 more, forked when `fork` and `can_fork()` (they
-    start with this process's libraries and opened benchmark: a second of CPU a worker
-    saves on a loaded machine), else spawned. The task of batch k stays here when
+    """N workers: this process and N - 1 spawned ones. The task of batch k stays here when
     k mod N is 0 and goes to the pool otherwise (runs that list the same episodes in the
     same order then find each task's plan in the same process's cache). While waiting for a
     result, this process works: on its own tasks first, then on pool tasks that no worker
@@ -104,9 +81,8 @@ class WorkerProcesses:
     a queue, and this one, whose libraries and benchmark are already loaded, starts at
     once."""
 
-    def __init__(self, workers: int, *, fork: bool = False) -> None:
-        self.forked = fork and can_fork()
-        context = multiprocessing.get_context("fork" if self.forked else "spawn")
+    def __init__(self, workers: int) -> None:
+        context = multiprocessing.get_context("spawn")
         self.slots = workers
         self.nodes: Counter[str] = Counter()
         self.pool = ProcessPoolExecutor(
@@ -116,12 +92,6 @@ class WorkerProcesses:
             initargs=(os.getpid(),),
         )
         self._open: deque[_Share] = deque()  # submitted, result not taken yet
-        if self.forked:
-            # A forking pool starts all its workers at the first task: now, while this process
-            # has one thread (Python 3.12+ warns of the native pools that `can_fork` allows).
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", DeprecationWarning)
-                self.pool.submit(os.getpid).result()
 
     def submit(self, fn: Batch, task: Any) -> _Share:
         index = getattr(task, "index", 0)
@@ -168,20 +138,18 @@ class WorkerProcesses:
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
-def make_executor(workers: int = 1, ray: str | None = None, *, fork: bool = False) -> Executor:
+def make_executor(workers: int = 1, ray: str | None = None) -> Executor:
     """This process (`workers=1`), `workers` processes, or the Ray cluster at `ray`
     (`auto`: the cluster this host belongs to or `RAY_ADDRESS`; `local`: a cluster started
-    in this process; else an address). `fork`: the worker processes may be forked from this
-    one (see `can_fork`; only for callers whose files are all local: the object stores'
-    clients keep threads a child cannot use). Worker processes end with this process; on
-    Linux also with the thread that first submits to them, which must outlive the executor."""
+    in this process; else an address). Worker processes end with this process; on Linux
+    also with the thread that first submits to them, which must outlive the executor."""
     if ray is not None:
         from ._ray import RayCluster
 
         return RayCluster(ray)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers must be a positive integer, not {workers!r}")
-    return InProcess() if workers == 1 else WorkerProcesses(workers, fork=fork)
+    return InProcess() if workers == 1 else WorkerProcesses(workers)
 
 
 class _Pending(Generic[T]):

@@ -156,9 +156,7 @@ def replay_runs(
         todo, skipped = _runs_to_replay(runs, entries, force, bench_given, options, hasher, out)
         adopt(WorkerState(bench), bench_given)  # the main process replays with this one
 
-        local = out.local is not None and location(bench_given).local is not None
-        local = local and all(run.episodes.local is not None for run in todo)
-        executor: Executor = make_executor(workers, ray, fork=local) if todo else InProcess()
+        executor: Executor = make_executor(workers, ray) if todo else InProcess()
         bar = _make_progress(progress, cluster=ray is not None)
         try:
             if bar is not None:

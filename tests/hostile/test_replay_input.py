@@ -573,10 +573,10 @@ def test_a_killed_replay_leaves_no_process_behind(bench, tmp_path) -> None:
     proc = subprocess.Popen([*cmd, "--workers", "2"], stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 30
-        while not children(proc.pid) and time.monotonic() < deadline:
+        while len(children(proc.pid)) < 2 and time.monotonic() < deadline:
             time.sleep(0.05)
-        kids = children(proc.pid)  # the worker, forked (a spawned one has a resource tracker)
-        assert len(kids) == 1 and proc.poll() is None
+        kids = children(proc.pid)  # the worker and the resource tracker
+        assert len(kids) == 2 and proc.poll() is None
     finally:
         proc.kill()
         proc.wait()
@@ -590,26 +590,24 @@ import multiprocessing
 from replay.io._worker import end_with_parent
 if __name__ == "__main__":
     init = functools.partial(end_with_parent, death_signal=sys.argv[1] == "signal")
-    context = multiprocessing.get_context(sys.argv[2])
-    pool = ProcessPoolExecutor(1, context, init, (os.getpid(),))
+    pool = ProcessPoolExecutor(1, multiprocessing.get_context("spawn"), init, (os.getpid(),))
     print(pool.submit(os.getpid).result(), flush=True)  # then idle, waiting for tasks
     time.sleep(120)
 """
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
-@pytest.mark.parametrize(("how", "start"), [("signal", "spawn"), ("watch", "spawn"), ("signal", "fork")])
-def test_an_idle_worker_ends_with_its_parent(how: str, start: str) -> None:
+@pytest.mark.parametrize("how", ["signal", "watch"])
+def test_an_idle_worker_ends_with_its_parent(how: str) -> None:
     """A worker waiting for tasks when its parent is killed: before, it (and the resource
-    tracker) waited for ever; now the kernel's death signal, or its watch thread, ends it.
-    Spawned workers come with a resource tracker, forked ones without."""
+    tracker) waited for ever; now the kernel's death signal, or its watch thread, ends it."""
     proc = subprocess.Popen(
-        [sys.executable, "-c", _IDLE_POOL, how, start], stdout=subprocess.PIPE, text=True
+        [sys.executable, "-c", _IDLE_POOL, how], stdout=subprocess.PIPE, text=True
     )
     try:
         worker = int(proc.stdout.readline())  # type: ignore[union-attr]
         kids = children(proc.pid)
-        assert worker in kids and len(kids) == (2 if start == "spawn" else 1)
+        assert worker in kids and len(kids) == 2
     finally:
         proc.kill()
         proc.wait()

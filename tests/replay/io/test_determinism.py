@@ -4,9 +4,6 @@ quarantine, manifest), with small batches, row groups and parts so every boundar
 from __future__ import annotations
 
 import hashlib
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pyarrow as pa
@@ -93,47 +90,3 @@ def test_batch_size_changes_only_the_part_layout(
         ).read_bytes()
         counts = [[r.counts for r in replay.read_manifest(o).runs] for o in (out, outs[0])]
         assert counts[0] == counts[1]
-
-
-_FORKED_AND_SPAWNED = """
-import hashlib, json, sys, threading
-from pathlib import Path
-import replay
-from replay.io import _executor, _runner
-runs, bench, tmp = json.loads(sys.argv[1])
-made = []
-def recording(*args, **kwargs):
-    made.append(_executor.make_executor(*args, **kwargs))
-    return made[-1]
-_runner.make_executor = recording
-def digests(out):
-    return {str(p.relative_to(out)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(Path(out).rglob("*")) if p.is_file()}
-outs = {}
-for name, workers in (("one", 1), ("forked", 2)):
-    replay.replay_runs(runs, bench, f"{tmp}/{name}", workers=workers, progress=False)
-    outs[name] = digests(f"{tmp}/{name}")
-busy = threading.Thread(target=threading.Event().wait, args=(60,), daemon=True)
-busy.start()  # another thread: the workers are spawned instead
-replay.replay_runs(runs, bench, f"{tmp}/spawned", workers=2, progress=False)
-outs["spawned"] = digests(f"{tmp}/spawned")
-print(json.dumps({
-    "forked": [getattr(e, "forked", None) for e in made],
-    "same": outs["one"] == outs["forked"] == outs["spawned"],
-    "files": len(outs["one"]),
-}))
-"""
-
-
-def test_forked_and_spawned_workers_write_the_same_bytes(
-    sample: Sample, tmp_path: Path
-) -> None:
-    # In a fresh interpreter: this test process has threads (and polars), so it never forks.
-    arg = json.dumps([[str(r) for r in sample.runs], str(sample.bench), str(tmp_path)])
-    done = subprocess.run(
-        [sys.executable, "-c", _FORKED_AND_SPAWNED, arg],
-        capture_output=True, text=True, timeout=600, check=True,
-    )  # fmt: skip
-    got = json.loads(done.stdout.splitlines()[-1])
-    assert got["forked"] == [None, sys.platform == "linux", False]
-    assert got["same"] and got["files"] > 6
