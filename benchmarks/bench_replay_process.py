@@ -130,8 +130,7 @@ def parquet_parts(out: Path, run_id: str, scratch: Path, repeat: int = 3) -> dic
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from replay.io import location
-    from replay.io._files import ROW_GROUP_ROWS, write_part
+    from replay.io import ROW_GROUP_ROWS, location, write_part
 
     got = {}
     for table in TABLES:

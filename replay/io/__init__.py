@@ -32,6 +32,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     )
     from ._executor import Executor, in_order, make_executor
     from ._file_names import mcap_file_name, safe_file_name
+    from ._files import ROW_GROUP_ROWS, write_part
     from ._fs import Location, is_uri, location
     from ._images import (
         MAX_IMAGE_BYTES,
@@ -118,6 +119,8 @@ __all__ = [
     "read_manifest",
     "replay_runs",
     "runs_table",
+    "ROW_GROUP_ROWS",
+    "write_part",
     # inputs
     "MAX_RECORD_BYTES",
     "Benchmark",
