@@ -204,9 +204,9 @@ def replayed(sample: Sample, tmp_path_factory: pytest.TempPathFactory):
 
 
 @pytest.fixture
-def vge(monkeypatch: pytest.MonkeyPatch):
-    """`vge` with only the replay command registered (other commands' state is not ours)."""
+def vge():
+    """`vge`, every command registered (registering only some would leave the others out
+    for the later tests of the same process: the app registers once)."""
     from vge_analytics import cli
 
-    monkeypatch.setattr(cli, "COMMAND_MODULES", (cli.replay,))
     return cli.main
