@@ -31,7 +31,8 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         write_atomic,
     )
     from ._executor import Executor, in_order, make_executor
-    from ._file_names import safe_file_name
+    from ._file_names import mcap_file_name, safe_file_name
+    from ._files import ROW_GROUP_ROWS, write_part
     from ._fs import Location, is_uri, location
     from ._images import (
         MAX_IMAGE_BYTES,
@@ -108,7 +109,6 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         MCAP_LIBRARY,
         attached_ssm,
         episode_mcap_path,
-        mcap_file_name,
         write_episode_mcap,
     )
     from ._quarantine import QUARANTINE_KINDS, QuarantineRecord
@@ -127,6 +127,8 @@ __all__ = [
     "read_manifest",
     "replay_runs",
     "runs_table",
+    "ROW_GROUP_ROWS",
+    "write_part",
     # inputs
     "MAX_RECORD_BYTES",
     "Benchmark",

@@ -36,13 +36,12 @@ from ..semantics import (
     rows_to_table,
 )
 from ._decode import decode
-from ._file_names import part_name
+from ._file_names import mcap_file_name, part_name
 from ._files import write_part
 from ._fs import location
 from ._images import ViewImage
 from ._layout import MCAP_DIR, TABLE_ROWS, TASKS
 from ._load import episode_decoder
-from ._mcap import mcap_file_name, write_episode_mcap
 from ._quarantine import classify_decode_error, one_line
 from ._worker import WorkerState, worker_state
 
@@ -344,6 +343,8 @@ def _replay_reference(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeR
 def _write_mcap(
     state: WorkerState, ctx: RunContext, number: int, machine: Machine, result: EpisodeResult
 ) -> str:
+    from ._mcap import write_episode_mcap  # its libraries (0.03-0.1 s) load only with --mcap
+
     mcap_tmp = f"{mcap_file_name(result.episode.episode_id)}.L{number}.tmp"
     source = ctx.image_source
 

@@ -1,6 +1,7 @@
 """The names of the files `vge replay` makes from ids and numbers: an episode's (an id of any
-characters made into a name every file system takes, PROTOCOL §7.8) and a batch's Parquet
-part."""
+characters made into a name every file system takes, PROTOCOL §7.8), its MCAP file's, and a
+batch's Parquet part. Here rather than beside the MCAP writer, so that the processes that
+only name the files do not load the MCAP and protobuf libraries."""
 
 from __future__ import annotations
 
@@ -40,6 +41,11 @@ def safe_file_name(name: str) -> str:
 def _encoded(name: str) -> str:
     encoded = quote(name, safe="")
     return "%2E" + encoded[1:] if encoded.startswith(".") else encoded
+
+
+def mcap_file_name(episode_id: str) -> str:
+    """The file name of an episode's MCAP in `OUT/mcap/<run_id>/` (PROTOCOL §7.8)."""
+    return f"{safe_file_name(episode_id)}.mcap"
 
 
 def part_name(index: int) -> str:

@@ -22,7 +22,7 @@ from ._batch import (
     BatchTask,
     RunContext,
 )
-from ._file_names import part_name
+from ._file_names import mcap_file_name, part_name
 from ._files import STATE_DIR, commit_dir, remove_dir, write_part
 from ._fs import Location
 from ._images import ImageSource
@@ -48,7 +48,6 @@ from ._manifest import (
     RunOptions,
     RunOutputs,
 )
-from ._mcap import mcap_file_name
 from ._quarantine import QuarantineRecord, encode_record
 from ._reading import LineReader, RunInput
 

@@ -46,7 +46,7 @@ from ..semantics import (
     StepRow,
     target_rects,
 )
-from ._file_names import safe_file_name
+from ._file_names import mcap_file_name
 from ._fs import Location, location
 from ._images import ViewImage
 from ._layout import mcap_dir
@@ -78,11 +78,6 @@ _CLICK = Color(r=0.9, g=0.1, b=0.1, a=1.0)
 _CLICK_FILL = Color(r=0.9, g=0.1, b=0.1, a=0.35)
 _LABEL_BG = Color(r=0.0, g=0.0, b=0.0, a=0.6)
 _WHITE = Color(r=1.0, g=1.0, b=1.0, a=1.0)
-
-
-def mcap_file_name(episode_id: str) -> str:
-    """The file name of an episode's MCAP in `OUT/mcap/<run_id>/` (PROTOCOL §7.8)."""
-    return f"{safe_file_name(episode_id)}.mcap"
 
 
 def episode_mcap_path(out: str | Location, run_id: str, episode_id: str) -> Location:

@@ -26,7 +26,6 @@ from .._errors import TaskError
 from ..semantics import EpisodeSetup, Machine, Task, setup_episode
 from ._images import ImageSource, ViewImage, as_view_image
 from ._load import Benchmark
-from ._mcap import attached_ssm
 
 SETUP_CACHE_SIZE = 50_000
 """Episode setups (plans) kept per process; bounds memory whatever the number of tasks."""
@@ -72,6 +71,8 @@ class WorkerState:
     def ssm(self, machine: Machine) -> bytes:
         got = self.ssm_bytes.get(machine.device_id)
         if got is None:
+            from ._mcap import attached_ssm  # the MCAP libraries load only with --mcap
+
             got = attached_ssm(machine)
             _remember(self.ssm_bytes, machine.device_id, got, _SSM_CACHE_SIZE)
         return got

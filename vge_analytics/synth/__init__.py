@@ -4,41 +4,46 @@ simulated agents (docs/SYNTHETIC.md).
 `generate` is what `vge synth` runs; the other names are its parts, for tests and tools.
 """
 
-from ._agent import Agent, AgentStep
-from ._build import (
-    BENCH_DIR,
-    RUNS_DIR,
-    SCALES,
-    SUMMARY,
-    Scale,
-    Summary,
-    SynthError,
-    generate,
-    plan_devices,
-)
-from ._catalog import (
-    PAPER_DEVICE_COUNTS,
-    Catalog,
-    ComponentSpec,
-    available_categories,
-    is_known_category,
-    load_catalog,
-    load_ucsm,
-)
-from ._instantiate import (
-    SyntheticDevice,
-    device_logic,
-    dump_ssm,
-    instantiate_device,
-    scene_of,
-)
-from ._measure import RunMeasures, measure_output
-from ._profiles import PROFILES, Profile
-from ._render import png_bytes, render_view
-from ._runs import RunSpec, agent_rng, run_specs
-from ._step_player import StepPlayer, play_episode
-from ._tasks import TaskRecord, sample_tasks
-from ._views import cache_dir, image_source, synthetic_view, view_image
+from typing import TYPE_CHECKING
+
+from replay import lazy_names
+
+if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
+    from ._agent import Agent, AgentStep
+    from ._build import (
+        BENCH_DIR,
+        RUNS_DIR,
+        SCALES,
+        SUMMARY,
+        Scale,
+        Summary,
+        SynthError,
+        generate,
+        plan_devices,
+    )
+    from ._catalog import (
+        PAPER_DEVICE_COUNTS,
+        Catalog,
+        ComponentSpec,
+        available_categories,
+        is_known_category,
+        load_catalog,
+        load_ucsm,
+    )
+    from ._instantiate import (
+        SyntheticDevice,
+        device_logic,
+        dump_ssm,
+        instantiate_device,
+        scene_of,
+    )
+    from ._measure import RunMeasures, measure_output
+    from ._profiles import PROFILES, Profile
+    from ._render import png_bytes, render_view
+    from ._runs import RunSpec, agent_rng, run_specs
+    from ._step_player import StepPlayer, play_episode
+    from ._tasks import TaskRecord, sample_tasks
+    from ._views import cache_dir, image_source, synthetic_view, view_image
 
 __all__ = [
     "BENCH_DIR",
@@ -82,3 +87,5 @@ __all__ = [
     "synthetic_view",
     "view_image",
 ]
+
+__getattr__, __dir__ = lazy_names(__name__, __file__)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pyarrow.parquet as pq
@@ -175,3 +177,33 @@ def test_the_files_from_the_kernels_rows_are_the_references(
     assert len(kernel) > 2 * 3  # several reads of three episodes in a run
     for a, b in zip(kernel, reference, strict=True):
         assert a.read_bytes() == b.read_bytes(), a.name
+
+
+MCAP_LIBRARIES = ("mcap", "mcap_protobuf", "foxglove_schemas_protobuf", "google.protobuf")
+_PROBE = """
+import json, sys
+import replay
+replay.replay_runs([sys.argv[1]], sys.argv[2], sys.argv[3], mcap=sys.argv[4] == "1",
+                   progress=False, force=True)
+libs = {libs!r}
+print(json.dumps(sorted({{x for m in sys.modules for x in libs if m == x or m.startswith(x + ".")}})))
+"""
+
+
+def _libraries_after_replay(sample: Sample, out: Path, mcap: bool) -> list[str]:
+    """The MCAP libraries a fresh interpreter has imported after replaying the vlm run."""
+    done = subprocess.run(
+        [
+            sys.executable, "-c", _PROBE.format(libs=MCAP_LIBRARIES),
+            str(sample.vlm), str(sample.bench), str(out), "1" if mcap else "0",
+        ],
+        capture_output=True, text=True, timeout=300, check=True,
+    )  # fmt: skip
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def test_a_replay_without_mcap_loads_no_mcap_library(sample: Sample, tmp_path: Path) -> None:
+    # Each worker process would pay for them (docs/PERFORMANCE.md, "Replay, whole process").
+    assert _libraries_after_replay(sample, tmp_path / "plain", mcap=False) == []
+    # The same probe sees them once an MCAP file is written.
+    assert _libraries_after_replay(sample, tmp_path / "mcap", mcap=True) == sorted(MCAP_LIBRARIES)

@@ -1,0 +1,245 @@
+"""Benchmark of `vge replay` as a user runs it (not a test): whole processes, this checkout
+against another one, alternating.
+
+Usage (on the full synthetic benchmark):
+
+    vge synth --out /tmp/vge-full --scale full --seed 0
+    .venv/bin/python benchmarks/bench_replay_process.py /tmp/vge-full --base /work/main
+        [--workers 1,2] [--rounds 3] [--scratch /tmp/bench-replay] [--rows /tmp/ref-out]
+
+Each round runs, for each worker count, `vge replay RUNS --bench BENCH --out OUT --workers N
+--no-progress` under `/usr/bin/time -v` with the base checkout's `vge` (`BASE/.venv/bin/vge`)
+and with this one's, one after the other (which goes first alternates from round to round),
+so that both sides see the same load. Time
+measures the whole process tree (interpreter start, imports, the worker processes, the
+commit): wall seconds, CPU seconds (user + sys of the process and the workers it waited
+for) and peak RSS (of the largest single process). On a shared machine wall time follows
+the load; CPU seconds per step and the ratio of the two sides hold. Beside them, in each
+round, the floor any replay of these logs pays, in this process: reading, inflating and
+decoding every line with msgspec, untyped (to dicts) and typed (`EpisodeLog`).
+
+The outputs of the two sides are compared file by file (sha256; `.replay/` left out), and
+with `--rows REF` the rows of the three tables with those of a reference output directory
+(e.g. `/work/baseline/full-out`). Prints a Markdown report (docs/PERFORMANCE.md records one).
+"""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+import hashlib
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import msgspec
+
+from replay.io import episode_decoder, episodes_file
+
+RUNS_DIR, BENCH_DIR = "runs", "bench"
+TABLES = ("steps", "episodes", "goals")
+_TIME_FIELDS = {
+    "user": r"User time \(seconds\): ([\d.]+)",
+    "sys": r"System time \(seconds\): ([\d.]+)",
+    "wall": r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): ([\d:.]+)",
+    "rss_kb": r"Maximum resident set size \(kbytes\): (\d+)",
+}
+
+
+def _runs(data: Path) -> list[Path]:
+    return sorted(d for d in (data / RUNS_DIR).iterdir() if d.is_dir())
+
+
+def bare_decode(data: Path) -> dict[str, float]:
+    """CPU and wall seconds to read, inflate and decode every episode line, untyped and
+    typed; the step count."""
+    files = [episodes_file(str(d)).local for d in _runs(data)]
+    out: dict[str, float] = {}
+    untyped = msgspec.json.Decoder()
+    for name, decode in (("untyped", untyped.decode), ("typed", episode_decoder.decode)):
+        steps = 0
+        t0, c0 = time.perf_counter(), time.process_time()
+        for path in files:
+            raw = path.read_bytes()
+            for line in (gzip.decompress(raw) if path.suffix == ".gz" else raw).splitlines():
+                if line.strip():
+                    got = decode(line)
+                    steps += len(got["steps"] if name == "untyped" else got.steps)
+        out[f"{name}_wall"] = time.perf_counter() - t0
+        out[f"{name}_cpu"] = time.process_time() - c0
+        out["steps"] = steps
+    return out
+
+
+def _seconds(clock: str) -> float:
+    return sum(float(p) * 60**i for i, p in enumerate(reversed(clock.split(":"))))
+
+
+def replay_process(vge: Path, data: Path, out: Path, workers: int) -> dict[str, float]:
+    """One `vge replay` of every run into a fresh `out`, under /usr/bin/time -v."""
+    shutil.rmtree(out, ignore_errors=True)
+    command = [
+        "/usr/bin/time", "-v", str(vge), "replay", *map(str, _runs(data)),
+        "--bench", str(data / BENCH_DIR), "--out", str(out),
+        "--workers", str(workers), "--no-progress",
+    ]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True, cwd=vge.parents[2])
+    if done.returncode not in (0, 2):  # 2: some records quarantined
+        sys.exit(f"{vge} failed ({done.returncode}):\n{done.stderr[-2000:]}")
+    got = {k: re.search(p, done.stderr) for k, p in _TIME_FIELDS.items()}
+    if not all(got.values()):
+        sys.exit(f"no /usr/bin/time -v report in:\n{done.stderr[-2000:]}")
+    return {
+        "wall": _seconds(got["wall"].group(1)),  # type: ignore[union-attr]
+        "cpu": float(got["user"].group(1)) + float(got["sys"].group(1)),  # type: ignore[union-attr]
+        "rss_mb": int(got["rss_kb"].group(1)) / 1024,  # type: ignore[union-attr]
+        "load": os.getloadavg()[0],
+    }
+
+
+def digests(out: Path) -> dict[str, str]:
+    """sha256 of every output file but the private state, by relative path."""
+    return {
+        str(p.relative_to(out)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(out.rglob("*"))
+        if p.is_file() and ".replay" not in p.relative_to(out).parts
+    }
+
+
+def same_rows(out: Path, ref: Path) -> bool:
+    """The three tables hold the same rows, in the same order, as those of `ref`."""
+    import pyarrow.dataset as ds
+
+    for table in TABLES:
+        a, b = (ds.dataset(d / table, partitioning="hive").to_table() for d in (out, ref))
+        a, b = (t.sort_by([("run_id", "ascending")]) for t in (a, b))  # stable: line order
+        if not a.equals(b):
+            return False
+    return True
+
+
+def parquet_parts(out: Path, run_id: str, scratch: Path, repeat: int = 3) -> dict[str, tuple]:
+    """CPU µs per row to write one run's tables as the replay does (a part per batch of
+    4,096 lines) and as one part, with the replay's own `write_part`; the least of `repeat`
+    tries each. Table -> (rows, parts, µs/row as parts, µs/row as one part)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from replay.io import ROW_GROUP_ROWS, location, write_part
+
+    got = {}
+    for table in TABLES:
+        files = sorted((out / table / f"run_id={run_id}").glob("*.parquet"))
+        parts = [pq.read_table(f) for f in files]
+        whole = pa.concat_tables(parts).combine_chunks()
+        timed = {}
+        for name, tables in (("parts", parts), ("whole", [whole])):
+            best = float("inf")
+            for _ in range(repeat):
+                c0 = time.process_time()
+                for k, t in enumerate(tables):
+                    write_part(t, location(str(scratch / f"{table}-{k}.parquet")), ROW_GROUP_ROWS)
+                best = min(best, time.process_time() - c0)
+            timed[name] = 1e6 * best / whole.num_rows
+        got[table] = (whole.num_rows, len(parts), timed["parts"], timed["whole"])
+    return got
+
+
+def _row(
+    label: str, runs: list[dict[str, float]], steps: int, cores: int, base: list[dict] | None
+) -> str:
+    """A Markdown row: medians over the rounds; `cores` busy at most (the CPU-bound rate)."""
+    wall = statistics.median(r["wall"] for r in runs)
+    cpu = statistics.median(r["cpu"] for r in runs)
+    rss = max(r["rss_mb"] for r in runs)
+    ratio = ""
+    if base is not None:
+        b_wall = statistics.median(r["wall"] for r in base)
+        b_cpu = statistics.median(r["cpu"] for r in base)
+        ratio = f"{cpu / b_cpu:.3f} / {wall / b_wall:.2f}"
+    tries = ", ".join(f"{r['cpu']:.2f}" for r in runs)
+    return (
+        f"| {label} | {wall:.2f} | {cpu:.2f} ({tries}) | {1e6 * cpu / steps:.2f} | "
+        f"{steps / wall:,.0f} | {cores * steps / cpu:,.0f} | {rss:.0f} | {ratio} |"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("data", type=Path, help="directory with bench/ and runs/")
+    parser.add_argument("--base", type=Path, required=True, help="checkout to compare with")
+    parser.add_argument("--workers", default="1,2")
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--scratch", type=Path, default=Path("/tmp/bench-replay-process"))
+    parser.add_argument("--rows", type=Path, help="reference output directory to compare rows")
+    parser.add_argument(
+        "--parts", metavar="RUN_ID", help="also time Parquet parts against one part for a run"
+    )
+    args = parser.parse_args()
+    sides = {"base": args.base / ".venv/bin/vge", "this": Path(__file__).parents[1] / ".venv/bin/vge"}
+    workers = [int(w) for w in args.workers.split(",") if w]
+    results: dict[tuple[str, int], list[dict[str, float]]] = {}
+    floors: list[dict[str, float]] = []
+    load0 = " / ".join(f"{x:.1f}" for x in os.getloadavg())
+    for round_ in range(args.rounds):
+        floors.append(bare_decode(args.data))
+        for w in workers:
+            order = list(sides.items())
+            for side, vge in order if round_ % 2 == 0 else order[::-1]:  # who goes first alternates
+                out = args.scratch / f"out-{side}-{w}"
+                results.setdefault((side, w), []).append(replay_process(vge, args.data, out, w))
+    steps = int(floors[0]["steps"])
+    identical = all(
+        digests(args.scratch / f"out-base-{w}") == digests(args.scratch / f"out-this-{w}")
+        for w in workers
+    )
+    print(f"## `vge replay`, whole process: {args.data}, base {args.base}\n")
+    print(
+        f"- {steps:,} steps; {args.rounds} rounds, base and this alternating; {os.cpu_count()}"
+        f" CPUs; load average at the start {load0}, at the end "
+        + " / ".join(f"{x:.1f}" for x in os.getloadavg())
+        + "\n"
+    )
+    print(
+        "| measure | wall s | CPU s (each round) | CPU µs/step | steps/s (wall) |"
+        " steps/s if its CPU were spread over idle cores | peak RSS MB | this / base: CPU / wall |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|---|")
+    for name in ("untyped", "typed"):
+        cpu = statistics.median(f[f"{name}_cpu"] for f in floors)
+        wall = statistics.median(f[f"{name}_wall"] for f in floors)
+        print(
+            f"| bare decode, msgspec {name} | {wall:.2f} | {cpu:.2f} | "
+            f"{1e6 * cpu / steps:.2f} | {steps / wall:,.0f} | | | |"
+        )
+    for w in workers:
+        for side in sides:
+            base = results[("base", w)] if side == "this" else None
+            cores = min(w, os.cpu_count() or 1)
+            label = f"`vge replay --workers {w}`, {side}"
+            print(_row(label, results[(side, w)], steps, cores, base))
+    untyped = statistics.median(f["untyped_cpu"] for f in floors)
+    print()
+    for side in sides:
+        if 1 in workers:
+            one = statistics.median(r["cpu"] for r in results[(side, 1)])
+            print(f"- {side}, 1 worker: {one / untyped:.1f}x the CPU of a bare untyped decode")
+    print(f"- outputs of base and this: {'byte-identical' if identical else 'DIFFER'}")
+    if args.parts:
+        print(f"\n| {args.parts}: table | rows | parts | CPU µs/row as parts | as one part |")
+        print("|---|---:|---:|---:|---:|")
+        out = args.scratch / f"out-this-{workers[-1]}"
+        for table, (rows, n, parts, whole) in parquet_parts(out, args.parts, args.scratch).items():
+            print(f"| {table} | {rows:,} | {n} | {parts:.2f} | {whole:.2f} |")
+    if args.rows is not None:
+        checked = [same_rows(args.scratch / f"out-this-{w}", args.rows) for w in workers]
+        print(f"- rows equal to {args.rows}: {'yes' if all(checked) else 'NO'}")
+
+
+if __name__ == "__main__":
+    main()
