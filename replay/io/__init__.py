@@ -71,7 +71,6 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         SSM_DIR,
         SSM_SUFFIX,
         STEPS_TABLE,
-        TABLE_ROWS,
         TABLES,
         TASKS,
         UCSM_DIR,
@@ -112,6 +111,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         write_episode_mcap,
     )
     from ._quarantine import QUARANTINE_KINDS, QuarantineRecord
+    from ._rows import TABLE_ROWS
     from ._rundir import RunDirectory, keep_aside
     from ._runner import replay_runs
     from ._schemas import schema_documents, write_schemas

@@ -40,9 +40,10 @@ from ._file_names import mcap_file_name, part_name
 from ._files import write_part
 from ._fs import location
 from ._images import ViewImage
-from ._layout import MCAP_DIR, TABLE_ROWS, TASKS
+from ._layout import MCAP_DIR, TASKS
 from ._load import episode_decoder
 from ._quarantine import classify_decode_error, one_line
+from ._rows import TABLE_ROWS
 from ._worker import WorkerState, worker_state
 
 if TYPE_CHECKING:

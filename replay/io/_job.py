@@ -32,7 +32,6 @@ from ._layout import (
     MCAP_DIR,
     QUARANTINE,
     STEPS_TABLE,
-    TABLE_ROWS,
     listed_mcap,
     listed_part,
     mcap_dir,
@@ -50,6 +49,7 @@ from ._manifest import (
 )
 from ._quarantine import QuarantineRecord, encode_record
 from ._reading import LineReader, RunInput
+from ._rows import TABLE_ROWS
 
 BATCH_LINES = 4096
 """Episode lines per batch: the unit of work of a worker and of a Parquet part (fixed,

@@ -8,8 +8,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
-from ..semantics import EpisodeRow, GoalRow, StepRow
-
 if TYPE_CHECKING:  # a type only: the layout imports no I/O (short import chains)
     from ._fs import Location
 
@@ -51,8 +49,6 @@ PARTITIONED = (STEPS_TABLE, EPISODES_TABLE, GOALS_TABLE)
 GRAINS = (EPISODES_TABLE, STEPS_TABLE, GOALS_TABLE)
 """The tables a metric may aggregate over (its grain, PROTOCOL §6), in the order they are
 listed."""
-TABLE_ROWS: dict[str, type] = {STEPS_TABLE: StepRow, EPISODES_TABLE: EpisodeRow, GOALS_TABLE: GoalRow}
-"""The row class of each partitioned table (its columns, PROTOCOL §7.2-§7.4)."""
 PARTITION_KEY = "run_id"
 """A partition folder is `<PARTITION_KEY>=<run_id>` (Hive style, as DuckDB and Arrow read it)."""
 RUNS_FILE = "runs.parquet"

@@ -23,7 +23,7 @@ from pathlib import Path
 import typer
 
 import app as dashboard_app
-from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV, check_out
+from vge_analytics.dashboard import DEFAULT_OUT, OUT_ENV
 from vge_analytics.metrics import load_metrics
 from vge_analytics.store import (
     APP_MAX_ROWS,
@@ -189,6 +189,8 @@ def app_command(
     Its pages: leaderboard, errors, navigation, grounding, budgets, human vs VLM,
     significance, side by side, rescore, episode viewer and SQL.
     """
+    from vge_analytics.dashboard import check_out
+
     resolved = check_out(out)
     folder = None
     if metrics_dir:

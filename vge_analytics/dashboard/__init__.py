@@ -98,8 +98,6 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         view_picture,
     )
     from ._replay_output import (
-        DEFAULT_OUT,
-        OUT_ENV,
         OutSummary,
         check_out,
         column_values,
@@ -146,6 +144,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         sql_preview,
         table_columns_frame,
     )
+    from ._where import DEFAULT_OUT, OUT_ENV
 
 __all__ = [
     "bench_dir",

@@ -14,14 +14,11 @@ from replay.io import EPISODES_TABLE, MANIFEST, RUNS_TABLE, TABLES, manifest_pat
 
 from .. import store
 from .._errors import OutputDirError
+from ._where import DEFAULT_OUT
 
 if TYPE_CHECKING:
     import polars as pl
 
-DEFAULT_OUT = "logs-replayed"
-"""Where `vge demo` writes the replayed bundled sample; `vge app` opens it by default."""
-OUT_ENV = "VGE_APP_OUT"
-"""Environment variable naming OUT for the app (set by `vge app`; `--out` wins)."""
 
 
 def check_out(out: str | Path) -> Path:

@@ -10,7 +10,9 @@ import subprocess
 import sys
 
 HEAVY = (
+    "numpy",
     "pandas",
+    "pyarrow",
     "pyarrow.dataset",
     "duckdb",
     "polars",
@@ -60,7 +62,9 @@ def test_the_probe_sees_a_heavy_import() -> None:
     # The same probe, after the metrics are computed from a name: the libraries are there.
     assert _imported("import vge_analytics as va; va.metrics") == [
         "duckdb",
+        "numpy",
         "pandas",
         "polars",
+        "pyarrow",
         "pyarrow.dataset",
     ]
