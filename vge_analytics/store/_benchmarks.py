@@ -15,8 +15,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from .._errors import DifferentBenchmarksError
-from ._store import Store
+import replay
+
+from .._errors import DifferentBenchmarksError, OutputDirError
+from ._store import Store, _read_manifest
 
 
 @dataclass(frozen=True)
@@ -45,9 +47,21 @@ def _digest(ref: object) -> str | None:
     return ref.get("sha256") if isinstance(ref, dict) else None
 
 
-def benchmark_of(store: Store, run_id: str) -> Benchmark:
-    """The benchmark `run_id` of OUT was replayed against (from OUT's manifest)."""
-    for entry in store.manifest.get("runs", []):
+def _manifest_runs(store: Store) -> list:
+    """The manifest's run entries, whole: the store keeps only what its queries read (no
+    digests), so the manifest is read again, once per check."""
+    if store.in_memory:
+        return store.manifest.get("runs", [])
+    try:
+        return (_read_manifest(replay.location(store.out)) or {}).get("runs", [])
+    except OutputDirError:
+        return store.manifest.get("runs", [])
+
+
+def benchmark_of(store: Store, run_id: str, runs: list | None = None) -> Benchmark:
+    """The benchmark `run_id` of OUT was replayed against (from OUT's manifest; `runs`: its
+    run entries, read already)."""
+    for entry in _manifest_runs(store) if runs is None else runs:
         if entry.get("run_id") == run_id:
             inputs = entry.get("inputs") or {}
             ssm = inputs.get("ssm") or {}
@@ -66,7 +80,8 @@ def check_same_benchmark(store: Store, run_ids: Sequence[str], *, allow: bool = 
     if allow:
         return
     runs = list(dict.fromkeys(run_ids))
-    seen = [(run, benchmark_of(store, run)) for run in runs]
+    entries = _manifest_runs(store)
+    seen = [(run, benchmark_of(store, run, entries)) for run in runs]
     for i, (run_a, bench_a) in enumerate(seen):
         for run_b, bench_b in seen[i + 1 :]:
             why = bench_a.differs(bench_b)
