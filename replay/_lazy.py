@@ -1,6 +1,6 @@
 """A package's public names, imported when first used.
 
-A package face (`replay`, `replay.io`, the rooms of `vge_analytics`) names what it offers
+A package face (`replay`, `replay.io`, and the faces of packages built on replay) names what it offers
 with ordinary imports written under `if TYPE_CHECKING:`, so that tools (type checkers,
 linters, the layering tests, a reader) see every name and where it comes from, and ends with
 
@@ -11,8 +11,8 @@ Nothing is imported with the package: the first time a name is asked for, its mo
 `vge --help` does not pay for DuckDB, pandas or the compiled kernel, and each command imports
 what it uses (docs/PERFORMANCE.md, "Start-up"). A name that is not in the block but is a
 subpackage or module of the package is imported as such (`replay.io`). A name in the block
-keeps its meaning when a submodule of the same name is imported, as with eager imports:
-`vge_analytics.metrics` is the function, whose module is `vge_analytics.metrics`' room.
+keeps its meaning when a submodule of the same name is imported, as with eager imports: a
+function `pkg.name` stays the function when a module `pkg.name` is imported too.
 """
 
 from __future__ import annotations

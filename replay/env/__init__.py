@@ -5,7 +5,7 @@
 Importing the package registers both ids, with the benchmark's own pictures as their image
 source (`replay.BenchImages`; the `image_source` option replaces it). This package is the
 one place that registers them: a package built on this one registers ids of its own
-(`vge_analytics.rendered_envs`: the same environments with rendered views), so what
+(for instance the same environments with rendered views), so what
 `gymnasium.make` builds for an id never depends on the order of the imports.
 """
 

@@ -7,7 +7,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from ..reports.inference import RUN_TOTALS
+from replay.semantics import RUN_TOTALS
+
 from ..store import facets
 
 META_PREFIX = "meta_"
@@ -42,7 +43,7 @@ def offered_facets(fields: Mapping[str, Sequence[object]]) -> dict[str, list]:
     `store.facets` gives them), in their order: fields of more than one and at most
     `MAX_FACET_VALUES` values, none of them an address (`://`) or free text (longer than
     `MAX_FACET_TEXT` characters, or of several lines), that are not run.json's totals
-    (`reports.inference.RUN_TOTALS`: tokens, cost, latency, episodes, ...)."""
+    (`replay.semantics.RUN_TOTALS`: tokens, cost, latency, episodes, ...)."""
     return {
         column: list(values)
         for column, values in fields.items()

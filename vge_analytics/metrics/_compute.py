@@ -22,7 +22,6 @@ from ..store import (
     cached_store,
     open_store,
     parse_by,
-    query_bounds,
     ratio_query,
     run_query,
 )
@@ -76,10 +75,7 @@ def _computed(
     _check_grains(store, [*by, *(where or {})], chosen, available)
     cached: dict[str, str] = {}
     sources = available.files_of(chosen)
-    bounds = query_bounds()
-    if cache and not (bounds is not None and bounds.isolated and sources):
-        # (a server runs a query holding a metric file's SQL in a process of its own, which
-        # opens OUT afresh, without the cache's tables: there the tables answer)
+    if cache:
         store, cached = cached_store(
             store, chosen, list(available), by, where, files_of=available.files_of
         )

@@ -44,6 +44,7 @@ import pyarrow.parquet as pq
 from replay.io import atomic_file, metric_cache_path
 
 from .._errors import QueryError, QueryLimitError
+from ._bounds import query_bounds
 from ._kept import own_folder
 from ._ratios import Ratio, term_name
 from ._scope import Filters, grouped_aggregate, quote_ident, run_level
@@ -51,7 +52,7 @@ from ._sql import run_query
 from ._store import Store
 
 CACHE_ROW_GROUP = 65_536
-"""Rows per row group of a cache file (batches of the query's result written as they come)."""
+"""Rows per row group of a cache file (a row per run: one group but for thousands of runs)."""
 
 
 def definitions_key(ratios: Sequence[Ratio]) -> str:
@@ -160,7 +161,10 @@ def cached_store(
     any choice among them reads one file per grain). `files_of`: the metric files that define
     some ratios (named when a bound stops the query computing their terms)."""
     out = _where(store)
-    if out is None:
+    bounds = query_bounds()
+    if out is None or (bounds is not None and bounds.isolated and files_of(ratios)):
+        # (a server runs a query holding a metric file's SQL in a process of its own, which
+        # opens OUT afresh, without the cache's tables: there the tables answer)
         return store, {}
     key = store.contents
     sources: dict[str, object] = {}
