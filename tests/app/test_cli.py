@@ -90,7 +90,9 @@ def test_metrics_dir_is_checked_then_passed_on(tiny_out, metrics_folder, tmp_pat
     # A problem in a metric file stops `vge app` with its line, before any server starts.
     assert main(["app", str(tiny_out), "--metrics-dir", str(tmp_path)]) == 1
     err = capsys.readouterr().err
-    assert err == f"error: {tmp_path}/x.sql:6: unknown grain 'runs' (one of: episodes, steps, goals)\n"
+    assert (
+        err == f"error: {tmp_path}/x.sql:6: unknown grain 'runs' (one of: episodes, steps, goals)\n"
+    )
 
 
 def test_metrics_dir_precedence(monkeypatch):
@@ -129,3 +131,22 @@ def test_play_refuses_with_one_line(tiny_out, tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith(f"error: {vlm} is a run of agent kind 'vlm': `vge play` writes human")
     assert err.count("\n") == 1
+
+
+def test_the_sql_memory_limit_is_sized_from_out(tiny_out, monkeypatch):
+    """Without `--sql-memory-limit`, the pages' user SQL (the SQL page, metric files) is
+    bounded at 512 MB plus half of OUT's tables (store.sized_memory_limit), passed on to the
+    script as bytes; a given limit is passed as given."""
+    from vge_analytics.commands import app as app_command
+    from vge_analytics.store import table_bytes
+
+    served = []
+    monkeypatch.setattr(app_command, "serve", lambda cmd, *a, **k: served.append(cmd))
+    assert main(["app", str(tiny_out), "--headless", "--port", "1"]) == 0
+    assert (
+        main(["app", str(tiny_out), "--headless", "--port", "1", "--sql-memory-limit", "1GB"]) == 0
+    )
+    expected = 512 * 1024**2 + table_bytes(tiny_out) // 2
+    limits = [cmd[cmd.index("--sql-memory-limit") + 1] for cmd in served]
+    assert limits == [str(expected), str(1024**3)]
+    assert _settings.sql_settings(served[0][served[0].index("--") + 1 :])[0].memory == expected

@@ -51,11 +51,25 @@ def folder(tmp_path_factory) -> Path:
     return root
 
 
-def _memory_line(folder: Path, hint: str = " (--memory-limit sets the limit)") -> str:
+def _memory_line(
+    folder: Path,
+    hint: str = " (--memory-limit sets the limit)",
+    bound: str = "512 MB in memory, 1 GB on disk",
+) -> str:
     return (
         f"{folder / 'repeat.sql'}: the query of this metric file needed more memory than its "
-        f"limit (512 MB in memory, 1 GB on disk) and was stopped{hint}"
+        f"limit ({bound}) and was stopped{hint}"
     )
+
+
+def _default_bound(out: Path) -> str:
+    """The bound a command takes without `--memory-limit`: sized from OUT (512 MB and half
+    of its tables' bytes; 2 runs of the sample: about 1 MB)."""
+    from vge_analytics.store import SqlLimits, sized_memory_limit
+
+    limits = SqlLimits.make(memory=sized_memory_limit(out, None))
+    assert 512 * 1024**2 < limits.memory < 520 * 1024**2, limits.memory
+    return limits.describe()
 
 
 COMMANDS = {
@@ -81,6 +95,18 @@ def test_a_metric_file_past_the_memory_bound_ends_in_one_line(out: Path, folder:
     assert done.peak_memory < 1.5 * GB, done.peak_memory
 
 
+@pytest.mark.parametrize("name", ["metrics", "compare", "rescore", "sweep"])
+def test_with_default_options_too(out: Path, folder: Path, name):
+    """Without `--memory-limit` the bound is sized from OUT: the same one line, under 1.5 GB."""
+    args = [a.format(out=out) for a in COMMANDS[name]]
+    done = run_bounded(
+        [*VGE, *args, "--metrics-dir", str(folder)], address_space=4 * GB, timeout=180
+    )
+    assert done.returncode == 1, done.stderr
+    assert done.stderr == f"error: {_memory_line(folder, bound=_default_bound(out))}\n"
+    assert done.peak_memory < 1.5 * GB, done.peak_memory
+
+
 def test_the_command_goes_on_within_its_bounds_without_the_file(out: Path, folder: Path):
     """The cap is around each query: the built-in metrics of the same process are computed."""
     done = run_bounded(
@@ -103,8 +129,8 @@ def own_peak():
 
 if __name__ == "__main__":
     out, folder = sys.argv[1], sys.argv[2]
-    # As `vge app --sql-memory-limit 512MB` passes it to the pages (app/_data.py).
-    argv = ["--sql-memory-limit", "512MB", "--query-timeout", "120"]
+    # As `vge app` passes its --sql-memory-limit to the pages (app/_data.py).
+    argv = ["--sql-memory-limit", sys.argv[4], "--query-timeout", "120"]
     with _data.query_bounds(argv):
         va.metrics(out)  # the server's own working size
     before = own_peak()
@@ -128,19 +154,24 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.parametrize("given", [LIMIT, None], ids=["512MB", "default"])
 def test_the_dashboard_runs_a_metric_file_in_a_capped_query_process(
-    out: Path, folder: Path, tmp_path: Path
+    out: Path, folder: Path, tmp_path: Path, given: str | None
 ):
+    from vge_analytics.store import sized_memory_limit
+
     script = tmp_path / "server.py"  # a file: the forkserver's children import it by path
     script.write_text(SCRIPT_SERVER)
+    limit = str(sized_memory_limit(out, given))  # what `vge app` passes on
     done = run_bounded(
-        [sys.executable, str(script), str(out), str(folder), str(ROOT)],
+        [sys.executable, str(script), str(out), str(folder), str(ROOT), limit],
         address_space=6 * GB,  # the server and its forkserver; each query process caps itself
         timeout=180,
     )
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout_head)
-    line = _memory_line(folder, hint="")
+    bound = _default_bound(out) if given is None else "512 MB in memory, 1 GB on disk"
+    line = _memory_line(folder, hint="", bound=bound)
     assert report["errors"] == {"Leaderboard": line, "Significance": line, "Budgets": line}
     assert len(report["sr"]) == 2
     # The server did not hold the values; the query process stopped at its cap.

@@ -23,15 +23,17 @@ def hinted(exc: QueryLimitError) -> QueryLimitError:
 
 
 @contextlib.contextmanager
-def command_limits(timeout: float | None, memory_limit: str | None) -> Iterator[None]:
+def command_limits(out: str, timeout: float | None, memory_limit: str | None) -> Iterator[None]:
     """Within the block, every query of the analytics runs within `--memory-limit` (DuckDB's
-    limit, and this process's data segment capped around the query) and `--timeout`, as a
-    query of `vge sql` does (`store.query_limits`); one stopped by a bound ends the command
-    with one line naming the metric file whose SQL it holds (else OUT) and the option."""
-    from ..store import query_limits
+    limit, and this process's data segment capped around the query; default sized from OUT,
+    `store.sized_memory_limit`) and `--timeout`, as a query of `vge sql` does
+    (`store.query_limits`); one stopped by a bound ends the command with one line naming the
+    metric file whose SQL it holds (else OUT) and the option."""
+    from ..store import query_limits, sized_memory_limit
 
+    memory = sized_memory_limit(out, memory_limit)
     try:
-        with query_limits(memory=memory_limit, timeout=timeout):
+        with query_limits(memory=memory, timeout=timeout):
             yield
     except QueryLimitError as exc:
         raise hinted(exc) from None

@@ -76,9 +76,9 @@ def memory_limit_option(name: str = "--memory-limit", what: str = "the query") -
     return typer.Option(
         None,
         name,
-        help=f"Memory {what} may use, e.g. 512MB or 4GB (default: a quarter of this machine's "
-        "memory); past it the query spills up to twice as much to a temporary directory, "
-        "then stops.",
+        help=f"Memory {what} may use, e.g. 512MB or 4GB (default: 512 MB plus half the size "
+        "of OUT's tables, at most a quarter of this machine's memory); past it the query "
+        "spills up to twice as much to a temporary directory, then stops.",
     )
 
 

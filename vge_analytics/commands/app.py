@@ -33,6 +33,7 @@ from vge_analytics.store import (
     SqlLimits,
     default_max_queries,
     format_size,
+    sized_memory_limit,
 )
 
 from ._options import memory_limit_option, metrics_dir_option
@@ -170,7 +171,7 @@ def app_command(
         min=1,
         help="SQL page queries that run at once, for all visitors; another waits up to "
         f"{SLOT_WAIT:g} s, then is refused (default: as many as fit in this machine's memory "
-        "at --sql-memory-limit and half again, 2 with the default limit).",
+        "at --sql-memory-limit and half again).",
     ),
     query_timeout: float = typer.Option(
         CLI_TIMEOUT,
@@ -196,7 +197,8 @@ def app_command(
     if metrics_dir:
         load_metrics(metrics_dir)  # every problem of its files, before the server starts
         folder = Path(metrics_dir).resolve()
-    limits = SqlLimits.make(memory=sql_memory_limit, timeout=sql_timeout)
+    memory = sized_memory_limit(resolved, sql_memory_limit)
+    limits = SqlLimits.make(memory=memory, timeout=sql_timeout)
     max_queries = sql_max_queries or default_max_queries(limits)
     cmd = streamlit_command(
         resolved,

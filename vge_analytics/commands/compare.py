@@ -81,7 +81,7 @@ def compare(
     from ..reports import check_format
     from ..reports import compare as compute_compare
 
-    with command_limits(timeout, memory_limit), refusal_hinted():
+    with command_limits(out, timeout, memory_limit), refusal_hinted():
         check_format(fmt)
         if every:
             if run_a is not None or run_b is not None:

@@ -37,7 +37,7 @@ def diff(
     (success_a, success_b), the median first difference, the error types at the first
     errors.
     """
-    with command_limits(timeout, memory_limit), refusal_hinted():
+    with command_limits(out, timeout, memory_limit), refusal_hinted():
         # not latex: a row per episode is no table for a paper
         reports.check_format(fmt, DIFF_FORMATS)
         result = reports.diff(

@@ -53,7 +53,7 @@ def errors_command(
     """
     import polars as pl
 
-    with command_limits(timeout, memory_limit):
+    with command_limits(out, timeout, memory_limit):
         reports.check_format(fmt)
         by_cols = list(store.parse_by(by))
         filters = parse_where(where)

@@ -92,7 +92,7 @@ def metrics_command(
     """
     from ..metrics import load_metrics, metrics
 
-    with command_limits(timeout, memory_limit):
+    with command_limits(out, timeout, memory_limit):
         reports.check_format(fmt)
         available = load_metrics(metrics_dir)
         if list_metrics:

@@ -56,7 +56,7 @@ def passk(
     """
     from ..reports import check_format, repeated
 
-    with command_limits(timeout, memory_limit), refusal_hinted():
+    with command_limits(out, timeout, memory_limit), refusal_hinted():
         check_format(fmt)
         columns = episode_ids(group_by, "--group-by") if group_by is not None else None
         result = repeated(

@@ -62,7 +62,7 @@ def power(
     """
     from ..reports import check_format, plan, power_of_pair
 
-    with command_limits(timeout, memory_limit), refusal_hinted():
+    with command_limits(out, timeout, memory_limit), refusal_hinted():
         check_format(fmt)
         if (run_a is None) != (run_b is None):
             raise ConfigError("power takes two runs (RUN_A RUN_B), or none with --rate")

@@ -61,7 +61,7 @@ def rescore(
     rank_before, rank_after), or with --summary the rankings; table, markdown and latex print
     both.
     """
-    with command_limits(timeout, memory_limit):
+    with command_limits(out, timeout, memory_limit):
         reports.check_format(fmt)
         filters = parse_where(where)
         check_where(out, filters, where)

@@ -7,7 +7,7 @@ import typer
 
 from .. import reports
 from .._errors import QueryLimitError
-from ..store import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap
+from ..store import CLI_MAX_ROWS, CLI_TIMEOUT, SqlLimits, process_memory_cap, sized_memory_limit
 from ._bounds import hinted
 from ._options import format_option, memory_limit_option, out_argument
 from ._output import emit, emit_stream
@@ -39,7 +39,7 @@ def sql(
     # is capped: the cap is for what the query takes, not for the code that runs it.
     from ..store import sql_head, stream
 
-    limits = SqlLimits.make(memory=memory_limit, timeout=timeout)
+    limits = SqlLimits.make(memory=sized_memory_limit(out, memory_limit), timeout=timeout)
     try:
         with process_memory_cap(limits):
             if fmt in ("csv", "json"):

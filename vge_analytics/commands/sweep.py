@@ -40,7 +40,7 @@ def sweep(
     Also the gain over the smallest lambda. A lambda above what a run's logs support (an
     episode hit its recorded budget and its log stops there) is refused.
     """
-    with command_limits(timeout, memory_limit):
+    with command_limits(out, timeout, memory_limit):
         reports.check_format(fmt)
         run_ids = [r.strip() for r in runs.split(",") if r.strip()] if runs else None
         df = reports.sweep(

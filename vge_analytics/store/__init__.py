@@ -66,6 +66,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         check_selection,
         describe_filters,
     )
+    from ._sizing import BASE_MEMORY, DATA_SHARE, sized_memory_limit, table_bytes
     from ._sql import (
         Batches,
         guarded_cursor,
@@ -96,10 +97,12 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     )
 
 __all__ = [
+    "BASE_MEMORY",
     "bench_dir",
     "Benchmark",
     "benchmark_of",
     "check_same_benchmark",
+    "DATA_SHARE",
     "run_entry",
     "warm_query_processes",
     "APP_MAX_ROWS",
@@ -158,11 +161,13 @@ __all__ = [
     "SLOT_WAIT",
     "sql",
     "sql_head",
+    "sized_memory_limit",
     "SqlLimits",
     "steps",
     "steps_with_error",
     "Store",
     "stream",
+    "table_bytes",
     "table_columns",
     "term_name",
     "text_too_large",
