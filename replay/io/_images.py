@@ -15,6 +15,7 @@ nothing, and a file whose pixels do not decode (truncated) is refused in the sam
 from __future__ import annotations
 
 import io
+import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
@@ -157,10 +158,18 @@ def _candidates(root: Location, machine: Machine, view: str) -> Iterator[Locatio
     (absolute, `..`, a link out) is no candidate."""
     view = view.lower()
     if not_a_file_name(view) is None:
-        yield from (path for path in image_paths(root, machine.device_id, view) if confined(root, path))
+        for path in image_paths(root, machine.device_id, view):
+            if _present(path) and confined(root, path):
+                yield path
     ref = machine.images.get(view)
     if ref is not None and relative_inside(ref[0]) and confined(root, root / ref[0]):
         yield root / ref[0]
+
+
+def _present(path: Location) -> bool:
+    """Whether a local path names anything, a dangling link included (one `lstat`: most
+    views have no file, and `confined` resolves every folder of a path); True in a store."""
+    return path.local is None or os.path.lexists(path.local)
 
 
 def bench_image(bench: str | Location, machine: Machine, view: str) -> ViewImage | None:

@@ -6,7 +6,7 @@ program that writes runs (`vge synth`, `vge run`, `vge play`)."""
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -243,18 +243,21 @@ def validate_benchmark(root: str | Path | Location) -> list[Problem]:
                 problems.append(_problem(exc))
                 continue
             problems.extend(validate_machine(ucsm, str(path), require_geometry=False))
-    problems.extend(_picture_problems(bench))
+    problems.extend(picture_problems(bench))
     problems.extend(bench.task_problems)
     for episode_id, entry in bench.tasks.items():
         problems.extend(_task_problems(bench, episode_id, entry))
     return problems
 
 
-def _picture_problems(bench: Benchmark) -> list[Problem]:
+def picture_problems(bench: Benchmark, devices: Iterable[str] | None = None) -> list[Problem]:
     """A warning for each view whose picture file is there but not shown: too large, in bytes
-    or pixels, or not a picture (§1.1)."""
+    or pixels, or not a picture (§1.1); of the `devices` given (default: all). `vge validate`
+    lists them, and the writers that show pictures (`vge replay --mcap`, `vge export`) say
+    them too, as they leave those out."""
     problems = []
-    for device_id in bench.ssm_paths:
+    chosen = bench.ssm_paths if devices is None else set(devices)
+    for device_id in [d for d in bench.ssm_paths if d in chosen]:
         try:
             machine = bench.machine(device_id)
         except VGEError:

@@ -101,13 +101,29 @@ def _camera_frames(path: Path) -> list[bytes]:
     return frames
 
 
+def _warnings(done: Finished) -> list[str]:
+    text = done.stderr if isinstance(done.stderr, str) else done.stderr.decode()
+    return [line for line in text.splitlines() if line.startswith("warning:")]
+
+
+def _refused(sides, fate: str) -> str:
+    """The one line saying the huge picture is left out, as `vge validate` names it."""
+    return (
+        f"warning: {sides['huge'] / 'bench' / FRONT} [view front]: a picture of 13,370 x "
+        "13,370 pixels, more than the 16,777,216 a view picture may have (PROTOCOL §1.1): "
+        f"not decoded; {fate}"
+    )
+
+
 def test_mcap_replay_in_bounded_memory(sides) -> None:
     def replay_mcap(name: str) -> Finished:
         root = sides[name]
         out = root / "out-mcap"
         return _vge("replay", root / "run", "--bench", root / "bench", "--out", out, "--mcap")
 
-    _both(replay_mcap)
+    done = _both(replay_mcap)
+    assert _warnings(done["small"]) == []
+    assert _warnings(done["huge"]) == [_refused(sides, "left out of the MCAP files")]
     frames = {
         name: _camera_frames(replay.episode_mcap_path(root / "out-mcap", "r", "e1").local)
         for name, root in sides.items()
@@ -122,7 +138,9 @@ def test_export_in_bounded_memory(sides) -> None:
         out = _replayed(sides[name])
         return _vge("export", out, "--format", "atif", "--out", sides[name] / "atif")
 
-    _both(export)
+    done = _both(export)
+    assert _warnings(done["small"]) == []
+    assert _warnings(done["huge"]) == [_refused(sides, "left out of the export")]
     pictures = {
         n: list((root / "atif" / "r" / "images").glob("*.jpg")) for n, root in sides.items()
     }
@@ -202,3 +220,17 @@ def test_a_truncated_picture_is_refused_in_one_line_everywhere_it_is_decoded(tmp
     env = DeviceEnv(str(root / "bench"), image_width=64, image_height=64)
     obs, _ = env.reset(options={"episode_id": "e1"})
     assert tuple(obs["image"][32, 32]) == (236, 238, 242)  # the canvas
+
+
+def test_the_export_says_which_picture_it_left_out(tmp_path) -> None:
+    """A picture whose header is sound but whose pixels stop half-way reaches the export (no
+    reader before it decodes pixels); the export goes without it and says so in one line."""
+    from vge_analytics.export import export
+
+    root = picture_bench(tmp_path, _truncated_png())
+    replay.replay_runs([str(root / "run")], str(root / "bench"), str(root / "out"), progress=False)
+    summary = export(root / "out", "atif", root / "atif")
+    assert summary.left_out == [
+        "device kettle, view front: not a readable PNG picture (image file is truncated)"
+    ]
+    assert export(root / "out", "atif", root / "atif-text", images="none").left_out == []

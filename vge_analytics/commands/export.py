@@ -83,6 +83,8 @@ def export_command(
         )
     if lines is not None:
         lines.close()
+    for line in summary.left_out:
+        console.print(f"warning: {escape(line)}; left out of the export", soft_wrap=True)
     what = "log(s)" if fmt == "inspect" else "trajectories"
     console.print(
         f"wrote {summary.files:,} {what} ({summary.runs} run(s), {summary.episodes:,} episodes, "

@@ -94,6 +94,9 @@ def replay_command(
     console = Console(highlight=False)
     if not console.is_terminal:  # logs and pipes: do not squeeze the table into 80 columns
         console = Console(highlight=False, width=120)
+    chosen = checked_mcap_episodes(bench, mcap_episodes)
+    if mcap or chosen:
+        warn_refused_pictures(bench, chosen, "left out of the MCAP files")
     manifest = replay.replay_runs(
         runs,
         bench,
@@ -101,7 +104,7 @@ def replay_command(
         lam=lam,
         workers=workers,
         mcap=mcap,
-        mcap_episodes=checked_mcap_episodes(bench, mcap_episodes),
+        mcap_episodes=chosen,
         force=force,
         progress=progress,
         image_source=image_source(bench),
@@ -115,6 +118,18 @@ def replay_command(
     n = manifest.quarantined
     problem = f"{n:,} record(s) quarantined[/]: see {listed}" if n else None
     finish(console, f"wrote {escape(str(out))} ({replay.io.MANIFEST})", problem)
+
+
+def warn_refused_pictures(bench: str, episodes: list[str] | None, fate: str) -> None:
+    """A warning on stderr for each view picture of BENCH, of the devices of `episodes` (None:
+    every device), that is there but refused (too large in bytes or pixels, or not a picture:
+    PROTOCOL §1.1), saying its `fate`; `vge validate` lists the same."""
+    opened = replay.Benchmark.open(bench)
+    devices = None
+    if episodes is not None:
+        devices = {opened.tasks[e].task.device_id for e in episodes if e in opened.tasks}
+    for problem in replay.io.picture_problems(opened, devices):
+        typer.echo(f"warning: {problem}; {fate}", err=True)
 
 
 def checked_mcap_episodes(bench: str, given: str | None) -> list[str] | None:

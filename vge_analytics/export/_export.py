@@ -36,6 +36,8 @@ class ExportSummary:
     runs: int = 0
     episodes: int = 0
     steps: int = 0
+    left_out: list[str] = field(default_factory=list)
+    """One line for each view picture there but not exported (`Views.left_out`)."""
 
 
 def check_choice(value: str, allowed: Sequence[str], option: str) -> None:
@@ -88,6 +90,8 @@ def export(
             folder, written = _write_atif(run, episodes_of, root, views, images)
             summary.outputs.append(folder)
             summary.files += written
+    for views in benches.values():
+        summary.left_out.extend(views.left_out())
     return summary
 
 

@@ -51,11 +51,11 @@ class Picture:
         return f"data:{self.media_type};base64," + base64.b64encode(self.data).decode("ascii")
 
 
-def shrink(data: bytes) -> Picture:
+def shrink(data: bytes, name: str = "picture") -> Picture:
     """The picture scaled down to MAX_SIDE (never up), as JPEG. Raises `replay.PictureError`
-    for one with more pixels than a view picture may have (checked before decoding), or
-    whose pixels do not decode."""
-    rgb = replay.io.decode_picture(data)
+    naming `name` for one with more pixels than a view picture may have (checked before
+    decoding), or whose pixels do not decode."""
+    rgb = replay.io.decode_picture(data, name)
     rgb.thumbnail((MAX_SIDE, MAX_SIDE))  # bicubic, reducing by 2 first when it can
     buf = io.BytesIO()
     rgb.save(buf, format="JPEG", quality=JPEG_QUALITY)
@@ -72,6 +72,8 @@ class Views:
         self._names: dict[str, tuple[str, ...]] = {}
         self._pictures: OrderedDict[tuple[str, str], Picture | None] = OrderedDict()
         self._held = 0  # bytes of the pictures kept
+        self._asked: dict[str, None] = {}  # the devices whose pictures were asked for
+        self._undecoded: list[str] = []  # pictures that did not decode, one line each
 
     def names(self, device_id: str) -> tuple[str, ...]:
         """The views the device offers, in the SSM's order (kept for every device: small)."""
@@ -90,17 +92,27 @@ class Views:
             from vge_analytics.synth import image_source
 
             self._source = image_source(self._where)
+        self._asked.setdefault(device_id)
         found = self._source(self.bench.machine(device_id), view)
+        name = f"device {device_id}, view {view}"
         try:
-            got = shrink(found.data) if found is not None else None
-        except replay.PictureError:
+            got = shrink(found.data, name) if found is not None else None
+        except replay.PictureError as exc:
             got = None  # not decoded: the step is exported without its picture
+            self._undecoded.append(str(exc))
         self._pictures[key] = got
         self._held += len(got.data) if got is not None else 0
         while self._held > CACHED_BYTES:
             _, dropped = self._pictures.popitem(last=False)
             self._held -= len(dropped.data) if dropped is not None else 0
         return got
+
+    def left_out(self) -> list[str]:
+        """One line for each picture of the devices asked for that was there but is not
+        shown: a benchmark file refused (too large, not a picture: PROTOCOL §1.1, as
+        `vge validate` says it), or a picture whose pixels did not decode."""
+        refused = replay.io.picture_problems(self.bench, self._asked) if self._asked else []
+        return [str(p) for p in refused] + list(dict.fromkeys(self._undecoded))
 
 
 __all__ = ["CACHED_BYTES", "JPEG_QUALITY", "MAX_SIDE", "Picture", "Views", "shrink"]
