@@ -1,7 +1,7 @@
 """The output directory as a whole: the up-to-date check of a run (its inputs' sha256, the
 options, the engine version), the files rebuilt from every run the manifest holds
-(`quarantine.jsonl`, `runs/runs.parquet`, `manifest.json`), and the writer lock (on the
-local disk only: object stores have no lock, docs/SCALE.md)."""
+(`quarantine.jsonl`, `runs/runs.parquet`, `manifest.json`), and the writer lock (`flock` on
+the local disk, a lease in an object store: docs/SCALE.md)."""
 
 from __future__ import annotations
 
@@ -31,6 +31,7 @@ from ._layout import (
     ssm_path,
     tasks_path,
 )
+from ._lease import Lease
 from ._manifest import (
     FileRef,
     Hasher,
@@ -181,15 +182,27 @@ def publish(out: Location, entries: dict[str, RunEntry]) -> ManifestFile:
 
 
 class OutputLock:
-    """One `vge replay` at a time per output directory on the local disk (released if the
-    process dies). An object store has no lock: nothing is held there."""
+    """One `vge replay` at a time per output directory: on the local disk a `flock` on
+    `OUT/.replay/lock` (released if the process dies); in an object store a lease, the
+    object `OUT/.replay/lock` (`_lease`), which `check` verifies before each commit."""
 
-    def __init__(self, state_dir: Location) -> None:
+    def __init__(self, out: Location) -> None:
+        state_dir = out / STATE_DIR
         state_dir.mkdir()
         self.path = None if state_dir.local is None else state_dir.local / "lock"
         self._fh: BinaryIO | None = None
+        self._lease = None if out.local is not None else Lease(state_dir / "lock", str(out))
+
+    def check(self) -> None:
+        """Raise `ConfigError` (one line) if another writer took OUT (an object store's
+        lease); the local lock cannot be taken while held."""
+        if self._lease is not None:
+            self._lease.check()
 
     def __enter__(self) -> OutputLock:
+        if self._lease is not None:
+            self._lease.take()
+            return self
         if self.path is None:
             return self
         # never through a link left there (opening it "wb" would truncate its target)
@@ -208,6 +221,8 @@ class OutputLock:
         return self
 
     def __exit__(self, *exc: object) -> None:
+        if self._lease is not None:
+            self._lease.release()
         if self._fh is not None:
             fcntl.flock(self._fh, fcntl.LOCK_UN)
             self._fh.close()

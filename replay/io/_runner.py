@@ -137,7 +137,7 @@ def replay_runs(
     `record_too_large` and ends the reading of its file (PROTOCOL §1.5).
     Run directories, `bench_dir` and `out_dir` are local paths or URIs of pyarrow's
     filesystems (`s3://bucket/out`, `gs://...`, `file:///...`); in an object store the
-    manifest is the commit marker and there is no writer lock (docs/SCALE.md).
+    manifest is the commit marker and the writer lock is a lease object (docs/SCALE.md).
     Raises `VGEError` subclasses on fatal problems; bad records are quarantined instead.
     """
     options = _options(lam, mcap, mcap_episodes, workers, max_record_bytes)
@@ -150,7 +150,7 @@ def replay_runs(
     state_dir = out / STATE_DIR
     replayed: list[str] = []
 
-    with OutputLock(state_dir):
+    with OutputLock(out) as lock:
         entries = _previous_entries(out)
         hasher = Hasher()
         todo, skipped = _runs_to_replay(runs, entries, force, bench_given, options, hasher, out)
@@ -165,9 +165,10 @@ def replay_runs(
                     bar.console.print(f"{run_id}: up to date, skipped (use --force)")
             for job in _replay_all(
                 todo, bench, bench_given, out, options, image_source, hasher, executor, bar,
-                functools.partial(_commit, out, entries),
+                functools.partial(_commit, out, entries, lock),
             ):  # fmt: skip
                 replayed.append(job.ctx.run_id)
+            lock.check()
             content = publish(out, entries)
         finally:
             if bar is not None:
@@ -202,7 +203,9 @@ def _previous_entries(out: Location) -> dict[str, RunEntry]:
     return {e.run_id: e for e in previous.runs} if previous else {}
 
 
-def _commit(out: Location, entries: dict[str, RunEntry], job: RunJob, inputs: RunInputs) -> None:
+def _commit(
+    out: Location, entries: dict[str, RunEntry], lock: OutputLock, job: RunJob, inputs: RunInputs
+) -> None:
     """Put a replayed run into OUT so that its partitions, the runs table and the manifest
     change together or not at all: everything is written first (the run in staging, OUT's
     three files beside their places), then moved in by renames, the manifest last. A full
@@ -212,6 +215,7 @@ def _commit(out: Location, entries: dict[str, RunEntry], job: RunJob, inputs: Ru
     taken out of the manifest (the commit marker) first, so no reader trusts a half-replaced
     run and an interruption leaves it to be replayed."""
     run_id = job.ctx.run_id
+    lock.check()  # an object store's lease: still ours, before anything changes
     if out.local is None and entries.pop(run_id, None) is not None:
         publish(out, entries)
     entry, quarantine = job.stage(inputs)

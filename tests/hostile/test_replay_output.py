@@ -94,7 +94,7 @@ def test_a_second_writer_into_one_out_is_refused_in_one_line(tmp_path) -> None:
     one before it writes anything."""
     bench, run = one_press_run(tmp_path)
     out = tmp_path / "out"
-    with replay.io._outdir.OutputLock(replay.io._fs.location(out / ".replay")):
+    with replay.io._outdir.OutputLock(replay.io._fs.location(out)):
         done = vge_replay(run, "--bench", bench, "--out", out)
     assert done.returncode == 1
     assert done.stderr.strip().splitlines() == [

@@ -192,6 +192,102 @@ def test_commit_dir_moves_files_in_and_deletes_the_rest(no_rename, tmp_path: Pat
     assert not (root / "staged").exists() and not (root / "trash").exists()
 
 
+# ------------------------------------------------- the writer lock of an object store
+
+
+def test_object_store_second_writer_is_refused_in_one_line(
+    no_rename, sample: Sample, tmp_path: Path
+) -> None:
+    """The lease a running `vge replay` holds (taken here by this process) refuses a second
+    one before it writes anything; released, it leaves nothing in OUT."""
+    out = tmp_path / "remote"
+    uri = no_rename(out)
+    with replay.io._outdir.OutputLock(replay.location(uri)):
+        with pytest.raises(replay.ConfigError) as refused:
+            _replay(sample.runs, sample.bench, uri)
+        assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()) == [
+            ".replay/lock"
+        ]
+    line = str(refused.value)
+    assert line.startswith(
+        f"{uri}: another vge replay is writing to this directory (its lock {uri}/.replay/lock "
+        f"is held by "
+    )
+    assert line.endswith(" s)") and "\n" not in line
+    assert not (out / ".replay" / "lock").exists()
+    assert _replay(sample.runs, sample.bench, uri).replayed == ["human-1", "vlm-a"]
+    assert not (out / ".replay" / "lock").exists()
+
+
+def test_object_store_writer_that_lost_its_lease_stops_before_its_commit(
+    no_rename, small_batches, copy_sample: Sample, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Another writer overwrote the lease while this one replayed (two started at once): this
+    one stops at its next check, before its commit; OUT is as it was."""
+    s, out = copy_sample, tmp_path / "remote"
+    _replay(s.runs, s.bench, no_rename(out))
+    before = _digests(out)
+    real = _batch.write_part
+
+    def write_part(*args, **kwargs):
+        (out / ".replay" / "lock").write_bytes(b"other-host pid 1 0123456789abcdef")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(_batch, "write_part", write_part)
+    with pytest.raises(replay.ConfigError, match=r"lost its lock .* \(taken by another writer\)"):
+        _replay(s.runs, s.bench, no_rename(out), force=True)
+    assert _digests(out) == before
+    # the other writer's lease is left to it
+    assert (out / ".replay" / "lock").read_bytes() == b"other-host pid 1 0123456789abcdef"
+
+
+def test_object_store_lease_of_a_dead_writer_expires(
+    no_rename, sample: Sample, tmp_path: Path
+) -> None:
+    import os
+
+    from replay.io._lease import LEASE_SECONDS
+
+    out = tmp_path / "remote"
+    lock = out / ".replay" / "lock"
+    lock.parent.mkdir(parents=True)
+    lock.write_bytes(b"dead-host pid 2 fedcba9876543210")
+    old = lock.stat().st_mtime - LEASE_SECONDS - 5
+    os.utime(lock, (old, old))  # last renewed past the lease: its writer is gone
+    assert _replay(sample.runs, sample.bench, no_rename(out)).replayed == ["human-1", "vlm-a"]
+    assert not lock.exists()
+
+
+def test_a_lease_is_renewed_and_notices_a_takeover(
+    no_rename, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import time
+
+    from replay.io import _lease
+
+    monkeypatch.setattr(_lease, "RENEW_SECONDS", 0.05)
+    path = replay.location(no_rename(tmp_path / ".replay" / "lock"))
+    lease = _lease.Lease(path, "OUT")
+    lease.take()
+    local = tmp_path / ".replay" / "lock"
+    first = local.stat().st_mtime_ns
+    for _ in range(200):  # renewed: a later write time (bounded wait, no timing asserted)
+        if local.stat().st_mtime_ns != first:
+            break
+        time.sleep(0.05)
+    assert local.stat().st_mtime_ns != first
+    lease.check()
+    local.write_bytes(b"someone else")
+    for _ in range(200):
+        if lease._lost is not None:
+            break
+        time.sleep(0.05)
+    with pytest.raises(replay.ConfigError, match="taken by another writer"):
+        lease.check()
+    lease.release()
+    assert local.read_bytes() == b"someone else"  # not ours: left in place
+
+
 # ------------------------------------------------------------- S3 (moto over real HTTP)
 
 
