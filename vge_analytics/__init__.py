@@ -57,7 +57,9 @@ Read-only SQL (within a memory and a time limit, see `store`):
                                          the analytics above within DuckDB's memory limit,
                                          60 s, and a cap on the process around each query
                                          (default: no time limit, no cap; the CLI's and the
-                                         app's: 300 s, a quarter of the machine, capped)
+                                         app's: 300 s, 512 MB and half of OUT's tables
+                                         at most a quarter of the machine, capped:
+                                         store.sized_memory_limit)
     with query_time_limit(60): ...       the time limit alone
 
 `where` filters are `{column: value or list of values}` over columns of runs/episodes (and
