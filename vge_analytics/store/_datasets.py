@@ -38,13 +38,7 @@ import pyarrow.fs as pafs
 import pyarrow.parquet as pq
 
 import replay
-from replay.io import (
-    RUNS_TABLE,
-    TABLE_ROWS,
-    TABLES,
-    manifest_path,
-    runs_table,
-)
+from replay.io import RUNS_TABLE, TABLES, manifest_path
 
 from .._errors import OutputDirError
 from ._kept import contents_key, keep_schema, kept_schema
@@ -100,6 +94,8 @@ class Deferred:
 
 def empty_table(table: str) -> pa.Table:
     """A table of OUT with no row: the replay's columns."""
+    from replay.io import TABLE_ROWS, runs_table  # the row types: replay.semantics
+
     if table == RUNS_TABLE:  # the fixed columns the replay writes (no meta_* without a run)
         return runs_table([])
     return replay.arrow_schema(TABLE_ROWS[table]).empty_table()
