@@ -18,6 +18,9 @@ the wall time. The commands:
 - `metrics OUT` (with `--out`): the built-in suite over every run of OUT, as JSON, its metric
   cache warm (each tree runs it once first, unmeasured: the cache file's name depends on the
   metrics' definitions, the same in both trees unless they differ);
+- `libraries`: the libraries `vge metrics OUT` cannot do without imported, nothing else
+  (DuckDB, polars, pyarrow.parquet, and pydantic through typer's argument checks), the floor
+  of a command that reads OUT;
 - `python -c pass`: the interpreter alone, the floor of every command.
 """
 
@@ -72,6 +75,7 @@ def main() -> None:
         cases["vge metrics OUT"] = metrics
         for path in trees.values():  # the metric cache filled, the schemas kept
             run(path, metrics)
+    cases["libraries"] = ["-c", "import duckdb, polars, pyarrow.parquet, typer._adapters"]
     cases["python -c pass"] = ["-c", "pass"]
     print(f"{options.runs} runs each, alternating; median wall time, median CPU time, peak RSS")
     print("| command | baseline | this tree | ratio (wall, CPU) |")
