@@ -92,3 +92,17 @@ def test_metrics_answered_by_the_cache_import_no_dataset_module(pair_out: Path, 
     cold = _imported(body)
     assert {"pandas", "pyarrow.dataset"} <= set(cold)
     assert _imported(body) == ["duckdb", "numpy", "polars", "pyarrow"]
+
+
+def test_a_command_that_reads_out_imports_no_dataset_module_before_its_first_file(
+    tmp_path: Path,
+):
+    """The fixed cost of a command that reads OUT: its imports, then the one-line error of
+    an OUT that does not exist."""
+    body = f"""
+import contextlib, io
+from vge_analytics import cli
+with contextlib.redirect_stderr(io.StringIO()):
+    assert cli.main(["metrics", {str(tmp_path / "missing")!r}]) == 1
+"""
+    assert _imported(body) == ["duckdb", "numpy", "polars", "pyarrow"]
