@@ -85,6 +85,11 @@ class Deferred:
         self._source: object = None
         self._lock = threading.Lock()
 
+    @property
+    def built(self) -> bool:
+        """Whether its source has been made."""
+        return self._make is None
+
     def source(self) -> object:
         with self._lock:
             if self._make is not None:

@@ -26,7 +26,7 @@ def _built(store: _store.Store) -> list[str]:
     return [
         name
         for name, source in store.sources.items()
-        if not isinstance(source, _datasets.Deferred) or source._make is None
+        if not isinstance(source, _datasets.Deferred) or source.built
     ]
 
 
