@@ -1,7 +1,7 @@
 """How long `vge` takes to start, as whole processes (not a test): the figures of
 docs/PERFORMANCE.md, "Start-up".
 
-    python benchmarks/bench_startup.py --base DIR [--runs 11]
+    python benchmarks/bench_startup.py --base DIR [--runs 11] [--out OUT]
 
 DIR is a checkout of the baseline commit with its kernel built in place (for example
 `git worktree add DIR c7fd47c`, then `python setup.py build_ext --inplace` there). Each
@@ -15,6 +15,12 @@ the wall time. The commands:
 - `metrics MISSING`: the fixed cost of a command that reads OUT, everything before its
   first file (interpreter, imports of the store, DuckDB, polars, pyarrow), then its one-line
   error: OUT does not exist;
+- `metrics OUT` (with `--out`): the built-in suite over every run of OUT, as JSON, its metric
+  cache warm (each tree runs it once first, unmeasured: the cache file's name depends on the
+  metrics' definitions, the same in both trees unless they differ);
+- `libraries`: the libraries `vge metrics OUT` cannot do without imported, nothing else
+  (DuckDB, polars, pyarrow.parquet, and pydantic through typer's argument checks), the floor
+  of a command that reads OUT;
 - `python -c pass`: the interpreter alone, the floor of every command.
 """
 
@@ -55,15 +61,22 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--base", type=Path, required=True, help="checkout of the baseline")
     parser.add_argument("--runs", type=int, default=11, help="runs of each command and tree")
+    parser.add_argument("--out", type=Path, help="a replay output: also time `vge metrics OUT`")
     options = parser.parse_args()
     missing = Path(tempfile.mkdtemp(prefix="vge-startup-")) / "no-such-out"
     cases = {
         "vge --help": ["-m", "vge_analytics.cli", "--help"],
         "vge metrics --help": ["-m", "vge_analytics.cli", "metrics", "--help"],
         "vge metrics MISSING": ["-m", "vge_analytics.cli", "metrics", str(missing)],
-        "python -c pass": ["-c", "pass"],
     }
     trees = {"baseline": options.base.resolve(), "this tree": ROOT}
+    if options.out is not None:
+        metrics = ["-m", "vge_analytics.cli", "metrics", str(options.out.resolve()), "-f", "json"]
+        cases["vge metrics OUT"] = metrics
+        for path in trees.values():  # the metric cache filled, the schemas kept
+            run(path, metrics)
+    cases["libraries"] = ["-c", "import duckdb, polars, pyarrow.parquet, typer._adapters"]
+    cases["python -c pass"] = ["-c", "pass"]
     print(f"{options.runs} runs each, alternating; median wall time, median CPU time, peak RSS")
     print("| command | baseline | this tree | ratio (wall, CPU) |")
     print("|---|---|---|---|", flush=True)

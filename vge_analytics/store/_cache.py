@@ -38,7 +38,6 @@ from pathlib import Path
 
 import duckdb
 import pyarrow as pa
-import pyarrow.dataset as pads
 import pyarrow.parquet as pq
 
 from replay.io import atomic_file, metric_cache_path
@@ -100,13 +99,12 @@ def _write(
                 old.unlink()
 
 
-def _read(path: Path, names: Sequence[str]) -> pads.Dataset | None:
-    """The cache file at `path` if it holds the keys and every term in `names`, else None."""
+def _read(path: Path, names: Sequence[str]) -> pa.Table | None:
+    """The cache file at `path` if it holds the keys and every term in `names`, else None
+    (read whole: a row per run; its run_id as a dictionary, as the tables' is)."""
     try:
-        read_as = pads.ParquetFileFormat(
-            read_options=pads.ParquetReadOptions(dictionary_columns=["run_id"])
-        )
-        data = pads.dataset(str(path), format=read_as)
+        with pq.ParquetFile(path, read_dictionary=["run_id"]) as file:  # not pq.read_table,
+            data = file.read()  # which imports pyarrow's dataset module, and pandas with it
     except (OSError, pa.ArrowException):
         return None
     schema = data.schema
@@ -129,7 +127,7 @@ def _terms_source(
     out: Path,
     key: str,
     sources: Sequence[str],
-) -> pads.Dataset | None:
+) -> pa.Table | None:
     """The cached per-run terms of every ratio of `ratio_set` over `grain` (computed and written
     first when missing), or None when they cannot be had."""
     names = [term_name(r, p) for r in ratio_set for p in ("num", "den")]
@@ -179,10 +177,11 @@ def cached_store(
     if not sources:
         return store, {}
     derived = dataclasses.replace(store, sources={**store.sources, **sources})
-    with derived.cursor() as cursor:
-        for name in sources:
-            rows = cursor.execute(f"DESCRIBE {name}").fetchall()  # our own names
-            catalogue[name] = {r[0]: str(r[1]) for r in rows}
+    for name in sources:
+        statement = f"DESCRIBE {name}"  # our own names
+        with derived.cursor(statement) as cursor:
+            rows = cursor.execute(statement).fetchall()
+        catalogue[name] = {r[0]: str(r[1]) for r in rows}
     derived.columns = {**store.columns, **catalogue}
     return derived, {name.removeprefix("__terms_"): name for name in sources}
 

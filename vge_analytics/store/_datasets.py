@@ -16,30 +16,35 @@ How they are read, so that scanning them costs about what DuckDB's own reader do
   are read as dictionaries: grouping on `run_id` or `error_type` hashes small integers;
 - scans read ahead little (`SCAN_OPTIONS`): a `LIMIT 100` decodes a few thousand rows, not
   several row groups of every column.
+
+What is built when (docs/PERFORMANCE.md, Start-up): the runs table, a row per run, is read
+whole into memory when its files are small (`RUNS_IN_MEMORY`); a table whose unified schema is
+kept (`_kept`) is a `Deferred` table, its dataset built when a query first names it, so that a
+command the metric cache answers never imports pyarrow's dataset module (which imports pandas,
+half a second).
 """
 
 from __future__ import annotations
 
+import functools
 import os
-from collections.abc import Iterable, Mapping
+import threading
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import PurePosixPath
+from typing import TYPE_CHECKING
 
 import pyarrow as pa
-import pyarrow.compute as pc
-import pyarrow.dataset as pads
 import pyarrow.fs as pafs
+import pyarrow.parquet as pq
 
 import replay
-from replay.io import (
-    RUNS_TABLE,
-    TABLE_ROWS,
-    TABLES,
-    manifest_path,
-    runs_table,
-)
+from replay.io import RUNS_TABLE, TABLES, manifest_path
 
 from .._errors import OutputDirError
 from ._kept import contents_key, keep_schema, kept_schema
+
+if TYPE_CHECKING:
+    import pyarrow.dataset as pads
 
 SCAN_OPTIONS: Mapping[str, int] = {
     "batch_size": 16_384,
@@ -51,16 +56,51 @@ and two files read ahead (pyarrow's defaults, 131,072 rows, 16 batches and 4 fil
 dozens of MB before a LIMIT can stop them)."""
 
 
-class _Dataset(pads.FileSystemDataset):
-    """A pyarrow dataset whose scanners take `SCAN_OPTIONS`. DuckDB asks the dataset for a
-    scanner with the columns and filter it pushes down; the rest is set here."""
+RUNS_IN_MEMORY = 64 << 20
+"""The runs table is read whole when its files hold at most this many bytes (a row per run:
+kilobytes; a larger one, made by hand, is scanned as the other tables are)."""
 
-    def scanner(self, *args, **kwargs) -> pads.Scanner:  # type: ignore[override]
-        return super().scanner(*args, **{**SCAN_OPTIONS, **kwargs})
+
+@functools.cache
+def _dataset_class() -> type:
+    """`_Dataset`: a pyarrow dataset whose scanners take `SCAN_OPTIONS` (DuckDB asks the
+    dataset for a scanner with the columns and filter it pushes down; the rest is set
+    here). Made when first needed: pyarrow's dataset module is slow to import."""
+    import pyarrow.dataset as pads
+
+    class _Dataset(pads.FileSystemDataset):
+        def scanner(self, *args, **kwargs) -> pads.Scanner:  # type: ignore[override]
+            return super().scanner(*args, **{**SCAN_OPTIONS, **kwargs})
+
+    return _Dataset
+
+
+class Deferred:
+    """A table whose Arrow source (a dataset over its files) is made when first asked for
+    (`source`), once; `schema`, its columns, is known before."""
+
+    def __init__(self, schema: pa.Schema, make: Callable[[], object]) -> None:
+        self.schema = schema
+        self._make: Callable[[], object] | None = make
+        self._source: object = None
+        self._lock = threading.Lock()
+
+    @property
+    def built(self) -> bool:
+        """Whether its source has been made."""
+        return self._make is None
+
+    def source(self) -> object:
+        with self._lock:
+            if self._make is not None:
+                self._source, self._make = self._make(), None
+            return self._source
 
 
 def empty_table(table: str) -> pa.Table:
     """A table of OUT with no row: the replay's columns."""
+    from replay.io import TABLE_ROWS, runs_table  # the row types: replay.semantics
+
     if table == RUNS_TABLE:  # the fixed columns the replay writes (no meta_* without a run)
         return runs_table([])
     return replay.arrow_schema(TABLE_ROWS[table]).empty_table()
@@ -159,6 +199,8 @@ def _dictionary_columns(fragments: Iterable[pads.ParquetFileFragment], schema: p
 def _unified(fs: pafs.FileSystem, paths: list[str]) -> pa.Schema:
     """The schema of the files at `paths`, unified by column name, a string column stored
     with a dictionary in every file typed as a dictionary (read as one)."""
+    import pyarrow.dataset as pads
+
     plain = pads.ParquetFileFormat()
     first = [plain.make_fragment(p, fs) for p in paths]
     schema = pa.unify_schemas([f.physical_schema for f in first], promote_options="permissive")
@@ -175,9 +217,10 @@ def _dataset(
     """One dataset over `files`, their schemas unified by column name as DuckDB's
     `union_by_name` does (a column some files lack is null there); `schema`: that unified
     schema when it is known (`_kept`), else read from every file's footer."""
-    fs = out.fs if out.fs is not None else pafs.LocalFileSystem()
-    base = out.path.rstrip("/")
-    paths = [f"{base}/{name}" for name, _ in files]
+    import pyarrow.compute as pc
+    import pyarrow.dataset as pads
+
+    fs, paths = _paths(out, files)
     if schema is None:
         schema = _unified(fs, paths)
     dictionaries = [f.name for f in schema if pa.types.is_dictionary(f.type)]
@@ -197,15 +240,56 @@ def _dataset(
     ]
     # A fragment's footer is read when it is first scanned, and kept (a query that reads no
     # file of a table, one the metric cache answers, reads none).
-    return _Dataset(fragments, schema, read_as, fs)
+    return _dataset_class()(fragments, schema, read_as, fs)
+
+
+def _paths(
+    out: replay.Location, files: list[tuple[str, str | None]]
+) -> tuple[pafs.FileSystem, list[str]]:
+    """OUT's filesystem, and the path of each of `files` on it."""
+    fs = out.fs if out.fs is not None else pafs.LocalFileSystem()
+    base = out.path.rstrip("/")
+    return fs, [f"{base}/{name}" for name, _ in files]
+
+
+def _whole(
+    out: replay.Location, files: list[tuple[str, str | None]], schema: pa.Schema | None
+) -> pa.Table | None:
+    """The rows of `files` in memory, as a dataset over them scans them (in this order, each
+    file's columns typed as the unified `schema` has them, a column a file lacks null), or
+    None when their footers say they hold more than `RUNS_IN_MEMORY` bytes."""
+    fs, paths = _paths(out, files)
+    if schema is None:
+        schema = _unified(fs, paths)
+    dictionaries = [f.name for f in schema if pa.types.is_dictionary(f.type)]
+    parts, size = [], 0
+    for path in paths:
+        with fs.open_input_file(path) as fh:
+            plain = pq.ParquetFile(fh)
+            meta = plain.metadata
+            size += sum(meta.row_group(g).total_byte_size for g in range(meta.num_row_groups))
+            if size > RUNS_IN_MEMORY:
+                return None
+            held = set(plain.schema_arrow.names)
+            read_as = [name for name in dictionaries if name in held]
+            part = pq.ParquetFile(fh, metadata=meta, read_dictionary=read_as).read()
+        columns = []
+        for field in schema:
+            at = part.schema.get_field_index(field.name)
+            column = pa.nulls(part.num_rows, field.type) if at < 0 else part.column(at)
+            # (cast only when needed: a cast imports pyarrow.compute, a tenth of a second)
+            columns.append(column if column.type == field.type else column.cast(field.type))
+        parts.append(pa.Table.from_arrays(columns, schema=schema))
+    return pa.concat_tables(parts)
 
 
 def table_sources(
     out: replay.Location, manifest: Mapping | None, digest: str | None = None
 ) -> tuple[dict[str, object], str | None]:
     """Each table of OUT as an Arrow dataset over its files (an empty Arrow table when it has
-    none), and the key of OUT's contents (`_kept.contents_key`; `digest`: the sha256 of its
-    manifest). Raises `OutputDirError` for a path outside OUT; pyarrow's errors pass
+    none; the runs table read whole when small, `_whole`; a `Deferred` dataset when its schema
+    is kept), and the key of OUT's contents (`_kept.contents_key`; `digest`: the sha256 of
+    its manifest). Raises `OutputDirError` for a path outside OUT; pyarrow's errors pass
     through."""
     files = {table: table_files(out, manifest, table) for table in TABLES}
     key = contents_key(out, files, digest)
@@ -215,10 +299,22 @@ def table_sources(
             sources[table] = empty_table(table)
             continue
         schema = kept_schema(out, table, key)
-        sources[table] = _dataset(out, files[table], schema)
+        source = _whole(out, files[table], schema) if table == RUNS_TABLE else None
+        if source is None and schema is not None:
+            source = Deferred(schema, functools.partial(_dataset, out, files[table], schema))
+        elif source is None:
+            source = _dataset(out, files[table])
+        sources[table] = source
         if schema is None:
-            keep_schema(out, table, key, sources[table].schema)
+            keep_schema(out, table, key, source.schema)
     return sources, key
 
 
-__all__ = ["SCAN_OPTIONS", "empty_table", "table_files", "table_sources"]
+__all__ = [
+    "RUNS_IN_MEMORY",
+    "SCAN_OPTIONS",
+    "Deferred",
+    "empty_table",
+    "table_files",
+    "table_sources",
+]

@@ -149,15 +149,17 @@ class Deadline:
 
 @contextlib.contextmanager
 def guarded_cursor(
-    store: Store, sql: str, timeout: float | None
+    store: Store, sql: str, timeout: float | None, *, ours: bool = False
 ) -> Iterator[tuple[duckdb.DuckDBPyConnection, Deadline]]:
     """The one door through which every statement that may hold SQL a user wrote is run: a
     metric file's expressions, the `--where` filters, `vge sql`, the SQL page, the sweep's
     metrics. The block gets a cursor of the store's locked connection (no file opened,
     a read-only catalog, settings final, DuckDB's memory limit) once the statement is checked
     to be one read-only query, and the deadline that interrupts it after `timeout` seconds
-    (None: never). Running the statement and reading its result is the block's."""
-    cursor = store.cursor()
+    (None: never). Running the statement and reading its result is the block's. `ours`: a
+    query the analytics composed (`run_query`), whose cursor registers only the tables its
+    text names (`Store.cursor`); a user's query sees every table."""
+    cursor = store.cursor(sql if ours else None)
     deadline = Deadline(cursor, timeout)
     try:
         check_read_only(sql, cursor)
@@ -202,7 +204,7 @@ def _run_here(
     store: Store, sql: str, params: Sequence[object], limits: SqlLimits | None, subject: str
 ) -> pl.DataFrame:
     limits = limits or store.limits or SqlLimits.make(timeout=None)
-    with guarded_cursor(store, sql, limits.timeout) as (cursor, deadline):
+    with guarded_cursor(store, sql, limits.timeout, ours=True) as (cursor, deadline):
         try:
             return cursor.sql(sql, params=list(params)).pl()
         except _FAILURES as exc:

@@ -23,6 +23,7 @@ import hashlib
 import itertools
 import json
 import os
+import re
 import tempfile
 import threading
 from collections.abc import Mapping
@@ -38,7 +39,7 @@ from replay.io import MANIFEST, PARTITIONED, RUNS_TABLE, TABLES, manifest_path
 
 from .._errors import OutputDirError, UnknownRunError
 from ._bounds import store_limits
-from ._datasets import empty_table, table_sources
+from ._datasets import Deferred, empty_table, table_sources
 from ._limits import SqlLimits
 from ._locked import locked_connection, register_all
 
@@ -89,8 +90,8 @@ class Store:
     """What the store read of OUT's manifest: each run's id, files and benchmark, the totals,
     the engine version (`run_entry` reads a run's whole entry)."""
     sources: Mapping[str, object] = field(default_factory=dict)
-    """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`), or
-    Arrow tables in memory (`memory_store`)."""
+    """The tables, by name: Arrow datasets over OUT's files (`_datasets.table_sources`, some
+    `Deferred`: built when a query names them), or Arrow tables in memory (`memory_store`)."""
     in_memory: bool = False
     """Its tables are Arrow tables held in this process (`memory_store`), not OUT's files: a
     query process is handed the tables, not OUT."""
@@ -103,12 +104,15 @@ class Store:
     None where nothing is cached."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
-    def cursor(self) -> duckdb.DuckDBPyConnection:
+    def cursor(self, statement: str | None = None) -> duckdb.DuckDBPyConnection:
         """A cursor for one query, the tables registered on it (cursors of one connection may
-        run in different threads; what one registers or creates, no other sees)."""
+        run in different threads; what one registers or creates, no other sees).
+        `statement`: the one statement of the analytics' own the cursor is for; a `Deferred`
+        table its text does not name is left out, unbuilt (a query the metric cache
+        answers opens no file of OUT, and needs no dataset)."""
         with self._lock:
             cursor = self.con.cursor()
-        register_all(cursor, self.sources)
+        register_all(cursor, _registered(self.sources, statement))
         return cursor
 
     def close(self) -> None:
@@ -127,8 +131,30 @@ class Store:
         return [c for c in self.columns[RUNS_TABLE] if c.startswith("meta_")]
 
     def run_ids(self) -> list[str]:
-        rows = self.cursor().execute("SELECT DISTINCT run_id FROM runs ORDER BY run_id").fetchall()
+        statement = "SELECT DISTINCT run_id FROM runs ORDER BY run_id"
+        rows = self.cursor(statement).execute(statement).fetchall()
         return [r[0] for r in rows]
+
+
+def _names(statement: str, table: str) -> bool:
+    """Whether the text of `statement` holds the name `table` as a word (in any case, quoted
+    or not, in a comment too: more tables registered than read is only slower)."""
+    return (
+        re.search(rf"(?<![\w$]){re.escape(table)}(?![\w$])", statement, re.IGNORECASE) is not None
+    )
+
+
+def _registered(sources: Mapping[str, object], statement: str | None) -> dict[str, object]:
+    """What a cursor for `statement` (None: any) registers of `sources`: a `Deferred` table
+    its dataset (built now, once), or nothing when `statement` does not name it."""
+    kept: dict[str, object] = {}
+    for name, source in sources.items():
+        if isinstance(source, Deferred):
+            if statement is not None and not _names(statement, name):
+                continue
+            source = source.source()
+        kept[name] = source
+    return kept
 
 
 _SPILL_DIRS = itertools.count()
@@ -371,8 +397,17 @@ def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:
 
 
 def _catalogue(store: Store) -> dict[str, dict[str, str]]:
+    """Each table's columns and their DuckDB types (a `Deferred` table's from its schema,
+    without building its dataset)."""
     columns: dict[str, dict[str, str]] = {}
-    cursor = store.cursor()
+    with store._lock:
+        cursor = store.con.cursor()
+    described = {
+        # (not `schema.empty_table()`, which imports pandas)
+        name: pa.Table.from_batches([], source.schema) if isinstance(source, Deferred) else source
+        for name, source in store.sources.items()
+    }
+    register_all(cursor, described)
     try:
         for table in TABLES:
             rows = cursor.execute(f"DESCRIBE {table}").fetchall()  # table names are constants

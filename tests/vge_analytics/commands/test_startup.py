@@ -1,19 +1,26 @@
 """`vge` starts at once: importing the command line, registering every command and printing
 any command's help import none of the heavy libraries (docs/PERFORMANCE.md, "Start-up").
-Each command imports what it uses when it runs. Measured in a fresh interpreter (a test
-process has imported everything already); timings are in benchmarks/bench_startup.py."""
+Each command imports what it uses when it runs: `vge metrics OUT` answered by the metric
+cache imports neither pyarrow's dataset module nor pandas (which it imports). Measured in a
+fresh interpreter (a test process has imported everything already); timings are in
+benchmarks/bench_startup.py."""
 
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
+from pathlib import Path
+
+from replay.io import METRIC_CACHE_DIR
 
 HEAVY = (
     "numpy",
     "pandas",
     "pyarrow",
     "pyarrow.dataset",
+    "pyarrow.compute",
     "duckdb",
     "polars",
     "ray",
@@ -63,8 +70,39 @@ def test_the_probe_sees_a_heavy_import() -> None:
     assert _imported("import vge_analytics as va; va.metrics") == [
         "duckdb",
         "numpy",
-        "pandas",
         "polars",
         "pyarrow",
-        "pyarrow.dataset",
     ]
+
+
+METRICS_JSON = """
+import contextlib, io
+from vge_analytics import cli
+with contextlib.redirect_stdout(io.StringIO()):
+    assert cli.main(["metrics", {out!r}, "-f", "json"]) == 0
+"""
+
+
+def test_metrics_answered_by_the_cache_import_no_dataset_module(pair_out: Path, tmp_path: Path):
+    """The first `vge metrics OUT` scans the tables (pyarrow's dataset module, and pandas,
+    which it imports); the next ones read the metric cache, and the runs table read whole."""
+    out = tmp_path / "out"
+    shutil.copytree(pair_out, out, ignore=shutil.ignore_patterns(METRIC_CACHE_DIR))
+    body = METRICS_JSON.format(out=str(out))
+    cold = _imported(body)
+    assert {"pandas", "pyarrow.dataset"} <= set(cold)
+    assert _imported(body) == ["duckdb", "numpy", "polars", "pyarrow"]
+
+
+def test_a_command_that_reads_out_imports_no_dataset_module_before_its_first_file(
+    tmp_path: Path,
+):
+    """The fixed cost of a command that reads OUT: its imports, then the one-line error of
+    an OUT that does not exist."""
+    body = f"""
+import contextlib, io
+from vge_analytics import cli
+with contextlib.redirect_stderr(io.StringIO()):
+    assert cli.main(["metrics", {str(tmp_path / "missing")!r}]) == 1
+"""
+    assert _imported(body) == ["duckdb", "numpy", "polars", "pyarrow"]
