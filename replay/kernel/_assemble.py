@@ -23,6 +23,8 @@ from ..semantics import (
     Prices,
     StepRow,
     arrow_schema,
+    py_column,
+    validity_bitmap,
 )
 from ._words import Words
 
@@ -39,13 +41,6 @@ _ORIGINS = Words(ORIGINS)
 _PREFIX, _FIX, _AGENT = (ORIGINS.index(o) for o in ("prefix", "fix", "agent"))
 
 
-def _bitmap(valid: np.ndarray) -> tuple[pa.Buffer | None, int]:
-    nulls = int(len(valid) - np.count_nonzero(valid))
-    if not nulls:
-        return None, 0
-    return pa.py_buffer(np.packbits(valid.astype(np.bool_), bitorder="little")), nulls
-
-
 _NUMPY_TYPES = {pa.int32(): np.int32, pa.int64(): np.int64, pa.float64(): np.float64}
 
 
@@ -57,22 +52,8 @@ def numbers(values: np.ndarray, type_: pa.DataType, valid: np.ndarray | None = N
         data = np.packbits(values.astype(np.bool_), bitorder="little")
     else:
         data = np.ascontiguousarray(values, _NUMPY_TYPES[type_])
-    bitmap, nulls = (None, 0) if valid is None else _bitmap(valid)
+    bitmap, nulls = (None, 0) if valid is None else validity_bitmap(valid)
     return pa.Array.from_buffers(type_, len(values), [bitmap, pa.py_buffer(data)], nulls)
-
-
-def strings(values: list[str | None]) -> pa.Array:
-    """A string column from Python strings (None: null)."""
-    encoded = [b"" if v is None else v.encode("utf-8") for v in values]
-    offsets = np.zeros(len(encoded) + 1, np.int64)
-    np.cumsum([len(e) for e in encoded], out=offsets[1:])
-    if offsets[-1] > 0x7FFFFFFF:
-        raise OverflowError("string column over 2 GiB in one batch")
-    bitmap, nulls = _bitmap(np.array([v is not None for v in values], np.bool_))
-    return pa.StringArray.from_buffers(
-        len(values), pa.py_buffer(offsets.astype(np.int32)), pa.py_buffer(b"".join(encoded)),
-        bitmap, nulls,
-    )  # fmt: skip
 
 
 def int_lists(values: list) -> pa.Array:
@@ -81,7 +62,7 @@ def int_lists(values: list) -> pa.Array:
     offsets = np.zeros(len(values) + 1, np.int32)
     np.cumsum(lengths, out=offsets[1:])
     flat = np.array([x for v in values if v is not None for x in v], np.int64)
-    bitmap, nulls = _bitmap(np.array([v is not None for v in values], np.bool_))
+    bitmap, nulls = validity_bitmap(np.array([v is not None for v in values], np.bool_))
     return pa.Array.from_buffers(
         pa.list_(pa.int64()), len(values), [bitmap, pa.py_buffer(offsets)], nulls,
         children=[numbers(flat, pa.int64())],
@@ -93,7 +74,7 @@ def coded(words: Words, codes: np.ndarray, valid: np.ndarray | None = None) -> p
     codes = np.ascontiguousarray(codes, np.int32)
     ok = codes >= 0 if valid is None else (codes >= 0) & valid.astype(np.bool_)
     data, offsets = words.expand(codes, ok.view(np.uint8))
-    bitmap, nulls = _bitmap(ok)
+    bitmap, nulls = validity_bitmap(ok)
     return pa.StringArray.from_buffers(
         len(codes), pa.py_buffer(offsets), pa.py_buffer(data), bitmap, nulls
     )
@@ -102,7 +83,7 @@ def coded(words: Words, codes: np.ndarray, valid: np.ndarray | None = None) -> p
 def text(buffers: tuple[bytes, np.ndarray, np.ndarray]) -> pa.Array:
     """A string column from a TextVec's (data, offsets, validity)."""
     data, offsets, valid = buffers
-    bitmap, nulls = _bitmap(valid)
+    bitmap, nulls = validity_bitmap(valid)
     return pa.StringArray.from_buffers(
         len(valid), pa.py_buffer(offsets), pa.py_buffer(data), bitmap, nulls
     )
@@ -327,7 +308,7 @@ class _Columns:
             "n_goals": numbers(ev_n_goals[gv["episode"]], pa.int64()),
             "goal_index": numbers(gv["index"], pa.int64()),
             "goal_state": coded(self.states, gv["state"]),
-            "instruction": strings(instructions),
+            "instruction": py_column(instructions, pa.string()),
             "c_opt": numbers(gv["c_opt"], pa.int64()),
             "c_opt_dyn": numbers(gv["dyn"], pa.int64(), gv["dyn_valid"]),
             "reached": numbers(gv["reached"], pa.bool_()),
