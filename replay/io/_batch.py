@@ -319,7 +319,9 @@ def _counts(tables: BatchTables) -> BatchCounts:
             for item in pc.value_counts(flat).to_pylist():
                 counts.by_field[item["values"]] = item["counts"]
     if episodes.num_rows:
-        counts.episodes_diverged = pc.sum(pc.greater(episodes["diverged_steps"], 0)).as_py() or 0
+        # Episodes with a diverged step: the sum of the signs of counts (a comparison with 0
+        # would make 0 an Arrow scalar, which imports pandas in a worker that needs none).
+        counts.episodes_diverged = pc.sum(pc.sign(episodes["diverged_steps"])).as_py() or 0
     return counts
 
 

@@ -275,10 +275,30 @@ def remove_local(path: Path) -> None:
 def confined(root: Location, path: Location) -> bool:
     """Whether `path`, its links followed, is inside the directory `root` (PROTOCOL §1.1: what
     a benchmark names is read from the benchmark). A store has no links: always."""
-    if root.local is None or path.local is None:
-        return True
-    top = os.path.realpath(root.local)
-    return os.path.realpath(path.local).startswith(os.path.join(top, ""))
+    return confinement(root)(path)
+
+
+def confinement(root: Location) -> Callable[[Location], bool]:
+    """`confined(root, path)` for many paths: the root and each parent directory resolved
+    once (a path resolves component by component, a system call each), then a path whose
+    last component is not a link resolves to its parent's resolution and its name."""
+    if root.local is None:
+        return lambda path: True
+    top = os.path.join(os.path.realpath(root.local), "")
+    parents: dict[Path, str] = {}
+
+    def inside(path: Location) -> bool:
+        local = path.local
+        if local is None:
+            return True
+        if local.name in ("", ".", "..") or local.is_symlink():
+            return os.path.realpath(local).startswith(top)
+        parent = parents.get(local.parent)
+        if parent is None:
+            parent = parents[local.parent] = os.path.realpath(local.parent)
+        return os.path.join(parent, local.name).startswith(top)
+
+    return inside
 
 
 def location(given: str | os.PathLike[str] | Location) -> Location:
@@ -318,4 +338,12 @@ def _open(
     return fs, path
 
 
-__all__ = ["IMPLICIT_DIRECTORIES", "Location", "confined", "is_uri", "location", "remove_local"]
+__all__ = [
+    "IMPLICIT_DIRECTORIES",
+    "Location",
+    "confined",
+    "confinement",
+    "is_uri",
+    "location",
+    "remove_local",
+]

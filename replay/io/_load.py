@@ -26,7 +26,7 @@ from ..semantics import (
     validate_machine,
 )
 from ._decode import decode
-from ._fs import Location, confined, location
+from ._fs import Location, confined, confinement, location
 from ._images import bench_image_problem
 from ._layout import (
     EPISODES,
@@ -152,10 +152,11 @@ class Benchmark:
         if not ssm_dir.is_dir():
             raise InputError(str(ssm_dir), f"benchmark has no {SSM_DIR}/ directory")
         bench = cls(root=root)
+        inside = confinement(root)
         for name in ssm_dir.names():
             if name.endswith(SSM_SUFFIX):
                 path = ssm_dir / name
-                if confined(root, path):
+                if inside(path):
                     bench.ssm_paths[Path(name).stem] = path
                 else:  # a link out of BENCH: never read, not even hashed
                     bench.outside.add(Path(name).stem)

@@ -20,7 +20,7 @@ import pyarrow as pa
 from msgspec import Meta
 
 from .._errors import InputError, decode_error_message
-from ..semantics import run_lambda
+from ..semantics import py_column, run_lambda
 from ._fs import Location, location
 from ._layout import manifest_path
 from ._lines import MAX_RECORD_BYTES
@@ -268,12 +268,12 @@ def _meta_column(values: list[Any]) -> pa.Array:
     """One `meta_<key>` column: bool, int64, float64 or string (mixed types as JSON text)."""
     present = [v for v in values if v is not None]
     if all(isinstance(v, bool) for v in present):
-        return pa.array(values, pa.bool_())
+        return py_column(values, pa.bool_())
     if all(isinstance(v, int) and not isinstance(v, bool) for v in present):
-        return pa.array(values, pa.int64())
+        return py_column(values, pa.int64())
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in present):
-        return pa.array([None if v is None else float(v) for v in values], pa.float64())
-    return pa.array(
+        return py_column([None if v is None else float(v) for v in values], pa.float64())
+    return py_column(
         [v if v is None or isinstance(v, str) else msgspec.json.encode(v).decode() for v in values],
         pa.string(),
     )
@@ -312,7 +312,7 @@ def runs_table(runs: list[RunEntry]) -> pa.Table:
         fixed["infrastructure_failures"].append(failures)
         fixed["engine_version"].append(r.engine_version)
         fixed["meta"].append(_encoder.encode(r.run.meta).decode())
-    arrays = [pa.array(fixed[f.name], f.type) for f in _RUN_COLUMNS]
+    arrays = [py_column(fixed[f.name], f.type) for f in _RUN_COLUMNS]  # no pandas
     fields = list(_RUN_COLUMNS)
     keys = sorted({k for r in runs for k, v in r.run.meta.items() if _is_scalar(v)})
     for key in keys:

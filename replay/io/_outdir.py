@@ -20,7 +20,7 @@ from .._version import ENGINE_VERSION
 from ..semantics import SCHEMA_VERSION
 from ._durable import FileSet
 from ._files import STATE_DIR
-from ._fs import Location, confined, location
+from ._fs import Location, confinement, location
 from ._layout import (
     RUNS_TABLE,
     manifest_path,
@@ -52,10 +52,11 @@ def run_inputs(run: RunInput, bench_dir: str, hasher: Hasher, devices: Iterable[
     cannot name a file, or an SSM linked out of BENCH, is never made a path nor read."""
     bench = location(bench_dir)
     ssm: dict[str, FileRef] = {}
+    confined = confinement(bench)
     for d in sorted(devices):
         if not_a_file_name(d) is None:
             path = ssm_path(bench, d)
-            ssm[d] = hasher.ref(path) if confined(bench, path) else FileRef(str(path), None)
+            ssm[d] = hasher.ref(path) if confined(path) else FileRef(str(path), None)
     return RunInputs(
         run_dir=run.run_dir,
         run_json=hasher.ref(run_json_path(location(run.run_dir))),

@@ -23,10 +23,11 @@ from ..semantics import (
     Prices,
     StepRow,
     arrow_schema,
+    py_column,
+    validity_bitmap,
 )
 from ._words import Words
 
-STRING = pa.string()
 _VIEWS = Words(VIEW_ORDER)
 _ACTIONS = Words(ACTION_NAMES)
 _DETAILS = Words(ERROR_DETAILS)
@@ -40,20 +41,32 @@ _ORIGINS = Words(ORIGINS)
 _PREFIX, _FIX, _AGENT = (ORIGINS.index(o) for o in ("prefix", "fix", "agent"))
 
 
-def _bitmap(valid: np.ndarray) -> tuple[pa.Buffer | None, int]:
-    nulls = int(len(valid) - np.count_nonzero(valid))
-    if not nulls:
-        return None, 0
-    return pa.py_buffer(np.packbits(valid.astype(np.bool_), bitorder="little")), nulls
+_NUMPY_TYPES = {pa.int32(): np.int32, pa.int64(): np.int64, pa.float64(): np.float64}
 
 
 def numbers(values: np.ndarray, type_: pa.DataType, valid: np.ndarray | None = None) -> pa.Array:
-    """A numeric or boolean column; null where `valid` is false."""
+    """A numeric or boolean column; null where `valid` is false. Made from its buffers, as
+    every column here: `pa.array` imports pandas on its first call (a quarter of a second
+    of CPU in each process that replays), and checks for pandas' types on every call."""
     if type_ == pa.bool_():
-        values = values.astype(np.bool_)
-    if valid is None or valid.all():
-        return pa.array(values, type=type_)
-    return pa.array(values, type=type_, mask=~valid.astype(np.bool_))
+        data = np.packbits(values.astype(np.bool_), bitorder="little")
+    else:
+        data = np.ascontiguousarray(values, _NUMPY_TYPES[type_])
+    bitmap, nulls = (None, 0) if valid is None else validity_bitmap(valid)
+    return pa.Array.from_buffers(type_, len(values), [bitmap, pa.py_buffer(data)], nulls)
+
+
+def int_lists(values: list) -> pa.Array:
+    """A list<int64> column from Python sequences of ints (None: null)."""
+    lengths = [0 if v is None else len(v) for v in values]
+    offsets = np.zeros(len(values) + 1, np.int32)
+    np.cumsum(lengths, out=offsets[1:])
+    flat = np.array([x for v in values if v is not None for x in v], np.int64)
+    bitmap, nulls = validity_bitmap(np.array([v is not None for v in values], np.bool_))
+    return pa.Array.from_buffers(
+        pa.list_(pa.int64()), len(values), [bitmap, pa.py_buffer(offsets)], nulls,
+        children=[numbers(flat, pa.int64())],
+    )  # fmt: skip
 
 
 def coded(words: Words, codes: np.ndarray, valid: np.ndarray | None = None) -> pa.Array:
@@ -61,7 +74,7 @@ def coded(words: Words, codes: np.ndarray, valid: np.ndarray | None = None) -> p
     codes = np.ascontiguousarray(codes, np.int32)
     ok = codes >= 0 if valid is None else (codes >= 0) & valid.astype(np.bool_)
     data, offsets = words.expand(codes, ok.view(np.uint8))
-    bitmap, nulls = _bitmap(ok)
+    bitmap, nulls = validity_bitmap(ok)
     return pa.StringArray.from_buffers(
         len(codes), pa.py_buffer(offsets), pa.py_buffer(data), bitmap, nulls
     )
@@ -70,7 +83,7 @@ def coded(words: Words, codes: np.ndarray, valid: np.ndarray | None = None) -> p
 def text(buffers: tuple[bytes, np.ndarray, np.ndarray]) -> pa.Array:
     """A string column from a TextVec's (data, offsets, validity)."""
     data, offsets, valid = buffers
-    bitmap, nulls = _bitmap(valid)
+    bitmap, nulls = validity_bitmap(valid)
     return pa.StringArray.from_buffers(
         len(valid), pa.py_buffer(offsets), pa.py_buffer(data), bitmap, nulls
     )
@@ -78,7 +91,7 @@ def text(buffers: tuple[bytes, np.ndarray, np.ndarray]) -> pa.Array:
 
 def listed(offsets: np.ndarray, values: pa.Array) -> pa.Array:
     """A list column: element i holds values[offsets[i]:offsets[i + 1]]."""
-    return pa.ListArray.from_arrays(pa.array(offsets, pa.int32()), values)
+    return pa.ListArray.from_arrays(numbers(offsets, pa.int32()), values)
 
 
 def cost_column(
@@ -263,11 +276,9 @@ class _Columns:
             "goals": listed(out.e_goals_off.array(), coded(states, out.e_goals.array())),
             "c_opt": listed(
                 out.e_goals_off.array(),
-                pa.array(out.e_c_opt.array().astype(np.int64), pa.int64()),
+                numbers(out.e_c_opt.array(), pa.int64()),
             ),
-            "c_opt_stated": pa.array(
-                [list(c) if c is not None else None for c in c_opt_stated], pa.list_(pa.int64())
-            ),
+            "c_opt_stated": int_lists(c_opt_stated),
             "visited_states": listed(
                 out.e_visited_off.array(), coded(states, out.e_visited.array())
             ),
@@ -297,7 +308,7 @@ class _Columns:
             "n_goals": numbers(ev_n_goals[gv["episode"]], pa.int64()),
             "goal_index": numbers(gv["index"], pa.int64()),
             "goal_state": coded(self.states, gv["state"]),
-            "instruction": pa.array(instructions, STRING),
+            "instruction": py_column(instructions, pa.string()),
             "c_opt": numbers(gv["c_opt"], pa.int64()),
             "c_opt_dyn": numbers(gv["dyn"], pa.int64(), gv["dyn_valid"]),
             "reached": numbers(gv["reached"], pa.bool_()),
@@ -314,12 +325,15 @@ def continuation_columns(continuations: list) -> dict[str, pa.Array]:
     """The episodes' continuation columns (null in ordinary runs), from their log lines: one
     per field of `Continuation`, typed as the episode row declares it."""
     schema = arrow_schema(EpisodeRow)
+    names = Continuation.__struct_fields__
+    if all(c is None for c in continuations):  # an ordinary run: no `pa.array`, no pandas
+        return {name: pa.nulls(len(continuations), schema.field(name).type) for name in names}
     return {
         name: pa.array(
             [None if c is None else getattr(c, name) for c in continuations],
             schema.field(name).type,
         )
-        for name in Continuation.__struct_fields__
+        for name in names
     }
 
 

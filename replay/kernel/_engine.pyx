@@ -37,6 +37,7 @@ from ..semantics import (
     UNLOCKED_TEXT,
     VIEW_ORDER,
     WAIT_NO_EFFECT_TEXT,
+    LogStep,
     SimState,
     apply_transition,
     c_opt_dynamic,
@@ -63,6 +64,39 @@ from ._text cimport (
 
 cdef extern from "Python.h":
     bint PyUnicode_IS_ASCII(object text)
+    ctypedef struct PyObject
+    ctypedef struct PyMemberDef:
+        Py_ssize_t offset
+    ctypedef struct PyMemberDescrObject:
+        PyMemberDef* d_member
+
+# A logged step's fields, read from their slots: `LogStep` is a msgspec struct, whose fields
+# are member descriptors; `getattr` looks each one up in the type's dictionary (a tenth of
+# the kernel's time for the eight fields of every step). Anything not exactly a `LogStep`
+# (a subclass, a stand-in) is read with `getattr`.
+cdef enum:
+    F_OUTPUT, F_VIEW, F_FEEDBACK, F_STATE, F_TIMESTAMP, F_PROMPT, F_COMPLETION, F_LATENCY, NF
+
+_STEP_FIELDS = (
+    "output", "view", "feedback", "state", "timestamp", "prompt_tokens", "completion_tokens",
+    "latency_seconds",
+)
+cdef Py_ssize_t[NF] _STEP_OFFSET
+for _f in range(NF):
+    _descr = LogStep.__dict__[_STEP_FIELDS[_f]]
+    if type(_descr).__name__ != "member_descriptor":
+        raise TypeError(f"LogStep.{_STEP_FIELDS[_f]} is not a slot")
+    _STEP_OFFSET[_f] = (<PyMemberDescrObject*>_descr).d_member.offset
+
+
+cdef inline object _step_field(object step, int f):
+    """`getattr(step, <field f>)`, from the slot when `step` is a `LogStep`."""
+    cdef PyObject* value
+    if type(step) is LogStep:
+        value = (<PyObject**>(<char*><PyObject*>step + _STEP_OFFSET[f]))[0]
+        if value != NULL:
+            return <object>value
+    return getattr(step, _STEP_FIELDS[f])
 
 # ------------------------------------------------------------------------------ codes
 
@@ -1031,7 +1065,7 @@ cdef class Episode:
         cdef const char* s = NULL
         pa.x = pa.y = 0.0
         cdef Py_ssize_t size = 0, i
-        output = log_step.output
+        output = _step_field(log_step, F_OUTPUT)
         self._params = ()
         fp.status = PARSE_FALLBACK
         if output is not None:
@@ -1108,11 +1142,11 @@ cdef class Episode:
         `EpisodeSession._usage` adds them (the first value recorded starts a sum)."""
         cdef Out out = self.out
         cdef double seconds
-        _count(log_step.prompt_tokens, out.prompt, out.prompt_valid, row, &self.prompt,
+        _count(_step_field(log_step, F_PROMPT), out.prompt, out.prompt_valid, row, &self.prompt,
                &self.has_prompt)
-        _count(log_step.completion_tokens, out.completion, out.completion_valid, row,
+        _count(_step_field(log_step, F_COMPLETION), out.completion, out.completion_valid, row,
                &self.completion, &self.has_completion)
-        value = log_step.latency_seconds
+        value = _step_field(log_step, F_LATENCY)
         if value is not None:
             seconds = value
             out.latency[row] = seconds
@@ -1142,13 +1176,13 @@ cdef class Episode:
             out.step_k[row] = k
             out.step_ep[row] = self.e
             self._parse(log_step, &pa)
-            recorded_feedback = log_step.feedback
-            recorded_state = log_step.state
-            recorded_view = log_step.view
+            recorded_feedback = _step_field(log_step, F_FEEDBACK)
+            recorded_state = _step_field(log_step, F_STATE)
+            recorded_view = _step_field(log_step, F_VIEW)
             out.rec_feedback.push_opt(recorded_feedback)
             out.rec_state.push_opt(recorded_state)
             out.rec_view.push_opt(recorded_view)
-            self._timestamp(log_step.timestamp, row)
+            self._timestamp(_step_field(log_step, F_TIMESTAMP), row)
             self._usage(log_step, row)
             if self.termination >= 0:  # after termination: truncated, nothing scored
                 self.truncated_steps += 1
@@ -1422,17 +1456,17 @@ cdef class Episode:
         is compared with the kind, a text with the text."""
         cdef Out out = self.out
         cdef int div_mask = 0, c
+        # Equal to what the replay gives is checked first: a comparison of short strings,
+        # where looking the recorded text up (a kind? a view in any case?) hashes it anew.
         if feedback is not None or state is not None or view is not None:
-            if feedback is not None:
-                if feedback in _FEEDBACK_KIND_SET:
-                    if feedback != FEEDBACK_KINDS[oc.kind]:
-                        div_mask |= 1
-                elif feedback != self.vocab.texts[oc.text]:
-                    div_mask |= 1
+            if feedback is not None and feedback != FEEDBACK_KINDS[oc.kind]:
+                if feedback != self.vocab.texts[oc.text] or feedback in _FEEDBACK_KIND_SET:
+                    div_mask |= 1  # another kind, or a text that is not the replay's
             if state is not None and state != self.km.state_names[self.state]:
                 div_mask |= 2
-            if view is not None and _lower_view(view) != self.view:
-                div_mask |= 4
+            if view is not None and view != VIEW_ORDER[self.view]:
+                if _lower_view(view) != self.view:
+                    div_mask |= 4
             out.diverged_valid[row] = 1
             if div_mask:
                 out.diverged[row] = 1

@@ -83,7 +83,14 @@ from ._records import (
 )
 from ._rows import OUTPUT_RECORDS, EpisodeRow, GoalRow, StepRow
 from ._step import Outcome, SimState, apply_transition, reset, step
-from ._tables import arrow_schema, rows_to_table, table_rows, table_tuples
+from ._tables import (
+    arrow_schema,
+    py_column,
+    rows_to_table,
+    table_rows,
+    table_tuples,
+    validity_bitmap,
+)
 from ._usage import (
     COMPLETION_PRICE_KEY,
     MAX_PRICE,
@@ -270,9 +277,11 @@ __all__ = [
     "GoalRow",
     "StepRow",
     "arrow_schema",
+    "py_column",
     "rows_to_table",
     "table_rows",
     "table_tuples",
+    "validity_bitmap",
     # each vocabulary's words and codes, in one home (docs/ARCHITECTURE.md)
     "BACK",
     "BACK_BOTTOM",

@@ -6,9 +6,12 @@ annotations to Arrow types, so the Parquet schema can never drift from the recor
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import cache
+from typing import Any
 
 import msgspec
+import numpy as np
 import pyarrow as pa
 
 from ._records import SCHEMA_VERSION
@@ -48,6 +51,42 @@ def arrow_schema(row_type: type) -> pa.Schema:
         arrow, nullable = _arrow_type(f.type)
         fields.append(pa.field(f.encode_name, arrow, nullable=nullable))
     return pa.schema(fields, metadata={b"vge_schema_version": str(SCHEMA_VERSION).encode()})
+
+
+_NUMPY_TYPES = {pa.bool_(): np.bool_, pa.int64(): np.int64, pa.float64(): np.float64}
+
+
+def validity_bitmap(valid: np.ndarray) -> tuple[pa.Buffer | None, int]:
+    """(Arrow validity bitmap, null count) of a column valid where `valid` is true; no bitmap
+    when nothing is null."""
+    nulls = int(len(valid) - np.count_nonzero(valid))
+    if not nulls:
+        return None, 0
+    return pa.py_buffer(np.packbits(valid.astype(np.bool_), bitorder="little")), nulls
+
+
+def py_column(values: Sequence[Any], type_: pa.DataType) -> pa.Array:
+    """A string, boolean, int64 or float64 column of Python values (None: null), made from
+    its buffers, as `pa.array(values, type_)` makes it: `pa.array` imports pandas on its
+    first call, a quarter of a second of CPU in a process that needs no pandas (a replay,
+    its workers). Other types go to `pa.array`."""
+    valid = np.fromiter((v is not None for v in values), np.bool_, len(values))
+    bitmap, nulls = validity_bitmap(valid)
+    if type_ == pa.string():
+        encoded = [b"" if v is None else v.encode("utf-8") for v in values]
+        offsets = np.zeros(len(encoded) + 1, np.int64)
+        np.cumsum([len(e) for e in encoded], out=offsets[1:])
+        if offsets[-1] > 0x7FFFFFFF:
+            raise OverflowError("string column over 2 GiB")
+        data, offsets = pa.py_buffer(b"".join(encoded)), pa.py_buffer(offsets.astype(np.int32))
+        return pa.StringArray.from_buffers(len(encoded), offsets, data, bitmap, nulls)
+    dtype = _NUMPY_TYPES.get(type_)
+    if dtype is None:
+        return pa.array(values, type_)
+    data = np.array([0 if v is None else v for v in values], dtype)
+    if type_ == pa.bool_():
+        data = np.packbits(data, bitorder="little")
+    return pa.Array.from_buffers(type_, len(values), [bitmap, pa.py_buffer(data)], nulls)
 
 
 def rows_to_table(rows: list, row_type: type) -> pa.Table:
