@@ -96,6 +96,23 @@ def test_leaderboard_shows_each_runs_metrics(app_env):
     assert by_group(sr, "value") == pytest.approx(dict(expected.select("run_id", "SR").iter_rows()))
 
 
+def test_leaderboard_asks_before_drawing_a_large_per_metric_chart(app_env, monkeypatch):
+    monkeypatch.setattr(dash, "METRIC_CHART_AUTO_GROUPS", 8)  # 9 runs: one too many
+    at = open_page()
+    names = list(va.load_metrics().metrics)
+    (toggle,) = at.toggle
+    assert toggle.label.startswith(
+        f"Draw one bar chart per metric: 9 groups, {9 * len(names)} bars"
+    )
+    assert not toggle.value and not charts(at)  # (simulated runs have no cost chart)
+    toggle.set_value(True)
+    rerun(at)
+    bars = chart_data(charts(at)[0])[0]
+    sr = bars.filter(pl.col("metric") == "SR")
+    expected = va.metrics(app_env)
+    assert by_group(sr, "value") == pytest.approx(dict(expected.select("run_id", "SR").iter_rows()))
+
+
 def test_leaderboard_filters_and_groups(app_env):
     at = open_page()
     at.multiselect[1].select("Lamp")  # category

@@ -67,6 +67,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     )
     from ._leaderboard import (
         COST_COLUMNS,
+        METRIC_CHART_AUTO_GROUPS,
         ORIGIN_MARKS,
         best_rows,
         cost_frontier,
@@ -190,6 +191,7 @@ __all__ = [
     "long_texts",
     "LONG_TEXTS",
     "LongText",
+    "METRIC_CHART_AUTO_GROUPS",
     "metric_headers",
     "metric_help",
     "metrics_long",

@@ -103,6 +103,12 @@ def metrics_note(metrics: MetricSet | None) -> str | None:
     return f"Metrics of `{metrics.folder}`: {what}. Hover a header for its definition."
 
 
+METRIC_CHART_AUTO_GROUPS = 100
+"""Groups the Leaderboard's per-metric chart is drawn for on a page load; above, the page
+asks first (a browser took about 4 s under load to draw 14 panels of 900 bars: 100x the
+full benchmark, docs/PERFORMANCE.md)."""
+
+
 def metrics_long(
     df: pl.DataFrame, metric_names: Sequence[str], metrics: MetricSet | None = None
 ) -> pl.DataFrame:
