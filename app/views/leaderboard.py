@@ -72,12 +72,8 @@ c2.caption(
 tables.number_table(dash.interval_rows(intervals, by, interval_metric), key="leaderboard_intervals")
 
 st.subheader("Per metric")
-if table.height <= dash.METRIC_CHART_AUTO_GROUPS or st.toggle(
-    f"Draw one bar chart per metric: {table.height:,} groups, {table.height * len(names):,} "
-    "bars (a browser takes seconds)",
-    key="leaderboard_metric_chart",
-):
-    long = dash.metrics_long(table, names, data.metric_set())
+long = dash.metrics_long(table, names, data.metric_set())
+if pickers.charts_wanted(table.height, long.height, "leaderboard_charts"):
     st.altair_chart(charts.metric_bars(long, names, table["group"].to_list()))
 
 st.subheader("Cost and success")

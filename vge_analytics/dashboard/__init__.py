@@ -66,8 +66,8 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         run_choices,
     )
     from ._leaderboard import (
+        CHART_AUTO_GROUPS,
         COST_COLUMNS,
-        METRIC_CHART_AUTO_GROUPS,
         ORIGIN_MARKS,
         best_rows,
         cost_frontier,
@@ -151,6 +151,7 @@ __all__ = [
     "bench_dir",
     "best_rows",
     "Box",
+    "CHART_AUTO_GROUPS",
     "chars_column",
     "check_out",
     "CLASSIFICATION_FIELDS",
@@ -191,7 +192,6 @@ __all__ = [
     "long_texts",
     "LONG_TEXTS",
     "LongText",
-    "METRIC_CHART_AUTO_GROUPS",
     "metric_headers",
     "metric_help",
     "metrics_long",

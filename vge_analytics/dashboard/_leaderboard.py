@@ -103,10 +103,11 @@ def metrics_note(metrics: MetricSet | None) -> str | None:
     return f"Metrics of `{metrics.folder}`: {what}. Hover a header for its definition."
 
 
-METRIC_CHART_AUTO_GROUPS = 100
-"""Groups the Leaderboard's per-metric chart is drawn for on a page load; above, the page
-asks first (a browser took about 4 s under load to draw 14 panels of 900 bars: 100x the
-full benchmark, docs/PERFORMANCE.md)."""
+CHART_AUTO_GROUPS = 100
+"""Groups a chart of groups (a bar or a stack of bars per group) is drawn for on a page
+load; above, the page asks first: at 100x the full benchmark (900 runs) the Leaderboard's 14
+panels of 900 bars took a browser about 4 s to draw under load, the Errors page's two
+stacked charts 2 s (docs/PERFORMANCE.md)."""
 
 
 def metrics_long(
