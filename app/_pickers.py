@@ -53,6 +53,16 @@ def filter_row(key: str) -> Selection:
     return Selection(runs, categories, by, where(run_id=runs, category=categories))
 
 
+def charts_wanted(groups: int, bars: int, key: str) -> bool:
+    """Whether to draw a page's charts of `groups` groups (`bars` bars in all): always up to
+    `dash.CHART_AUTO_GROUPS` groups; above, when the person turns on the switch shown
+    where they go (a browser takes seconds to draw thousands of bars)."""
+    if groups <= dash.CHART_AUTO_GROUPS:
+        return True
+    label = f"Draw the charts: {groups:,} groups, {bars:,} bars (a browser takes seconds)"
+    return st.toggle(label, key=key)
+
+
 def step_slider(steps: pl.DataFrame) -> int:
     """The step picker (a slider over the episode's steps); returns the chosen position."""
     last = steps.height - 1
@@ -127,6 +137,7 @@ __all__ = [
     "GROUPINGS",
     "LAMBDA_CHOICES",
     "Selection",
+    "charts_wanted",
     "filter_row",
     "group_by_picker",
     "init_state",

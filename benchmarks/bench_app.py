@@ -1,6 +1,6 @@
 """Render time of every dashboard page, as a browser sees it.
 
-    python benchmarks/bench_app.py OUT [--repeat 3] [--sweep]
+    python benchmarks/bench_app.py OUT [--repeat 3] [--sweep] [--pages Leaderboard,Errors]
 
 Starts `vge app OUT --headless` on a free localhost port and loads each page in headless
 Chromium through Playwright (the helpers of the browser tests, `tests/app/streamlit_browser.py`),
@@ -25,6 +25,10 @@ the planner's optimal box.
 Besides the pages as they open, the Side by side page is timed on the heaviest pair it can
 be asked for: the two model runs with the most episodes (their diff over every common
 episode is computed on the first visit).
+
+`--pages` times only the pages named (titles as in the table, comma-separated; the switch
+is then from one of them to the next, and the heavy Side by side pair only with Side by
+side among them).
 
 `--sweep` also times the lambda sweep of every run (computed once and kept on disk; without
 it the Budgets page of a large OUT shows a button instead of computing it on a page load).
@@ -144,13 +148,25 @@ def save_screenshots(browser: AppPage, out: Path, folder: Path) -> None:
     browser.set_height(1000)
 
 
+def chosen_pages(titles: str) -> tuple[tuple[str, str, str], ...]:
+    """The pages of `PAGES` named in `titles` (comma-separated), in the table's order."""
+    wanted = {t.strip() for t in titles.split(",") if t.strip()}
+    unknown = wanted - {t for t, _, _ in PAGES}
+    if unknown or not wanted:
+        known = ", ".join(t for t, _, _ in PAGES)
+        raise argparse.ArgumentTypeError(f"unknown page(s) {sorted(unknown)}; pages: {known}")
+    return tuple(p for p in PAGES if p[0] in wanted)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
     parser.add_argument("--repeat", type=int, default=3, help="warm visits per page")
     parser.add_argument("--sweep", action="store_true", help="also time the lambda sweep")
     parser.add_argument("--screenshots", type=Path, help="save docs screenshots here")
+    parser.add_argument("--pages", type=chosen_pages, default=PAGES, help="titles, a,b,...")
     args = parser.parse_args()
+    pages: tuple[tuple[str, str, str], ...] = args.pages
 
     import vge_analytics as va
     from vge_analytics import dashboard as dash
@@ -168,22 +184,22 @@ def main() -> None:
         )
 
     first: dict[str, float] = {}
-    reload: dict[str, list[float]] = {t: [] for t, _, _ in PAGES}
-    switch: dict[str, list[float]] = {t: [] for t, _, _ in PAGES}
+    reload: dict[str, list[float]] = {t: [] for t, _, _ in pages}
+    switch: dict[str, list[float]] = {t: [] for t, _, _ in pages}
     log = Path(tempfile.mkdtemp(prefix="bench-app-")) / "vge-app.log"
     with AppServer(out, log=log) as server, sync_playwright() as playwright:
         chromium = playwright.chromium.launch(**LAUNCH_ARGS)
         page = chromium.new_page(viewport={"width": 1400, "height": 1000})
         browser = AppPage(page, server.url, timeout=300)
-        for title, path, expect in PAGES:
+        for title, path, expect in pages:
             first[title] = browser.open(path, expect, settle=0.2)
             for _ in range(args.repeat):
                 reload[title].append(browser.open(path, expect, settle=0.2))
             print(f"{title}: first visit {first[title]:.2f} s", file=sys.stderr)
         for _ in range(args.repeat):
-            for title, path, expect in PAGES:
+            for title, path, expect in pages:
                 switch[title].append(browser.navigate(f"/{path}", expect, settle=0.2))
-        pair = largest_model_pair(out)
+        pair = largest_model_pair(out) if any(t == "Side by side" for t, _, _ in pages) else None
         if pair is not None:
             path = f"side_by_side?a={pair[0]}&b={pair[1]}"
             heavy = f"Side by side, {pair[0]} and {pair[1]}"
@@ -200,12 +216,12 @@ def main() -> None:
     )
     print("| page | first visit (s) | reload, median (s) | switch, median (s) | switch, max (s) |")
     print("|---|---:|---:|---:|---:|")
-    for title, _, _ in PAGES:
+    for title, _, _ in pages:
         print(
             f"| {title} | {first[title]:.2f} | {statistics.median(reload[title]):.2f} "
             f"| {statistics.median(switch[title]):.2f} | {max(switch[title]):.2f} |"
         )
-    for title in first.keys() - {t for t, _, _ in PAGES}:
+    for title in first.keys() - {t for t, _, _ in pages}:
         print(f"| {title} | {first[title]:.2f} | {statistics.median(reload[title]):.2f} | – | – |")
     if sweep_note:
         print(f"\n{sweep_note}")

@@ -25,8 +25,9 @@ order = dist["group"].unique(maintain_order=True).to_list()
 
 compare_tab, pie_tab, table_tab = st.tabs(["Compare groups", "Pie of one group", "Table"])
 with compare_tab:
-    st.altair_chart(charts.error_stacked(dist, order))
-    st.altair_chart(charts.error_group_stacked(tables.labelled(groups, by), order))
+    if pickers.charts_wanted(len(order), dist.height + groups.height, "errors_charts"):
+        st.altair_chart(charts.error_stacked(dist, order))
+        st.altair_chart(charts.error_group_stacked(tables.labelled(groups, by), order))
 with pie_tab:
     one = st.selectbox("Group", order, key="errors_pie_group")
     part = dist.filter(dist["group"] == one)

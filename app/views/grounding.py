@@ -21,9 +21,10 @@ chosen_runs, categories, by, where = pickers.filter_row("grounding")
 names = ["AvgDist", "AvgWDist", "EIR", "TIR"]
 table = tables.labelled(data.metrics(by=list(by), metrics=names, where=where), by)
 order = table["group"].to_list()
-left, right = st.columns(2)
-left.altair_chart(charts.ratio_bars(table, "AvgDist", order))
-right.altair_chart(charts.ratio_bars(table, "AvgWDist", order))
+if pickers.charts_wanted(len(order), 2 * len(order), "grounding_charts"):
+    left, right = st.columns(2)
+    left.altair_chart(charts.ratio_bars(table, "AvgDist", order))
+    right.altair_chart(charts.ratio_bars(table, "AvgWDist", order))
 st.dataframe(
     tables.best_styler(table, names), hide_index=True, column_config=tables.metric_column_config(names)
 )

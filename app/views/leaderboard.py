@@ -73,7 +73,8 @@ tables.number_table(dash.interval_rows(intervals, by, interval_metric), key="lea
 
 st.subheader("Per metric")
 long = dash.metrics_long(table, names, data.metric_set())
-st.altair_chart(charts.metric_bars(long, names, table["group"].to_list()))
+if pickers.charts_wanted(table.height, long.height, "leaderboard_charts"):
+    st.altair_chart(charts.metric_bars(long, names, table["group"].to_list()))
 
 st.subheader("Cost and success")
 plane = dash.cost_frontier(data.cost_table(["run_id", "model"], where))

@@ -22,10 +22,11 @@ classes = tables.labelled(data.switch_classes(by=list(by), where=where), by)
 ratios = tables.labelled(data.metrics(by=list(by), metrics=["VSPS", "GVPE"], where=where), by)
 order = ratios["group"].to_list()
 
-st.altair_chart(charts.switch_stacked(classes, order))
-left, right = st.columns(2)
-left.altair_chart(charts.ratio_bars(ratios, "VSPS", order))
-right.altair_chart(charts.ratio_bars(ratios, "GVPE", order))
+if pickers.charts_wanted(len(order), classes.height + 2 * len(order), "navigation_charts"):
+    st.altair_chart(charts.switch_stacked(classes, order))
+    left, right = st.columns(2)
+    left.altair_chart(charts.ratio_bars(ratios, "VSPS", order))
+    right.altair_chart(charts.ratio_bars(ratios, "GVPE", order))
 summary = dash.switch_summary(classes, ratios)
 st.dataframe(
     summary,

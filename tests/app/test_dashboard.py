@@ -4,10 +4,13 @@ reshape and the replayed tiny synthetic benchmark."""
 from __future__ import annotations
 
 import copy
+import hashlib
 import io
+import os
 import re
 import shutil
 import subprocess
+import time
 from pathlib import Path
 
 import polars as pl
@@ -63,6 +66,49 @@ def test_out_version_follows_the_manifest(tiny_out, tmp_path):
     manifest = copy / "manifest.json"
     manifest.write_text(manifest.read_text().replace('"runs"', '"runs" ', 1))
     assert dash.out_version(copy) != before
+
+
+def _read_counter(monkeypatch) -> list[Path]:
+    """The paths `Path.read_bytes` reads from now on (the manifest's hashing counted)."""
+    reads: list[Path] = []
+    original = Path.read_bytes
+
+    def counted(self: Path) -> bytes:
+        reads.append(self)
+        return original(self)
+
+    monkeypatch.setattr(Path, "read_bytes", counted)
+    return reads
+
+
+def test_out_version_hashes_an_unchanged_manifest_once(tiny_out, tmp_path, monkeypatch):
+    copy = tmp_path / "out"
+    shutil.copytree(tiny_out, copy)
+    manifest = copy / "manifest.json"
+    hour_ago = time.time_ns() - 3600 * 10**9
+    os.utime(manifest, ns=(hour_ago, hour_ago))
+    reads = _read_counter(monkeypatch)
+    first = dash.out_version(copy)
+    assert [dash.out_version(copy) for _ in range(3)] == [first] * 3
+    assert reads.count(manifest) == 1
+    # the same size, its modification time put back: the change time still tells
+    stat = manifest.stat()
+    manifest.write_text(manifest.read_text().replace('"runs"', '"RUNS"', 1))
+    os.utime(manifest, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    assert manifest.stat().st_size == stat.st_size
+    changed = dash.out_version(copy)
+    assert changed != first
+    assert changed == hashlib.sha256(manifest.read_bytes()).hexdigest()[:16]
+
+
+def test_out_version_hashes_a_fresh_manifest_every_time(tiny_out, tmp_path, monkeypatch):
+    copy = tmp_path / "out"
+    shutil.copytree(tiny_out, copy)
+    manifest = copy / "manifest.json"
+    manifest.write_bytes(manifest.read_bytes())  # modified now: within the racy window
+    reads = _read_counter(monkeypatch)
+    assert dash.out_version(copy) == dash.out_version(copy) == dash.out_version(tiny_out)
+    assert reads.count(manifest) == 2
 
 
 def test_out_summary_counts(tiny_out):

@@ -96,6 +96,29 @@ def test_leaderboard_shows_each_runs_metrics(app_env):
     assert by_group(sr, "value") == pytest.approx(dict(expected.select("run_id", "SR").iter_rows()))
 
 
+@pytest.mark.parametrize(
+    ("page", "drawn", "bars"),
+    [(None, 1, None), ("errors", 2, None), ("navigation", 3, None), ("grounding", 2, 18)],
+)
+def test_charts_of_many_groups_are_drawn_when_asked(app_env, monkeypatch, page, drawn, bars):
+    monkeypatch.setattr(dash, "CHART_AUTO_GROUPS", 8)  # 9 runs: one too many
+    at = open_page(page)
+    (toggle,) = at.toggle
+    assert toggle.label.startswith("Draw the charts: 9 groups, ")
+    if bars is not None:
+        assert f" {bars} bars " in toggle.label
+    assert not toggle.value
+    shown = len(charts(at))  # (the grounding scatter and no cost chart: no group chart)
+    toggle.set_value(True)
+    rerun(at)
+    assert len(charts(at)) == shown + drawn
+    if page is None:
+        bars = chart_data(charts(at)[0])[0]
+        sr = bars.filter(pl.col("metric") == "SR")
+        expected = dict(va.metrics(app_env).select("run_id", "SR").iter_rows())
+        assert by_group(sr, "value") == pytest.approx(expected)
+
+
 def test_leaderboard_filters_and_groups(app_env):
     at = open_page()
     at.multiselect[1].select("Lamp")  # category

@@ -66,6 +66,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         run_choices,
     )
     from ._leaderboard import (
+        CHART_AUTO_GROUPS,
         COST_COLUMNS,
         ORIGIN_MARKS,
         best_rows,
@@ -150,6 +151,7 @@ __all__ = [
     "bench_dir",
     "best_rows",
     "Box",
+    "CHART_AUTO_GROUPS",
     "chars_column",
     "check_out",
     "CLASSIFICATION_FIELDS",

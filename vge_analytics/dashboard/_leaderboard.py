@@ -103,6 +103,13 @@ def metrics_note(metrics: MetricSet | None) -> str | None:
     return f"Metrics of `{metrics.folder}`: {what}. Hover a header for its definition."
 
 
+CHART_AUTO_GROUPS = 100
+"""Groups a chart of groups (a bar or a stack of bars per group) is drawn for on a page
+load; above, the page asks first: at 100x the full benchmark (900 runs) the Leaderboard's 14
+panels of 900 bars took a browser about 4 s to draw under load, the Errors page's two
+stacked charts 2 s (docs/PERFORMANCE.md)."""
+
+
 def metrics_long(
     df: pl.DataFrame, metric_names: Sequence[str], metrics: MetricSet | None = None
 ) -> pl.DataFrame:
