@@ -1,7 +1,7 @@
 """How long `vge` takes to start, as whole processes (not a test): the figures of
 docs/PERFORMANCE.md, "Start-up".
 
-    python benchmarks/bench_startup.py --base DIR [--runs 11] [--out OUT]
+    python benchmarks/bench_startup.py --base DIR [--runs 11] [--out OUT] [--base-path DIR]
 
 DIR is a checkout of the baseline commit with its kernel built in place (for example
 `git worktree add DIR c7fd47c`, then `python setup.py build_ext --inplace` there). Each
@@ -19,7 +19,7 @@ the wall time. The commands:
   cache warm (each tree runs it once first, unmeasured: the cache file's name depends on the
   metrics' definitions, the same in both trees unless they differ);
 - `libraries`: the libraries `vge metrics OUT` cannot do without imported, nothing else
-  (DuckDB, polars, pyarrow.parquet, and pydantic through typer's argument checks), the floor
+  (DuckDB, polars, pyarrow.parquet, and typer), the floor
   of a command that reads OUT;
 - `python -c pass`: the interpreter alone, the floor of every command.
 """
@@ -39,10 +39,12 @@ ROOT = Path(__file__).resolve().parents[1]
 MiB = 1 << 20
 
 
-def run(tree: Path, args: list[str]) -> tuple[float, float, int, int]:
+def run(tree: Path, args: list[str], first: Path | None = None) -> tuple[float, float, int, int]:
     """(wall seconds, CPU seconds, peak resident bytes, exit code) of one process run from
-    `tree` (its folder the current one: `python -m` looks there first)."""
-    env = {**os.environ, "PYTHONPATH": str(tree)}
+    `tree` (its folder the current one: `python -m` looks there first), with `first` before
+    it on the module path if given."""
+    path = str(tree) if first is None else f"{first}{os.pathsep}{tree}"
+    env = {**os.environ, "PYTHONPATH": path}
     started = time.perf_counter()
     proc = subprocess.Popen(
         [sys.executable, *args],
@@ -62,6 +64,12 @@ def main() -> None:
     parser.add_argument("--base", type=Path, required=True, help="checkout of the baseline")
     parser.add_argument("--runs", type=int, default=11, help="runs of each command and tree")
     parser.add_argument("--out", type=Path, help="a replay output: also time `vge metrics OUT`")
+    parser.add_argument(
+        "--base-path",
+        type=Path,
+        help="a folder put first on the baseline's module path, e.g. other versions of "
+        "libraries (`pip install --target DIR typer==0.29.2 --no-deps`)",
+    )
     options = parser.parse_args()
     missing = Path(tempfile.mkdtemp(prefix="vge-startup-")) / "no-such-out"
     cases = {
@@ -70,12 +78,13 @@ def main() -> None:
         "vge metrics MISSING": ["-m", "vge_analytics.cli", "metrics", str(missing)],
     }
     trees = {"baseline": options.base.resolve(), "this tree": ROOT}
+    firsts = {"baseline": options.base_path, "this tree": None}
     if options.out is not None:
         metrics = ["-m", "vge_analytics.cli", "metrics", str(options.out.resolve()), "-f", "json"]
         cases["vge metrics OUT"] = metrics
-        for path in trees.values():  # the metric cache filled, the schemas kept
-            run(path, metrics)
-    cases["libraries"] = ["-c", "import duckdb, polars, pyarrow.parquet, typer._adapters"]
+        for tree, path in trees.items():  # the metric cache filled, the schemas kept
+            run(path, metrics, firsts[tree])
+    cases["libraries"] = ["-c", "import duckdb, polars, pyarrow.parquet, typer.main"]
     cases["python -c pass"] = ["-c", "pass"]
     print(f"{options.runs} runs each, alternating; median wall time, median CPU time, peak RSS")
     print("| command | baseline | this tree | ratio (wall, CPU) |")
@@ -84,7 +93,7 @@ def main() -> None:
         seen: dict[str, list[tuple[float, float, int]]] = {t: [] for t in trees}
         for _ in range(options.runs):
             for tree, path in trees.items():
-                seconds, cpu, peak, code = run(path, args)
+                seconds, cpu, peak, code = run(path, args, firsts[tree])
                 expected = 1 if "MISSING" in name else 0
                 if code != expected:
                     raise SystemExit(f"{name} in {tree}: exit code {code}, expected {expected}")

@@ -27,8 +27,10 @@ HEAVY = (
     "streamlit",
     "inspect_ai",
     "replay.kernel",
+    "pydantic",
 )
-"""What `vge --help` must not wait for (each costs a tenth of a second or more to import)."""
+"""What `vge --help` must not wait for (each costs a tenth of a second or more to import;
+pydantic is what typer 0.29 checks every option with, pyproject.toml keeps typer below it)."""
 
 PROBE = """
 import json, sys
