@@ -8,7 +8,7 @@ from app import _links as links
 from app import _pickers as pickers
 from app import _sidebar as sidebar
 from app import _tables as tables
-from vge_analytics import ERROR_LABELS, ERROR_TYPES
+from vge_analytics import ERROR_LABELS, ERROR_TYPES, reports
 from vge_analytics import dashboard as dash
 
 st.title("Errors")
@@ -19,8 +19,9 @@ st.caption(
 
 chosen_runs, categories, by, where = pickers.filter_row("errors")
 
-dist = tables.labelled(data.error_distribution(by=list(by), where=where, labels=True), by)
-groups = data.error_groups(by=list(by), where=where)
+raw = data.error_distribution(by=list(by), where=where, labels=True)
+dist = tables.labelled(raw, by)
+groups = reports.groups_of(raw, list(by))  # from the same result: no second scan of the steps
 order = dist["group"].unique(maintain_order=True).to_list()
 
 compare_tab, pie_tab, table_tab = st.tabs(["Compare groups", "Pie of one group", "Table"])
