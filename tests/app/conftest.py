@@ -30,7 +30,7 @@ import vge_analytics as va
 from vge_analytics.synth import generate, image_source
 
 from ..vge_analytics.metrics.metric_files import SR_AS_SSR, SR_MULTI, write_folder
-from .streamlit_browser import CHROMIUM, LAUNCH_ARGS, AppPage, AppServer
+from .streamlit_browser import CHROMIUM, LAUNCH_ARGS, AppPage, AppServer, served
 
 APP = Path(__file__).resolve().parents[2] / "app" / "streamlit_app.py"
 ARTIFACTS = Path(__file__).resolve().parents[1] / "_artifacts"
@@ -195,6 +195,5 @@ def play_server(tiny_out, tmp_path):
     run = tmp_path / "alice"
     log = tmp_path / "vge-play.log"
     options = ["--out", str(run), "--image-width", "480"]
-    with AppServer(bench, command="play", options=options, log=log) as server:
+    with served(bench, command="play", options=options, log=log) as server:
         yield PlayServer(server, bench, run)
-    assert "Traceback" not in server.text(), server.text()

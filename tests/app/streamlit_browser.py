@@ -4,6 +4,7 @@
   as a real process (its own session, optionally under an address-space bound so a
   regression cannot eat the machine), waited for until it answers, stopped with its peak
   memory measured.
+- `served`: an `AppServer` whose log, once it stopped, holds no traceback.
 - `AppPage`: a Playwright page on that server with the waits a Streamlit app needs: a page
   is *rendered* when the app's end-of-run marker of a run after the one before is there
   (`app._lifecycle.END_MARKER`), nothing is stale, every visible chart has drawn, every image has
@@ -17,6 +18,7 @@ Playwright's `executable_path`: nothing is downloaded.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import resource
 import signal
@@ -25,7 +27,7 @@ import subprocess
 import sys
 import time
 import urllib.request
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from playwright.sync_api import Page
@@ -181,6 +183,15 @@ class AppServer:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+@contextlib.contextmanager
+def served(*args: object, **kwargs: object) -> Iterator[AppServer]:
+    """An `AppServer` (same arguments) for the block; once it has stopped, its log must hold
+    no traceback: an exception the page caught and showed is still a bug of the server's."""
+    with AppServer(*args, **kwargs) as server:  # type: ignore[arg-type]
+        yield server
+    assert "Traceback" not in server.text(), server.text()
 
 
 class AppPage:

@@ -12,7 +12,7 @@ import pytest
 import vge_analytics as va
 
 from .conftest import ARTIFACTS
-from .streamlit_browser import AppPage, AppServer
+from .streamlit_browser import AppPage, served
 
 pytestmark = pytest.mark.xdist_group("browser")
 
@@ -20,9 +20,8 @@ pytestmark = pytest.mark.xdist_group("browser")
 @pytest.fixture(scope="module")
 def seeded_server(seeded_out, tmp_path_factory):
     log = tmp_path_factory.mktemp("server") / "vge-app-seeded.log"
-    with AppServer(seeded_out, log=log) as server:
+    with served(seeded_out, log=log) as server:
         yield server
-    assert "Traceback" not in server.text(), server.text()
 
 
 def test_significance_page_in_chromium(page, seeded_server, seeded_out):

@@ -552,14 +552,20 @@ def lines_of(path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
+def _errors_with_metrics(monkeypatch, folder, options: list[str], timeout: float) -> list[str]:
+    """The errors the first page shows with the metric files of `folder`, the app started
+    with `options` as `vge app` passes them on (no exception escapes)."""
+    monkeypatch.setenv("VGE_METRICS_DIR", str(folder))
+    monkeypatch.setattr("sys.argv", ["streamlit_app.py", *options])
+    at = AppTest.from_file(str(APP), default_timeout=timeout).run()
+    assert not at.exception, [e.message for e in at.exception]
+    return [e.value for e in at.main.error]
+
+
 def test_a_runaway_metric_ends_with_one_line_on_the_page(app_env, tmp_path, monkeypatch):
     folder = write_folder(tmp_path / "runaway", {"runaway.sql": RUNAWAY})
-    monkeypatch.setenv("VGE_METRICS_DIR", str(folder))
     # As `vge app --query-timeout 0.5` starts the app.
-    monkeypatch.setattr("sys.argv", ["streamlit_app.py", "--query-timeout", "0.5"])
-    at = AppTest.from_file(str(APP), default_timeout=60).run()
-    assert not at.exception, [e.message for e in at.exception]
-    assert [e.value for e in at.main.error] == [
+    assert _errors_with_metrics(monkeypatch, folder, ["--query-timeout", "0.5"], 60) == [
         f"{folder / 'runaway.sql'}: the query of this metric file ran past its time limit of "
         "0.5 s and was stopped"
     ]
@@ -574,11 +580,7 @@ def test_a_metric_past_its_memory_bound_ends_with_one_line_on_the_page(
     folder = write_folder(
         tmp_path / "repeat", {"repeat.sql": metric_text("Repeat", numerator, "count(*)")}
     )
-    monkeypatch.setenv("VGE_METRICS_DIR", str(folder))
-    monkeypatch.setattr("sys.argv", ["streamlit_app.py", "--sql-memory-limit", "256MB"])
-    at = AppTest.from_file(str(APP), default_timeout=120).run()
-    assert not at.exception, [e.message for e in at.exception]
-    assert [e.value for e in at.main.error] == [
+    assert _errors_with_metrics(monkeypatch, folder, ["--sql-memory-limit", "256MB"], 120) == [
         f"{folder / 'repeat.sql'}: the query of this metric file needed more memory than its "
         "limit (256 MB in memory, 512 MB on disk) and was stopped"
     ]
