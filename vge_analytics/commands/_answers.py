@@ -164,13 +164,15 @@ class Question:
             handle = os.open(self.path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
         except OSError:
             return None
-        with os.fdopen(handle, "rb") as fh:
-            try:
-                if not stat.S_ISREG(os.fstat(handle).st_mode):
-                    return None
-                data = fh.read(MAX_ANSWER_BYTES + 1)
-            except OSError:
+        try:
+            if not stat.S_ISREG(os.fstat(handle).st_mode):
                 return None
+            with os.fdopen(handle, "rb", closefd=False) as fh:
+                data = fh.read(MAX_ANSWER_BYTES + 1)
+        except OSError:
+            return None
+        finally:
+            os.close(handle)
         return _decoded(data) if len(data) <= MAX_ANSWER_BYTES else None
 
     def keep(self, answer: Answer) -> None:
