@@ -61,13 +61,16 @@ COMMAND_MODULES = (
 )
 """The command modules, in the order `vge --help` lists them."""
 
-app = typer.Typer(
-    name="vge",
-    help="VGE Analytics: replay, score and explore VGEBench-style agent logs.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-)
+APP_SETTINGS: dict[str, object] = {
+    "name": "vge",
+    "help": "VGE Analytics: replay, score and explore VGEBench-style agent logs.",
+    "no_args_is_help": True,
+    "add_completion": False,
+    "pretty_exceptions_enable": False,
+}
+"""How the `vge` app is made (`app`, and `_app_for` the app of one command)."""
+
+app = typer.Typer(**APP_SETTINGS)
 
 _state = {"debug": False}
 
@@ -111,6 +114,22 @@ def _register_all() -> None:
             info.short_help = info.short_help or one_line(info.callback.__doc__)
 
 
+def _app_for(args: list[str]) -> typer.Typer:
+    """The app that runs `args`: one holding only the command they name (the first word
+    that is no option: the root's only option, --debug, takes no value), as `app` has it;
+    the whole `app` when they name none (`vge --help`, a mistyped name, which click answers
+    with the names it knows). Typer builds the options of every command an app holds before
+    it runs one: a few hundredths of a second for all of them."""
+    name = next((a for a in args if not a.startswith("-")), None)
+    chosen = [info for info in app.registered_commands if info.name == name]
+    if not chosen:
+        return app
+    one = typer.Typer(**APP_SETTINGS)
+    one.registered_callback = app.registered_callback
+    one.registered_commands = chosen
+    return one
+
+
 def _usage_errors() -> tuple[type[Exception], ...]:
     """Click's exception classes: click's own, and those of the copy of click that typer
     0.2x carries (`typer.BadParameter` derives from its ClickException); a usage error of
@@ -127,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _fill_optional_values(sys.argv[1:] if argv is None else list(argv))
     _state["debug"] = "--debug" in args
     try:
-        result = app(args=args, standalone_mode=False)
+        result = _app_for(args)(args=args, standalone_mode=False)
     except VGEError as exc:
         if _state["debug"]:
             raise

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import click
 import typer
 
 from replay import VGEError
@@ -110,6 +109,8 @@ def metrics_command(
             emit(list_table(available), fmt, title=title, marks=False)
             return
         if out is None:
+            import click  # (here: imported with the command, it costs each start a hundredth)
+
             raise click.UsageError("Missing argument 'OUT' (or --list to list the metrics).")
         answer = _answer(out, by, metric_names, where, available, fmt)
     if asked is not None:
