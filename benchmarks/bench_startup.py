@@ -17,7 +17,10 @@ the wall time. The commands:
   error: OUT does not exist;
 - `metrics OUT` (with `--out`): the built-in suite over every run of OUT, as JSON, its metric
   cache warm (each tree runs it once first, unmeasured: the cache file's name depends on the
-  metrics' definitions, the same in both trees unless they differ);
+  metrics' definitions, the same in both trees unless they differ; a tree that keeps the
+  answers of `vge metrics` prints the one kept then);
+- `metrics OUT, table`: the same in the table format, as a person runs it (printed to a
+  pipe here, so rich renders it 400 columns wide and without colours);
 - `libraries`: the libraries `vge metrics OUT` cannot do without imported, nothing else
   (DuckDB, polars, pyarrow.parquet, and typer), the floor
   of a command that reads OUT;
@@ -82,8 +85,10 @@ def main() -> None:
     if options.out is not None:
         metrics = ["-m", "vge_analytics.cli", "metrics", str(options.out.resolve()), "-f", "json"]
         cases["vge metrics OUT"] = metrics
+        cases["vge metrics OUT, table"] = metrics[:-2]
         for tree, path in trees.items():  # the metric cache filled, the schemas kept
-            run(path, metrics, firsts[tree])
+            for args in (metrics, metrics[:-2]):
+                run(path, args, firsts[tree])
     cases["libraries"] = ["-c", "import duckdb, polars, pyarrow.parquet, typer.main"]
     cases["python -c pass"] = ["-c", "pass"]
     print(f"{options.runs} runs each, alternating; median wall time, median CPU time, peak RSS")

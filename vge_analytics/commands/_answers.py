@@ -130,7 +130,10 @@ def _metrics_key(available: MetricSet) -> list[object]:
     title of a table names it)."""
     return [
         available.folder,
-        [[dataclasses.asdict(m), available.origin(m.name)] for m in available],
+        [
+            [[getattr(m, f.name) for f in dataclasses.fields(m)], available.origin(m.name)]
+            for m in available
+        ],
     ]
 
 
