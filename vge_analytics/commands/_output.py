@@ -8,7 +8,7 @@ import shutil
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import typer
 
@@ -102,15 +102,9 @@ def printed(
     return Printed(captured.get(), console=True)
 
 
-def emit(
-    df: pl.DataFrame,
-    fmt: str,
-    *,
-    title: str | None = None,
-    marks: bool = True,
-    metric_set: MetricSet | None = None,
-) -> None:
-    printed(df, fmt, title=title, marks=marks, metric_set=metric_set).show()
+def emit(df: pl.DataFrame, fmt: str, **options: Any) -> None:
+    """Print a table in `fmt` (`printed`, with its options: title, marks, metric_set)."""
+    printed(df, fmt, **options).show()
 
 
 def emit_stream(result: Batches, fmt: str) -> None:
