@@ -84,7 +84,7 @@ def _decoded(data: bytes) -> Answer | None:
     """The answer a file holds, or None when it is not one."""
     try:
         doc = json.loads(data.decode())
-    except ValueError:  # (UnicodeDecodeError and JSONDecodeError both)
+    except (ValueError, RecursionError):  # not UTF-8, not JSON, nested past Python's stack
         return None
     if not isinstance(doc, dict) or set(doc) != {"format", "warnings", "text", "console"}:
         return None

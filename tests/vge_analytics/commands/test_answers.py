@@ -149,7 +149,7 @@ def test_the_question_holds_everything_that_decides_the_answer(monkeypatch, pair
 
 @pytest.mark.parametrize(
     "bad",
-    ["garbage", "wrong shape", "other format", "too large", "a folder", "a fifo", "a link"],
+    ["garbage", "deep", "wrong shape", "other format", "too large", "a folder", "a fifo", "a link"],
 )
 def test_a_bad_answer_file_is_answered_again(capsys, counted, monkeypatch, pair_out, tmp_path, bad):
     out = tmp_path / "out"
@@ -161,6 +161,8 @@ def test_a_bad_answer_file_is_answered_again(capsys, counted, monkeypatch, pair_
     path.unlink()
     if bad == "garbage":
         path.write_bytes(b"\xff\x00{not json")
+    elif bad == "deep":  # JSON nested deeper than Python's stack
+        path.write_text("[" * 200_000 + "]" * 200_000)
     elif bad == "wrong shape":
         path.write_text(json.dumps({**doc, "text": 3}))
     elif bad == "other format":
