@@ -101,13 +101,13 @@ def _register_all() -> None:
 
 
 def _app_for(args: list[str]) -> typer.Typer:
-    """The app that runs `args`: one holding only the command they name (the first word
-    that is no option: the root's only option, --debug, takes no value), its module alone
-    imported; the whole `app`, every command registered, when they name none (`vge --help`,
-    a mistyped name, which click answers with the names it knows). Typer builds the options
-    of every command an app holds before it runs one: a few hundredths of a second for all
-    of them, and as much again to import their modules."""
-    name = next((a for a in args if not a.startswith("-")), None)
+    """The app that runs `args`: one holding only the command they name (their first word
+    after the root's --debug), its module alone imported; the whole `app`, every command
+    registered, when they name none (`vge --help`, `vge --help metrics`, a mistyped name,
+    which click answers with the names it knows). Typer builds the options of every command
+    an app holds before it runs one: a few hundredths of a second for all of them, and as
+    much again to import their modules."""
+    name = next((a for a in args if a != "--debug"), None)
     if name not in COMMANDS:
         _register_all()
         return app

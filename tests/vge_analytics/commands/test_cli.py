@@ -206,8 +206,10 @@ def test_a_command_run_alone_prints_what_the_whole_app_prints(capsys, monkeypatc
     assert [c.name for c in cli._app_for(["--debug", "metrics", "x"]).registered_commands] == [
         "metrics"
     ]
-    assert cli._app_for(["metrcs"]) is cli.app and cli._app_for(["--help"]) is cli.app
-    for args in (*([name, "--help"] for name in names), ["metrics", "--no-such"], ["metrics"]):
+    for whole in (["metrcs"], ["--help"], ["--help", "metrics"], ["--debug", "--help", "sql"]):
+        assert cli._app_for(whole) is cli.app
+    usage = (["metrics", "--no-such"], ["metrics"], ["--help", "metrics"], ["metrcs"])
+    for args in (*([name, "--help"] for name in names), *usage):
         alone = run(capsys, *args)
         with monkeypatch.context() as patched:
             patched.setattr(cli, "_app_for", lambda args: cli.app)
