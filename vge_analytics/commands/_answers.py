@@ -25,7 +25,6 @@ question is answered again.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
 import importlib.util
 import json
@@ -35,15 +34,11 @@ import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import replay
 from replay.io import answer_cache_path, atomic_file
 
 from ._output import Printed, console_traits
-
-if TYPE_CHECKING:
-    from ..metrics import MetricSet
 
 ANSWER_FORMAT = 1
 """The version of an answer file's layout (a new one names other files)."""
@@ -125,25 +120,15 @@ def _code_key() -> list[object]:
     return files
 
 
-def _metrics_key(available: MetricSet) -> list[object]:
-    """Every field of every metric of the set, its origin, and the folder as given (the
-    title of a table names it)."""
-    return [
-        available.folder,
-        [
-            [[getattr(m, f.name) for f in dataclasses.fields(m)], available.origin(m.name)]
-            for m in available
-        ],
-    ]
-
-
-def question_key(command: str, options: Mapping[str, object], available: MetricSet) -> str:
-    """A hash of the question: the command, its options as given, the metrics' definitions,
-    the code, and the console a table is printed on (`console_traits`)."""
+def question_key(command: str, options: Mapping[str, object], definitions: str) -> str:
+    """A hash of the question: the command, its options as given, the metrics' definitions
+    (`metrics.folder_fingerprint`: the metric files of a folder, or the built-ins alone,
+    which are files of the package), the code, and the console a table is printed on
+    (`console_traits`)."""
     doc = {
         "command": command,
         "options": dict(options),
-        "metrics": _metrics_key(available),
+        "metrics": definitions,
         "code": _code_key(),
         "console": console_traits() if options.get("fmt") == "table" else None,
     }
@@ -153,12 +138,14 @@ def question_key(command: str, options: Mapping[str, object], available: MetricS
 
 @dataclass(frozen=True, slots=True)
 class Question:
-    """Where the answer to a question about a local OUT is kept, and the key of OUT's
-    contents it was asked of."""
+    """Where the answer to a question about a local OUT is kept: the key of OUT's contents
+    it was asked of, its own key, and how to tell that key again (`asked`)."""
 
     out: Path
     contents: str
+    key: str
     path: Path
+    asked: Callable[[], str | None]
 
     def answer(self) -> Answer | None:
         """The answer kept, or None."""
@@ -179,14 +166,15 @@ class Question:
         return _decoded(data) if len(data) <= MAX_ANSWER_BYTES else None
 
     def keep(self, answer: Answer) -> None:
-        """Keep `answer` when OUT's contents are still those it was asked of (nothing when
-        OUT cannot be written, or the answer is too large)."""
+        """Keep `answer` when OUT's contents, and the question, are still those it was asked
+        of: no file of OUT or of the metrics changed while it was computed (nothing when OUT
+        cannot be written, or the answer is too large)."""
         from ..store import local_contents, own_folder
 
         data = answer.encoded()
         if len(data) > MAX_ANSWER_BYTES or local_contents(self.out) != self.contents:
             return
-        if not own_folder(self.out):
+        if self.asked() != self.key or not own_folder(self.out):
             return
         with contextlib.suppress(OSError, replay.VGEError):
             self.path.parent.mkdir(exist_ok=True)
@@ -213,10 +201,15 @@ def _prune(kept: Path) -> None:
 
 
 def question(
-    out: str, command: str, options: Mapping[str, object], available: MetricSet
+    out: str,
+    command: str,
+    options: Mapping[str, object],
+    definitions: Callable[[], str | None],
 ) -> Question | None:
-    """The question `options` asks `command` of a local OUT with a manifest, or None (an OUT
-    in object storage or without a manifest, or whose `METRIC_CACHE_DIR` is a link)."""
+    """The question `options` asks `command` of a local OUT with a manifest, `definitions`
+    telling the metrics' (`metrics.folder_fingerprint`), or None: an OUT in object storage
+    or without a manifest, or whose `METRIC_CACHE_DIR` is a link, or metrics that cannot be
+    told without loading them."""
     from ..store import local_contents, own_folder
 
     if replay.is_uri(out):
@@ -224,11 +217,15 @@ def question(
     path = Path(out)
     if not path.is_dir() or not own_folder(path):
         return None
-    contents = local_contents(path)
-    if contents is None:
+
+    def asked() -> str | None:
+        told = definitions()
+        return None if told is None else question_key(command, options, told)
+
+    contents, key = local_contents(path), asked()
+    if contents is None or key is None:
         return None
-    key = question_key(command, options, available)
-    return Question(path, contents, answer_cache_path(path, contents, key))
+    return Question(path, contents, key, answer_cache_path(path, contents, key), asked)
 
 
 __all__ = [

@@ -119,11 +119,12 @@ def metrics_command(
 
 def _kept_question(out: str, options: dict, metrics_dir: str | None) -> Question | None:
     """The question the options ask of OUT, whose answer may be kept (`_answers`), or None;
-    None too when the metrics folder cannot be loaded (the command then says why)."""
-    from ..metrics import load_metrics
+    None too when the metrics folder cannot be read (the command then says why). A folder is
+    told by its files' text (`folder_fingerprint`), not loaded: no DuckDB to check it."""
+    from ..metrics import folder_fingerprint
 
     try:
-        return question(out, "metrics", options, load_metrics(metrics_dir))
+        return question(out, "metrics", options, lambda: folder_fingerprint(metrics_dir))
     except (VGEError, OSError):
         return None
 

@@ -17,6 +17,7 @@ from rich.console import Console
 from replay.io import METRIC_CACHE_DIR
 from vge_analytics.commands import _answers, _output
 from vge_analytics.commands import metrics as metrics_command
+from vge_analytics.metrics import folder_fingerprint
 
 from ..conftest import replay_to, write_run
 from .test_cli import run
@@ -131,9 +132,8 @@ def test_a_change_asks_again(capsys, counted, pair_out, tmp_path):
 
 
 def test_the_question_holds_everything_that_decides_the_answer(monkeypatch, pair_out):
-    from vge_analytics.metrics import MetricSet
-
-    builtins = MetricSet.builtin()
+    builtins = folder_fingerprint(None)
+    assert builtins == "built-in"
     options = {"out": str(pair_out), "by": "run_id,model", "fmt": "table"}
     key = _answers.question_key("metrics", options, builtins)
     assert key == _answers.question_key("metrics", dict(options), builtins)
@@ -145,6 +145,26 @@ def test_the_question_holds_everything_that_decides_the_answer(monkeypatch, pair
     json_key = _answers.question_key("metrics", {**options, "fmt": "json"}, builtins)
     monkeypatch.setattr(_answers, "_code_key", lambda: ["another version"])
     assert json_key != _answers.question_key("metrics", {**options, "fmt": "json"}, builtins)
+
+
+def test_a_metrics_folder_is_told_by_its_files(tmp_path):
+    """`folder_fingerprint`: the folder as given, and each metric file's name and text; None
+    where `load_metrics` would find a problem reading it."""
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    assert folder_fingerprint(folder) is None  # no metric file
+    sql = (Path(metrics_command.__file__).parents[1] / "sql" / "sr.sql").read_text()
+    (folder / "sr.sql").write_text(sql)
+    (folder / "README.md").write_text("not a metric file")
+    told = folder_fingerprint(folder)
+    assert told is not None and told == folder_fingerprint(str(folder))
+    (folder / "README.md").write_text("still not one")
+    assert folder_fingerprint(folder) == told
+    (folder / "sr.sql").write_text(sql + "\n")
+    assert folder_fingerprint(folder) not in (None, told)
+    os.mkfifo(folder / "fifo.sql")
+    assert folder_fingerprint(folder) is None
+    assert folder_fingerprint(tmp_path / "missing") is None
 
 
 @pytest.mark.parametrize(
@@ -221,6 +241,26 @@ def test_an_answer_computed_while_out_changed_is_not_kept(capsys, monkeypatch, p
 
     monkeypatch.setattr(metrics_command, "_answer", changing)
     assert run(capsys, "metrics", str(out), "-f", "json")[0] == 0
+    assert _answers_in(out) == []
+
+
+def test_an_answer_computed_while_a_metric_file_changed_is_not_kept(
+    capsys, monkeypatch, pair_out, tmp_path
+):
+    out, folder = tmp_path / "out", tmp_path / "mine"
+    shutil.copytree(pair_out, out)
+    folder.mkdir()
+    sql = (Path(metrics_command.__file__).parents[1] / "sql" / "sr.sql").read_text()
+    (folder / "sr.sql").write_text(sql)
+    compute = metrics_command._answer
+
+    def changing(*args, **kwargs):
+        answer = compute(*args, **kwargs)
+        (folder / "sr.sql").write_text(sql.replace("-- direction: higher", "-- direction: lower"))
+        return answer
+
+    monkeypatch.setattr(metrics_command, "_answer", changing)
+    assert run(capsys, "metrics", str(out), "--metrics-dir", str(folder))[0] == 0
     assert _answers_in(out) == []
 
 

@@ -100,6 +100,11 @@ def test_metrics_answered_by_the_cache_import_no_dataset_module(pair_out: Path, 
         asked = METRICS.format(out=str(out), args=args)
         assert _imported(asked) == ["duckdb", "numpy", "polars", "pyarrow"]
         assert _imported(asked) == []
+    # A metrics folder is told by its files' text: no DuckDB to check them again.
+    folder = Path(__file__).parents[3] / "docs" / "examples" / "metrics"
+    asked = METRICS.format(out=str(out), args=["--metrics-dir", str(folder), "-f", "latex"])
+    assert {"duckdb", "polars"} <= set(_imported(asked))
+    assert _imported(asked) == []
 
 
 def test_a_command_that_reads_out_imports_no_dataset_module_before_its_first_file(
