@@ -1,7 +1,7 @@
 """How long `vge` takes to start, as whole processes (not a test): the figures of
 docs/PERFORMANCE.md, "Start-up".
 
-    python benchmarks/bench_startup.py --base DIR [--runs 11] [--out OUT] [--base-path DIR]
+    python benchmarks/bench_startup.py --base DIR [--runs 11] [--out OUT [--cold]] [--base-path DIR]
 
 DIR is a checkout of the baseline commit with its kernel built in place (for example
 `git worktree add DIR c7fd47c`, then `python setup.py build_ext --inplace` there). Each
@@ -17,7 +17,13 @@ the wall time. The commands:
   error: OUT does not exist;
 - `metrics OUT` (with `--out`): the built-in suite over every run of OUT, as JSON, its metric
   cache warm (each tree runs it once first, unmeasured: the cache file's name depends on the
-  metrics' definitions, the same in both trees unless they differ);
+  metrics' definitions, the same in both trees unless they differ; a tree that keeps the
+  answers of `vge metrics` prints the one kept then);
+- `metrics OUT, table`: the same in the table format, as a person runs it (printed to a
+  pipe here, so rich renders it 400 columns wide and without colours);
+- `metrics OUT, cold` (with `--cold`): the JSON of the first `vge metrics` on a copy of OUT
+  without its `.metric-cache` (made afresh before each run, untimed): what keeping the
+  metric cache and the answer costs the first time;
 - `libraries`: the libraries `vge metrics OUT` cannot do without imported, nothing else
   (DuckDB, polars, pyarrow.parquet, and typer), the floor
   of a command that reads OUT;
@@ -28,12 +34,15 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from replay.io import METRIC_CACHE_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 MiB = 1 << 20
@@ -70,6 +79,9 @@ def main() -> None:
         help="a folder put first on the baseline's module path, e.g. other versions of "
         "libraries (`pip install --target DIR typer==0.29.2 --no-deps`)",
     )
+    parser.add_argument(
+        "--cold", action="store_true", help="with --out: also time it on a copy without cache"
+    )
     options = parser.parse_args()
     missing = Path(tempfile.mkdtemp(prefix="vge-startup-")) / "no-such-out"
     cases = {
@@ -82,8 +94,13 @@ def main() -> None:
     if options.out is not None:
         metrics = ["-m", "vge_analytics.cli", "metrics", str(options.out.resolve()), "-f", "json"]
         cases["vge metrics OUT"] = metrics
+        cases["vge metrics OUT, table"] = metrics[:-2]
         for tree, path in trees.items():  # the metric cache filled, the schemas kept
-            run(path, metrics, firsts[tree])
+            for args in (metrics, metrics[:-2]):
+                run(path, args, firsts[tree])
+    fresh = missing.parent / "cold-out"
+    if options.out is not None and options.cold:
+        cases["vge metrics OUT, cold"] = [*metrics[:3], str(fresh), "-f", "json"]
     cases["libraries"] = ["-c", "import duckdb, polars, pyarrow.parquet, typer.main"]
     cases["python -c pass"] = ["-c", "pass"]
     print(f"{options.runs} runs each, alternating; median wall time, median CPU time, peak RSS")
@@ -93,6 +110,9 @@ def main() -> None:
         seen: dict[str, list[tuple[float, float, int]]] = {t: [] for t in trees}
         for _ in range(options.runs):
             for tree, path in trees.items():
+                if name.endswith(", cold"):  # a copy without its cache, each time
+                    shutil.rmtree(fresh, ignore_errors=True)
+                    shutil.copytree(options.out, fresh, ignore=shutil.ignore_patterns(METRIC_CACHE_DIR))
                 seconds, cpu, peak, code = run(path, args, firsts[tree])
                 expected = 1 if "MISSING" in name else 0
                 if code != expected:

@@ -3,13 +3,15 @@
 Each command lives in `vge_analytics/commands/<name>.py` and exposes `register(app)`.
 Errors derived from `replay.VGEError` become one-line messages (exit 1) unless `--debug`.
 
-The command modules are imported here, and are light: each imports what its command uses
-when it runs, so `vge --help` and `vge COMMAND --help` start at once (docs/PERFORMANCE.md,
+A command's module is imported when the command runs (`vge COMMAND ...` imports its own
+alone; `vge --help` all of them), and is light: each imports what its command uses when it
+runs, so `vge --help` and `vge COMMAND --help` start at once (docs/PERFORMANCE.md,
 "Start-up"; `tests/vge_analytics/commands/test_startup.py` holds it).
 """
 
 from __future__ import annotations
 
+import importlib
 import inspect
 import sys
 from pathlib import Path
@@ -18,56 +20,38 @@ import typer
 
 from replay import VGEError
 
-from .commands import (
-    app as app_command,
+COMMANDS = (
+    "demo",
+    "validate",
+    "replay",
+    "synth",
+    "run",
+    "metrics",
+    "errors",
+    "compare",
+    "power",
+    "passk",
+    "diff",
+    "rescore",
+    "sweep",
+    "sql",
+    "export",
+    "app",
+    "play",
 )
-from .commands import (
-    compare,
-    demo,
-    diff,
-    errors,
-    export,
-    metrics,
-    passk,
-    play,
-    power,
-    replay,
-    rescore,
-    run,
-    sql,
-    sweep,
-    synth,
-    validate,
-)
+"""The commands, in the order `vge --help` lists them: each is the module
+`vge_analytics/commands/<name>.py`, whose `register(app)` adds it under that name."""
 
-COMMAND_MODULES = (
-    demo,
-    validate,
-    replay,
-    synth,
-    run,
-    metrics,
-    errors,
-    compare,
-    power,
-    passk,
-    diff,
-    rescore,
-    sweep,
-    sql,
-    export,
-    app_command,
-    play,
-)
-"""The command modules, in the order `vge --help` lists them."""
+APP_SETTINGS: dict[str, object] = {
+    "name": "vge",
+    "help": "VGE Analytics: replay, score and explore VGEBench-style agent logs.",
+    "no_args_is_help": True,
+    "add_completion": False,
+    "pretty_exceptions_enable": False,
+}
+"""How the `vge` app is made (`app`, and `_app_for` the app of one command)."""
 
-app = typer.Typer(
-    name="vge",
-    help="VGE Analytics: replay, score and explore VGEBench-style agent logs.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-)
+app = typer.Typer(**APP_SETTINGS)
 
 _state = {"debug": False}
 
@@ -103,12 +87,34 @@ def one_line(doc: str | None) -> str:
     return " ".join(inspect.cleandoc(doc or "").split("\n\n")[0].split())
 
 
+def _register(typer_app: typer.Typer, names: tuple[str, ...]) -> None:
+    """Add the commands `names` to `typer_app`, importing their modules."""
+    for name in names:
+        importlib.import_module(f"{__package__}.commands.{name}").register(typer_app)
+    for info in typer_app.registered_commands:
+        info.short_help = info.short_help or one_line(info.callback.__doc__)
+
+
 def _register_all() -> None:
     if not app.registered_commands:
-        for module in COMMAND_MODULES:
-            module.register(app)
-        for info in app.registered_commands:
-            info.short_help = info.short_help or one_line(info.callback.__doc__)
+        _register(app, COMMANDS)
+
+
+def _app_for(args: list[str]) -> typer.Typer:
+    """The app that runs `args`: one holding only the command they name (their first word
+    after the root's --debug), its module alone imported; the whole `app`, every command
+    registered, when they name none (`vge --help`, `vge --help metrics`, a mistyped name,
+    which click answers with the names it knows). Typer builds the options of every command
+    an app holds before it runs one: a few hundredths of a second for all of them, and as
+    much again to import their modules."""
+    name = next((a for a in args if a != "--debug"), None)
+    if name not in COMMANDS:
+        _register_all()
+        return app
+    one = typer.Typer(**APP_SETTINGS)
+    one.callback()(_root)
+    _register(one, (name,))
+    return one
 
 
 def _usage_errors() -> tuple[type[Exception], ...]:
@@ -123,11 +129,10 @@ def _usage_errors() -> tuple[type[Exception], ...]:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `vge` console script."""
-    _register_all()
     args = _fill_optional_values(sys.argv[1:] if argv is None else list(argv))
     _state["debug"] = "--debug" in args
     try:
-        result = app(args=args, standalone_mode=False)
+        result = _app_for(args)(args=args, standalone_mode=False)
     except VGEError as exc:
         if _state["debug"]:
             raise

@@ -27,13 +27,14 @@ import stat
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
-from typing import BinaryIO
+from typing import TYPE_CHECKING, BinaryIO
 from urllib.parse import quote, unquote, urlsplit
-
-import pyarrow.fs as pafs
 
 from .._errors import InputError
 from ._durable import atomic_file
+
+if TYPE_CHECKING:
+    import pyarrow.fs as pafs
 
 _URI = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 _URI_PATH_SAFE = "/=+@,:;!$&'()*~"
@@ -51,6 +52,14 @@ path (the bucket for `s3://`): one filesystem (one S3 client) per store and proc
 # Dropped at exit before pyarrow finalizes S3 (atexit runs handlers last-registered first):
 # an S3 filesystem still referenced then can hang the interpreter's shutdown.
 atexit.register(_OPENED.clear)
+
+
+def _pafs():
+    """pyarrow's filesystems, imported when a location not on the local disk is first used
+    (a local path needs none of it: `vge metrics` finds its kept answer without pyarrow)."""
+    import pyarrow.fs
+
+    return pyarrow.fs
 
 
 def is_uri(text: str) -> bool:
@@ -136,17 +145,17 @@ class Location:
     def exists(self) -> bool:
         if self.local is not None:
             return self.local.exists()
-        return self._info().type != pafs.FileType.NotFound
+        return self._info().type != _pafs().FileType.NotFound
 
     def is_dir(self) -> bool:
         if self.local is not None:
             return self.local.is_dir()
-        return self._info().type == pafs.FileType.Directory
+        return self._info().type == _pafs().FileType.Directory
 
     def is_file(self) -> bool:
         if self.local is not None:
             return self.local.is_file()
-        return self._info().type == pafs.FileType.File
+        return self._info().type == _pafs().FileType.File
 
     def open_read(self) -> BinaryIO:
         """The file's bytes as a stream (never decompressed on the way). On the local disk
@@ -172,7 +181,7 @@ class Location:
                 return sorted(p.name for p in self.local.iterdir())
             except (FileNotFoundError, NotADirectoryError):
                 return []
-        selector = pafs.FileSelector(self.path, recursive=False, allow_not_found=True)
+        selector = _pafs().FileSelector(self.path, recursive=False, allow_not_found=True)
         return sorted(PurePosixPath(i.path).name for i in self.fs.get_file_info(selector))  # type: ignore[union-attr]
 
     def files(self) -> list[str]:
@@ -183,10 +192,11 @@ class Location:
                 rel = Path(parent).relative_to(self.local)
                 found.extend((rel / n).as_posix() for n in names)
             return sorted(found)
-        selector = pafs.FileSelector(self.path, recursive=True, allow_not_found=True)
+        selector = _pafs().FileSelector(self.path, recursive=True, allow_not_found=True)
         base = len(self.path.strip("/")) + 1  # listed paths may lack the leading "/"
         infos = self.fs.get_file_info(selector)  # type: ignore[union-attr]
-        return sorted(i.path.lstrip("/")[base:] for i in infos if i.type == pafs.FileType.File)
+        file = _pafs().FileType.File
+        return sorted(i.path.lstrip("/")[base:] for i in infos if i.type == file)
 
     # ----------------------------------------------------------------- writing
 
@@ -259,7 +269,7 @@ class Location:
         if self.local is not None:
             remove_local(self.local)
             return
-        if self._info().type == pafs.FileType.Directory:
+        if self._info().type == _pafs().FileType.Directory:
             self.fs.delete_dir(self.path)  # type: ignore[union-attr]
 
 
@@ -312,7 +322,7 @@ def location(given: str | os.PathLike[str] | Location) -> Location:
         return Location(None, str(local), local)
     parts = urlsplit(text)
     fs, path = _open(text, parts.scheme, parts.netloc, parts.query, unquote(parts.path))
-    local = Path(path) if isinstance(fs, pafs.LocalFileSystem) else None
+    local = Path(path) if isinstance(fs, _pafs().LocalFileSystem) else None
     head = f"{parts.scheme}://{parts.netloc}"
     return Location(fs, path, local, (head, parts.path, parts.query))
 
@@ -329,7 +339,7 @@ def _open(
         return fs, prefix + url_path.rstrip("/")
     factory = _FACTORIES.get(scheme)
     try:
-        fs, path = factory(uri) if factory is not None else pafs.FileSystem.from_uri(uri)
+        fs, path = factory(uri) if factory is not None else _pafs().FileSystem.from_uri(uri)
     except (ValueError, OSError) as exc:  # pyarrow's ArrowInvalid is a ValueError
         raise InputError(uri, f"cannot open: {' '.join(str(exc).split())}") from None
     tail = url_path.rstrip("/")

@@ -132,6 +132,13 @@ def schema_cache_path(out: _P, table: str, contents_key: str) -> _P:
     return out / METRIC_CACHE_DIR / f"schema-{table}-{contents_key}.arrow"
 
 
+def answer_cache_path(out: _P, contents_key: str, question_key: str) -> _P:
+    """`OUT/.metric-cache/answer-<contents_key>-<question_key>.json`: what a command printed
+    for one question (its options, the metrics' definitions, the code), kept for one content
+    of OUT."""
+    return out / METRIC_CACHE_DIR / f"answer-{contents_key}-{question_key}.json"
+
+
 def runs_path(out: _P) -> _P:
     """`OUT/runs/runs.parquet`."""
     return out / RUNS_TABLE / RUNS_FILE

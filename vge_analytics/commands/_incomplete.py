@@ -4,7 +4,7 @@ read as a finished run's."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import typer
@@ -19,13 +19,20 @@ if TYPE_CHECKING:
 PEOPLE_FORMATS = ("table", "markdown", "latex")
 
 
-def warn_incomplete(out: str, run_ids: Sequence[str] | None = None) -> list[RunCompleteness]:
-    """One warning line on stderr per incomplete run of OUT (or of `run_ids`); every run's
-    completeness, for marking the rows."""
+def say(line: str) -> None:
+    """Write one line of a command's on stderr (a warning)."""
+    typer.echo(line, err=True)
+
+
+def warn_incomplete(
+    out: str, run_ids: Sequence[str] | None = None, *, warn: Callable[[str], None] = say
+) -> list[RunCompleteness]:
+    """One warning line (`warn`: on stderr) per incomplete run of OUT (or of `run_ids`);
+    every run's completeness, for marking the rows."""
     runs = reports.completeness(out, run_ids)
     for run in runs:
         if run.incomplete:
-            typer.echo(run.warning(), err=True)
+            warn(run.warning())
     return runs
 
 
@@ -49,4 +56,4 @@ def marked_rows(df: pl.DataFrame, label: str, flags: pl.Series) -> pl.DataFrame:
     return reports.mark_rows(df, label, flags) if flags.any() else df
 
 
-__all__ = ["PEOPLE_FORMATS", "marked", "marked_rows", "warn_incomplete"]
+__all__ = ["PEOPLE_FORMATS", "marked", "marked_rows", "say", "warn_incomplete"]

@@ -7,7 +7,8 @@ import os
 import shutil
 import sys
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import typer
 
@@ -51,19 +52,59 @@ def finish(console: Console, wrote: str, partly: str | None) -> None:
         raise typer.Exit(2)
 
 
-def emit(
+@dataclass(frozen=True, slots=True)
+class Printed:
+    """What a command prints on stdout: `text`, echoed (a line end added when it has none),
+    or, when `console`, written as rich renders it for this terminal (the table format)."""
+
+    text: str
+    console: bool = False
+
+    def show(self) -> None:
+        if self.console:
+            sys.stdout.write(self.text)
+            sys.stdout.flush()
+        else:
+            typer.echo(self.text, nl=not self.text.endswith("\n"))
+
+
+def console_traits() -> dict[str, object]:
+    """What the text of a table rendered for this process's stdout depends on besides the
+    table (`_console`: its width, colours, encoding...)."""
+    console = _console()
+    return {
+        "width": console.width,
+        "color_system": console.color_system,
+        "encoding": console.encoding,
+        "is_terminal": console.is_terminal,
+        "is_dumb_terminal": console.is_dumb_terminal,
+        "no_color": console.no_color,
+        "legacy_windows": console.legacy_windows,
+    }
+
+
+def printed(
     df: pl.DataFrame,
     fmt: str,
     *,
     title: str | None = None,
     marks: bool = True,
     metric_set: MetricSet | None = None,
-) -> None:
+) -> Printed:
+    """A table as `emit` prints it in `fmt` (`reports.render`; the table format as the
+    console writes it, captured)."""
     out = reports.render(df, fmt, title=title, marks=marks, metric_set=metric_set)
     if isinstance(out, str):
-        typer.echo(out, nl=not out.endswith("\n"))
-    else:
-        _console().print(out)
+        return Printed(out)
+    console = _console()
+    with console.capture() as captured:
+        console.print(out)
+    return Printed(captured.get(), console=True)
+
+
+def emit(df: pl.DataFrame, fmt: str, **options: Any) -> None:
+    """Print a table in `fmt` (`printed`, with its options: title, marks, metric_set)."""
+    printed(df, fmt, **options).show()
 
 
 def emit_stream(result: Batches, fmt: str) -> None:
@@ -108,4 +149,14 @@ def emit_sections(
             console.print(item)
 
 
-__all__ = ["FORMAT_HELP", "emit", "emit_sections", "emit_stream", "finish", "for_people"]
+__all__ = [
+    "FORMAT_HELP",
+    "Printed",
+    "console_traits",
+    "emit",
+    "emit_sections",
+    "emit_stream",
+    "finish",
+    "for_people",
+    "printed",
+]

@@ -4,19 +4,22 @@ holds, exit 1 (`EmptySelectionError`) when the filters select no row at all
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-import typer
-
 from .._errors import EmptySelectionError
+from ._incomplete import say
 
 if TYPE_CHECKING:
     from ..store import Filters
 
 
-def check_where(out: str, filters: Filters, items: list[str] | None) -> None:
+def check_where(
+    out: str, filters: Filters, items: list[str] | None, *, warn: Callable[[str], None] = say
+) -> None:
     """Refuse `--where` options (`items`, as given; `filters` parsed from them) that select
-    no row of OUT; warn about each value no row holds when the others select rows."""
+    no row of OUT; warn (`warn`: on stderr) about each value no row holds when the others
+    select rows."""
     if not filters:
         return
     from ..store import check_selection
@@ -27,7 +30,7 @@ def check_where(out: str, filters: Filters, items: list[str] | None) -> None:
     if check.empty:
         raise EmptySelectionError(line)
     if line:
-        typer.echo(f"warning: {line}", err=True)
+        warn(f"warning: {line}")
 
 
 __all__ = ["check_where"]

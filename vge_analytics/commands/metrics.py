@@ -5,12 +5,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import click
 import typer
 
+from replay import VGEError
+
 from .. import reports, store
+from ._answers import Answer, Question, question
 from ._bounds import command_limits
-from ._incomplete import PEOPLE_FORMATS, marked, marked_rows, warn_incomplete
+from ._incomplete import PEOPLE_FORMATS, marked, marked_rows, say, warn_incomplete
 from ._options import (
     by_option,
     flag_option,
@@ -22,7 +24,7 @@ from ._options import (
     timeout_option,
     where_option,
 )
-from ._output import emit, for_people
+from ._output import emit, for_people, printed
 from ._selection import check_where
 
 if TYPE_CHECKING:
@@ -90,33 +92,74 @@ def metrics_command(
     --metrics-dir); in table, markdown and latex the best value of each metric is bold and
     the second best underlined.
     """
-    from ..metrics import load_metrics, metrics
-
+    options = dict(locals())  # every option as given: what a kept answer is keyed by
+    asked = None if list_metrics or out is None else _kept_question(out, options, metrics_dir)
+    if asked is not None:
+        answer = asked.answer()
+        if answer is not None:
+            answer.show(say)
+            return
     with command_limits(out, timeout, memory_limit):
         reports.check_format(fmt)
+        from ..metrics import load_metrics
+
         available = load_metrics(metrics_dir)
         if list_metrics:
             title = "Metrics" + (f" (built-in and {available.folder})" if available.folder else "")
             emit(list_table(available), fmt, title=title, marks=False)
             return
         if out is None:
+            import click  # (here: imported with the command, it costs each start a hundredth)
+
             raise click.UsageError("Missing argument 'OUT' (or --list to list the metrics).")
-        by_cols = store.parse_by(by)
-        chosen = metric_names  # `main` and `continuation` stand for their metrics
-        filters = parse_where(where)
-        check_where(out, filters, where)
-        df = metrics(out, by=by_cols, metrics=chosen, where=filters, metrics_dir=available)
-        runs = warn_incomplete(out, filters.get("run_id"))
-        if fmt in PEOPLE_FORMATS:
-            incomplete = [r.run_id for r in runs if r.incomplete]
-            flags = df["run_id"].is_in(incomplete) if "run_id" in df.columns else None
-            df = for_people(df, by_cols)
-            if flags is not None:  # the run's label: its id, or its model when that was dropped
-                df = marked_rows(df, "run_id" if "run_id" in df.columns else "model", flags)
-        else:
-            df = marked(df, runs, fmt, by_cols)
-        held = reports.metrics_held([c for c in df.columns if c in available], available)
-        emit(df, fmt, title=f"{held}: {reports.ARROWS_LEGEND}", metric_set=available)
+        answer = _answer(out, by, metric_names, where, available, fmt)
+    if asked is not None:
+        asked.keep(answer)
+
+
+def _kept_question(out: str, options: dict, metrics_dir: str | None) -> Question | None:
+    """The question the options ask of OUT, whose answer may be kept (`_answers`), or None;
+    None too when the metrics folder cannot be read (the command then says why). A folder is
+    told by its files' text (`folder_fingerprint`), not loaded: no DuckDB to check it."""
+    from ..metrics import folder_fingerprint
+
+    try:
+        return question(out, "metrics", options, lambda: folder_fingerprint(metrics_dir))
+    except (VGEError, OSError):
+        return None
+
+
+def _answer(
+    out: str, by: str, metric_names: str | None, where: list[str], available, fmt: str
+) -> Answer:
+    """The metrics of OUT per group, printed (its warnings as they come, then the table),
+    and what was printed."""
+    from ..metrics import metrics
+
+    said: list[str] = []
+
+    def warn(line: str) -> None:
+        said.append(line)
+        say(line)
+
+    by_cols = store.parse_by(by)
+    chosen = metric_names  # `main` and `continuation` stand for their metrics
+    filters = parse_where(where)
+    check_where(out, filters, where, warn=warn)
+    df = metrics(out, by=by_cols, metrics=chosen, where=filters, metrics_dir=available)
+    runs = warn_incomplete(out, filters.get("run_id"), warn=warn)
+    if fmt in PEOPLE_FORMATS:
+        incomplete = [r.run_id for r in runs if r.incomplete]
+        flags = df["run_id"].is_in(incomplete) if "run_id" in df.columns else None
+        df = for_people(df, by_cols)
+        if flags is not None:  # the run's label: its id, or its model when that was dropped
+            df = marked_rows(df, "run_id" if "run_id" in df.columns else "model", flags)
+    else:
+        df = marked(df, runs, fmt, by_cols)
+    held = reports.metrics_held([c for c in df.columns if c in available], available)
+    shown = printed(df, fmt, title=f"{held}: {reports.ARROWS_LEGEND}", metric_set=available)
+    shown.show()
+    return Answer(tuple(said), shown)
 
 
 def register(app: typer.Typer) -> None:

@@ -196,6 +196,37 @@ def _read_text(path: Path, shown: str, problems: list[Problem]) -> str | None:
         return None
 
 
+def _metric_files(path: Path) -> list[str]:
+    """The names of a folder's metric files, sorted: every *.sql entry but a folder (a link to
+    a device or a FIFO is reported when read, not skipped)."""
+    return sorted(p.name for p in path.iterdir() if p.name.endswith(".sql") and not p.is_dir())
+
+
+def folder_fingerprint(folder: str | Path | None = None) -> str | None:
+    """A hash of all that `load_metrics(folder)` reads: the folder as given (default
+    `$VGE_METRICS_DIR`) and the name and text of each of its metric files, or `built-in`
+    for none; None when a file cannot be read as `load_metrics` reads it (it then says
+    why). What a folder's metrics are, and whether they pass their checks, follows from
+    that and the package's code: a cache keyed by both needs neither DuckDB nor the checks
+    to know it still holds."""
+    chosen = str(folder) if folder is not None else default_folder()
+    if chosen is None:
+        return "built-in"
+    path = Path(chosen)
+    try:
+        names = _metric_files(path) if path.is_dir() else []
+    except OSError:
+        return None
+    doc: list[object] = [chosen]
+    problems: list[Problem] = []
+    for name in names:
+        text = _read_text(path / name, str(path / name), problems)
+        if text is None:
+            return None
+        doc.append([name, text])
+    return hashlib.sha256(json.dumps(doc).encode()).hexdigest() if names else None
+
+
 def _read_folder(folder: str) -> tuple[list[Metric], list[Problem]]:
     from ._check import check_metric  # DuckDB binds the SQL: imported when a folder is read
 
@@ -204,8 +235,7 @@ def _read_folder(folder: str) -> tuple[list[Metric], list[Problem]]:
         raise MetricFileError([f"{folder}: metrics folder not found"])
     if not path.is_dir():
         raise MetricFileError([f"{folder}: not a folder (--metrics-dir takes a folder)"])
-    # Every *.sql entry but a folder: a link to a device or a FIFO is reported, not skipped.
-    files = sorted(p.name for p in path.iterdir() if p.name.endswith(".sql") and not p.is_dir())
+    files = _metric_files(path)
     if not files:
         raise MetricFileError([f"{folder}: no metric file (*.sql) in this folder"])
     metrics: list[Metric] = []
@@ -311,6 +341,7 @@ __all__ = [
     "Origin",
     "default_folder",
     "fingerprint",
+    "folder_fingerprint",
     "load_metrics",
     "metric_set",
     "same_definition",

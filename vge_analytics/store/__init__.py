@@ -17,12 +17,14 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._cache import (
         cached_store,
     )
+    from ._contents import local_contents
     from ._isolated import (
         IsolatedResult,
         query_isolated,
         run_isolated,
         warm_query_processes,
     )
+    from ._kept import own_folder
     from ._limits import (
         APP_MAX_ROWS,
         APP_TIMEOUT,
@@ -134,6 +136,7 @@ __all__ = [
     "RESULT_BYTES",
     "ResultCut",
     "bound_result",
+    "local_contents",
     "locked_connection",
     "MAX_METRIC_FILE",
     "memory_store",
@@ -141,6 +144,7 @@ __all__ = [
     "NUMERIC_TYPES",
     "open_store",
     "order_by",
+    "own_folder",
     "parse_by",
     "process_memory_cap",
     "QueryBounds",

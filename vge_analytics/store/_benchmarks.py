@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import replay
 
 from .._errors import DifferentBenchmarksError, OutputDirError
-from ._store import Store, _read_manifest
+from ._contents import read_manifest
+from ._store import Store
 
 
 @dataclass(frozen=True)
@@ -53,7 +54,7 @@ def _manifest_runs(store: Store) -> list:
     if store.in_memory:
         return store.manifest.get("runs", [])
     try:
-        return (_read_manifest(replay.location(store.out)) or {}).get("runs", [])
+        return (read_manifest(replay.location(store.out)) or {}).get("runs", [])
     except OutputDirError:
         return store.manifest.get("runs", [])
 

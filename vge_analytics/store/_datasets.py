@@ -27,10 +27,8 @@ half a second).
 from __future__ import annotations
 
 import functools
-import os
 import threading
 from collections.abc import Callable, Iterable, Mapping
-from pathlib import PurePosixPath
 from typing import TYPE_CHECKING
 
 import pyarrow as pa
@@ -38,9 +36,9 @@ import pyarrow.fs as pafs
 import pyarrow.parquet as pq
 
 import replay
-from replay.io import RUNS_TABLE, TABLES, manifest_path
+from replay.io import RUNS_TABLE, TABLES
 
-from .._errors import OutputDirError
+from ._contents import table_files
 from ._kept import contents_key, keep_schema, kept_schema
 
 if TYPE_CHECKING:
@@ -104,80 +102,6 @@ def empty_table(table: str) -> pa.Table:
     if table == RUNS_TABLE:  # the fixed columns the replay writes (no meta_* without a run)
         return runs_table([])
     return replay.arrow_schema(TABLE_ROWS[table]).empty_table()
-
-
-def _refuse(out: replay.Location, what: str) -> OutputDirError:
-    return OutputDirError(f"{manifest_path(out)}: {what}")
-
-
-def _real(path: str, folders: dict[str, str], *, keep: bool = False) -> str:
-    """`os.path.realpath(path)`, built from its folder's, each folder resolved once
-    (`folders` keeps them, `keep`): a path that is no link is its resolved folder's entry."""
-    hit = folders.get(path)
-    if hit is not None:
-        return hit
-    folder, _, entry = path.rpartition("/")
-    if not folder or os.path.islink(path):
-        real = os.path.realpath(path)
-    else:
-        real = f"{_real(folder, folders, keep=True).rstrip('/')}/{entry}"
-    if keep:
-        folders[path] = real
-    return real
-
-
-def _checked(
-    out: replay.Location, table: str, name: object, who: str, folders: dict[str, str]
-) -> str:
-    """`name` if it is the path of a file of `table` inside OUT, else the error; `who`: what
-    listed it, as the message says it (`OUT/manifest.json: run 'x' lists`); `folders`: the
-    folders resolved so far (`_real`; OUT's own under "")."""
-    if not isinstance(name, str):
-        raise OutputDirError(f"{who} {name!r} as a {table} file (not a path)")
-    parts = PurePosixPath(name).parts
-    if name.startswith("/") or ".." in parts or parts[:1] != (table,):
-        raise OutputDirError(f"{who} {name!r}, which is not a file of {table}/ in OUT")
-    if out.local is not None:
-        if "" not in folders:
-            folders[""] = os.path.realpath(out.local)
-        inside = folders[""]
-        real = os.path.normpath(_real(os.path.join(out.local, name), folders))
-        if os.path.commonpath([inside, real]) != inside:
-            raise OutputDirError(f"{who} {name!r}, which leads outside OUT ({real})")
-    return name
-
-
-def _listed(out: replay.Location, manifest: Mapping, table: str) -> list[tuple[str, str | None]]:
-    """(path, run) of each file of `table` the manifest lists, checked."""
-    runs = manifest.get("runs", [])
-    if not isinstance(runs, list):
-        raise _refuse(out, "'runs' is not a list")
-    found: list[tuple[str, str | None]] = []
-    folders: dict[str, str] = {}
-    for run in runs:
-        run_id = run.get("run_id") if isinstance(run, dict) else None
-        outputs = run.get("outputs") if isinstance(run, dict) else None
-        names = outputs.get(table) if isinstance(outputs, dict) else None
-        if not isinstance(run_id, str) or not isinstance(names, list):
-            raise _refuse(out, f"a run without a run_id and its {table} files ({str(run)[:80]})")
-        who = f"{manifest_path(out)}: run {run_id!r} lists"
-        found += [(_checked(out, table, name, who, folders), run_id) for name in names]
-    return sorted(found)
-
-
-def table_files(
-    out: replay.Location, manifest: Mapping | None, table: str
-) -> list[tuple[str, str | None]]:
-    """(path relative to OUT, the run whose rows it holds, or None) of each file of a table."""
-    if table == RUNS_TABLE:
-        names = [f"{RUNS_TABLE}/{n}" for n in (out / RUNS_TABLE).names() if n.endswith(".parquet")]
-    elif manifest is None:  # a local OUT without a manifest: its folders, file by file
-        names = [f"{table}/{rel}" for rel in (out / table).files() if rel.endswith(".parquet")]
-    else:
-        return _listed(out, manifest, table)
-    folders: dict[str, str] = {}
-    who = f"{out}: OUT holds"
-    return [(_checked(out, table, name, who, folders), None) for name in names]
 
 
 def _dictionary_columns(fragments: Iterable[pads.ParquetFileFragment], schema: pa.Schema) -> set:

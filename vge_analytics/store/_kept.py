@@ -18,14 +18,16 @@ import hashlib
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-
-import pyarrow as pa
+from typing import TYPE_CHECKING
 
 import replay
 from replay.io import METRIC_CACHE_DIR, atomic_file, schema_cache_path
 
+if TYPE_CHECKING:
+    import pyarrow as pa
+
 Files = Mapping[str, Sequence[tuple[str, str | None]]]
-"""table -> (path relative to OUT, run) of each of its files (`_datasets.table_files`)."""
+"""table -> (path relative to OUT, run) of each of its files (`_contents.table_files`)."""
 
 
 def contents_key(out: replay.Location, files: Files, digest: str | None) -> str | None:
@@ -54,6 +56,8 @@ def own_folder(out: Path) -> bool:
 
 def kept_schema(out: replay.Location, table: str, key: str | None) -> pa.Schema | None:
     """The unified schema of `table` kept for contents `key`, or None."""
+    import pyarrow as pa  # (here: the key and the folder's check are read without it)
+
     if key is None or not own_folder(out.local):
         return None
     path = schema_cache_path(out.local, table, key)

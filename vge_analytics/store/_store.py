@@ -18,8 +18,6 @@ store is cached per (directory, memory limits).
 from __future__ import annotations
 
 import contextlib
-import gc
-import hashlib
 import itertools
 import json
 import os
@@ -31,7 +29,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import duckdb
-import msgspec
 import pyarrow as pa
 
 import replay
@@ -39,6 +36,7 @@ from replay.io import MANIFEST, PARTITIONED, RUNS_TABLE, TABLES, manifest_path
 
 from .._errors import OutputDirError, UnknownRunError
 from ._bounds import store_limits
+from ._contents import manifest_and_digest, no_collection, read_manifest
 from ._datasets import Deferred, empty_table, table_sources
 from ._limits import SqlLimits
 from ._locked import locked_connection, register_all
@@ -198,70 +196,6 @@ def resolve_input(out: str | Path | replay.Location, recorded: str) -> Path | re
     return beside if beside.exists() else path
 
 
-def _read_manifest(out: Path | replay.Location) -> dict | None:
-    """OUT's manifest; None when it has none."""
-    path = manifest_path(out)
-    if not path.exists():
-        return None
-    try:
-        data = json.loads(path.read_bytes().decode("utf-8"))
-    except (OSError, ValueError) as exc:
-        raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
-    return data if isinstance(data, dict) else {}
-
-
-class _Inputs(msgspec.Struct):
-    bench: object = msgspec.UNSET
-
-
-class _Run(msgspec.Struct):
-    run_id: object = None
-    outputs: object = None
-    inputs: _Inputs | msgspec.UnsetType = msgspec.UNSET
-
-
-class _Manifest(msgspec.Struct):
-    """What a store reads of a manifest: each run's id, files and benchmark, the totals and
-    the engine version (the inputs' digests, most of a large manifest, are skipped)."""
-
-    runs: list[_Run] = []
-    totals: object = msgspec.UNSET
-    engine_version: object = msgspec.UNSET
-
-
-def _store_manifest(raw: bytes) -> dict | None:
-    """The parts of a manifest a store reads (`_Manifest`) as the dict `json` would give,
-    or None when it does not have that shape (then it is read whole, and checked)."""
-    try:
-        doc = msgspec.json.decode(raw, type=_Manifest)
-    except msgspec.MsgspecError:
-        return None
-    runs = []
-    for run in doc.runs:
-        entry = {"run_id": run.run_id, "outputs": run.outputs}
-        if run.inputs is not msgspec.UNSET and run.inputs.bench is not msgspec.UNSET:
-            entry["inputs"] = {"bench": run.inputs.bench}
-        runs.append(entry)
-    fields = {"totals": doc.totals, "engine_version": doc.engine_version}
-    return {**{k: v for k, v in fields.items() if v is not msgspec.UNSET}, "runs": runs}
-
-
-def _manifest_and_digest(out: Path | replay.Location) -> tuple[dict | None, str | None]:
-    """What a store reads of OUT's manifest (`_store_manifest`) and the sha256 of its
-    bytes; (None, None) when it has none."""
-    path = manifest_path(out)
-    if not path.exists():
-        return None, None
-    try:
-        raw = path.read_bytes()
-        data = _store_manifest(raw)
-        if data is None:
-            data = json.loads(raw.decode("utf-8"))
-    except (OSError, ValueError) as exc:
-        raise OutputDirError(f"{path}: unreadable manifest ({exc})") from None
-    return (data if isinstance(data, dict) else {}), hashlib.sha256(raw).hexdigest()
-
-
 def _entry(runs: list, run_id: str, out: object) -> dict:
     for entry in runs:
         if entry.get("run_id") == run_id:
@@ -271,12 +205,12 @@ def _entry(runs: list, run_id: str, out: object) -> dict:
 
 def run_entry(out: str | Path | replay.Location, run_id: str) -> dict:
     """The manifest's entry of a run (its inputs, options, counts)."""
-    return _entry((_read_manifest(replay.location(out)) or {}).get("runs", []), run_id, out)
+    return _entry((read_manifest(replay.location(out)) or {}).get("runs", []), run_id, out)
 
 
 def bench_dir(out: str | Path, run_id: str | None = None) -> Path | replay.Location:
     """The benchmark directory a run (default: the first run) was replayed against."""
-    runs = (_read_manifest(replay.location(out)) or {}).get("runs", [])
+    runs = (read_manifest(replay.location(out)) or {}).get("runs", [])
     if not runs:
         raise OutputDirError(f"{out}: the manifest lists no run")
     entry = _entry(runs, run_id, out) if run_id is not None else runs[0]
@@ -359,23 +293,9 @@ def _open(out: Path, limits: SqlLimits) -> Store:
             f"{out}: not a replay output directory (no {'/, '.join(missing)}/); "
             "run `vge replay ... --out` first"
         )
-    with _no_collection():
-        manifest, digest = _manifest_and_digest(out)
+    with no_collection():
+        manifest, digest = manifest_and_digest(out)
         return _store(out, manifest, limits, digest)
-
-
-@contextlib.contextmanager
-def _no_collection():
-    """The garbage collector paused: a manifest of many runs is millions of objects, which
-    the collector would otherwise walk again and again while they are made (none is a
-    cycle)."""
-    was = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was:
-            gc.enable()
 
 
 def _open_remote(out: replay.Location, limits: SqlLimits) -> Store:

@@ -194,3 +194,23 @@ def test_mcap_episodes_that_name_no_episode(capsys, tmp_path: Path) -> None:
     assert code == 0
     assert err.startswith("warning: --mcap-episodes: not an episode of ")
     assert [p.name for p in out.rglob("*.mcap")] == ["CarKey_000-01.mcap"]
+
+
+def test_a_command_run_alone_prints_what_the_whole_app_prints(capsys, monkeypatch) -> None:
+    """`main` runs a command in an app that holds it alone (`cli._app_for`): its help, its
+    usage errors and a mistyped name read as they do from the app of every command."""
+    from vge_analytics import cli
+
+    cli._register_all()
+    names = [info.name for info in cli.app.registered_commands]
+    assert [c.name for c in cli._app_for(["--debug", "metrics", "x"]).registered_commands] == [
+        "metrics"
+    ]
+    for whole in (["metrcs"], ["--help"], ["--help", "metrics"], ["--debug", "--help", "sql"]):
+        assert cli._app_for(whole) is cli.app
+    usage = (["metrics", "--no-such"], ["metrics"], ["--help", "metrics"], ["metrcs"])
+    for args in (*([name, "--help"] for name in names), *usage):
+        alone = run(capsys, *args)
+        with monkeypatch.context() as patched:
+            patched.setattr(cli, "_app_for", lambda args: cli.app)
+            assert run(capsys, *args) == alone, args

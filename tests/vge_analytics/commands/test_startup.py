@@ -1,8 +1,9 @@
 """`vge` starts at once: importing the command line, registering every command and printing
 any command's help import none of the heavy libraries (docs/PERFORMANCE.md, "Start-up").
 Each command imports what it uses when it runs: `vge metrics OUT` answered by the metric
-cache imports neither pyarrow's dataset module nor pandas (which it imports). Measured in a
-fresh interpreter (a test process has imported everything already); timings are in
+cache imports neither pyarrow's dataset module nor pandas (which it imports), and a question
+asked before, answered by the answer kept, none of the heavy libraries. Measured in a fresh
+interpreter (a test process has imported everything already); timings are in
 benchmarks/bench_startup.py."""
 
 from __future__ import annotations
@@ -77,23 +78,33 @@ def test_the_probe_sees_a_heavy_import() -> None:
     ]
 
 
-METRICS_JSON = """
+METRICS = """
 import contextlib, io
 from vge_analytics import cli
 with contextlib.redirect_stdout(io.StringIO()):
-    assert cli.main(["metrics", {out!r}, "-f", "json"]) == 0
+    assert cli.main(["metrics", {out!r}, *{args!r}]) == 0
 """
 
 
 def test_metrics_answered_by_the_cache_import_no_dataset_module(pair_out: Path, tmp_path: Path):
     """The first `vge metrics OUT` scans the tables (pyarrow's dataset module, and pandas,
-    which it imports); the next ones read the metric cache, and the runs table read whole."""
+    which it imports); a new question then reads the metric cache, and the runs table read
+    whole; a question asked before prints the answer kept, and imports nothing heavy."""
     out = tmp_path / "out"
     shutil.copytree(pair_out, out, ignore=shutil.ignore_patterns(METRIC_CACHE_DIR))
-    body = METRICS_JSON.format(out=str(out))
+    body = METRICS.format(out=str(out), args=["-f", "json"])
     cold = _imported(body)
     assert {"pandas", "pyarrow.dataset"} <= set(cold)
-    assert _imported(body) == ["duckdb", "numpy", "polars", "pyarrow"]
+    assert _imported(body) == []
+    for args in (["-f", "csv"], ["--by", "model"]):  # (the table format, for people)
+        asked = METRICS.format(out=str(out), args=args)
+        assert _imported(asked) == ["duckdb", "numpy", "polars", "pyarrow"]
+        assert _imported(asked) == []
+    # A metrics folder is told by its files' text: no DuckDB to check them again.
+    folder = Path(__file__).parents[3] / "docs" / "examples" / "metrics"
+    asked = METRICS.format(out=str(out), args=["--metrics-dir", str(folder), "-f", "latex"])
+    assert {"duckdb", "polars"} <= set(_imported(asked))
+    assert _imported(asked) == []
 
 
 def test_a_command_that_reads_out_imports_no_dataset_module_before_its_first_file(

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from vge_analytics.store._datasets import _real
+from vge_analytics.store._contents import _real
 
 
 def test_resolved_as_realpath_resolves(tmp_path: Path):
