@@ -80,15 +80,22 @@ def _seconds(clock: str) -> float:
     return sum(float(p) * 60**i for i, p in enumerate(reversed(clock.split(":"))))
 
 
-def replay_process(vge: Path, data: Path, out: Path, workers: int) -> dict[str, float]:
-    """One `vge replay` of every run into a fresh `out`, under /usr/bin/time -v."""
+def replay_process(
+    vge: Path, data: Path, out: Path, workers: int, tree: Path | None = None
+) -> dict[str, float]:
+    """One `vge replay` of every run into a fresh `out`, under /usr/bin/time -v; `tree`, a
+    checkout without a virtualenv of its own, is put first on the module path."""
     shutil.rmtree(out, ignore_errors=True)
     command = [
         "/usr/bin/time", "-v", str(vge), "replay", *map(str, _runs(data)),
         "--bench", str(data / BENCH_DIR), "--out", str(out),
         "--workers", str(workers), "--no-progress",
     ]  # fmt: skip
-    done = subprocess.run(command, capture_output=True, text=True, cwd=vge.parents[2])
+    env = dict(os.environ)
+    if tree is not None:  # the workers inherit it
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, (str(tree), env.get("PYTHONPATH"))))
+    cwd = tree if tree is not None else vge.parents[2]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=cwd, env=env)
     if done.returncode not in (0, 2):  # 2: some records quarantined
         sys.exit(f"{vge} failed ({done.returncode}):\n{done.stderr[-2000:]}")
     got = {k: re.search(p, done.stderr) for k, p in _TIME_FIELDS.items()}
@@ -181,7 +188,13 @@ def main() -> None:
         "--parts", metavar="RUN_ID", help="also time Parquet parts against one part for a run"
     )
     args = parser.parse_args()
-    sides = {"base": args.base / ".venv/bin/vge", "this": Path(__file__).parents[1] / ".venv/bin/vge"}
+    here = Path(__file__).parents[1] / ".venv/bin/vge"
+    # a base checkout without a virtualenv (a `git worktree add` of a commit, its kernel
+    # built in place) runs with this one's, the base tree first on the module path
+    base_venv = args.base / ".venv/bin/vge"
+    base_tree = None if base_venv.exists() else args.base
+    sides = {"base": base_venv if base_tree is None else here, "this": here}
+    trees = {"base": base_tree, "this": None}
     workers = [int(w) for w in args.workers.split(",") if w]
     results: dict[tuple[str, int], list[dict[str, float]]] = {}
     floors: list[dict[str, float]] = []
@@ -192,7 +205,9 @@ def main() -> None:
             order = list(sides.items())
             for side, vge in order if round_ % 2 == 0 else order[::-1]:  # who goes first alternates
                 out = args.scratch / f"out-{side}-{w}"
-                results.setdefault((side, w), []).append(replay_process(vge, args.data, out, w))
+                results.setdefault((side, w), []).append(
+                    replay_process(vge, args.data, out, w, trees[side])
+                )
     steps = int(floors[0]["steps"])
     identical = all(
         digests(args.scratch / f"out-base-{w}") == digests(args.scratch / f"out-this-{w}")
