@@ -13,8 +13,11 @@ and with this one's, one after the other (which goes first alternates from round
 so that both sides see the same load. Time
 measures the whole process tree (interpreter start, imports, the worker processes, the
 commit): wall seconds, CPU seconds (user + sys of the process and the workers it waited
-for) and peak RSS (of the largest single process). On a shared machine wall time follows
-the load; CPU seconds per step and the ratio of the two sides hold. Beside them, in each
+for) and peak RSS (of the largest single process); the command itself reports the CPU of
+the main process apart from the workers'. With 2 workers on two idle cores the wall time
+cannot be below the CPU of the busier process, so its share bounds the rate. On a shared
+machine wall time follows the load; CPU seconds per step and the ratio of the two sides
+hold. Beside them, in each
 round, the floor any replay of these logs pays, in this process: reading, inflating and
 decoding every line with msgspec, untyped (to dicts) and typed (`EpisodeLog`).
 
@@ -80,21 +83,51 @@ def _seconds(clock: str) -> float:
     return sum(float(p) * 60**i for i, p in enumerate(reversed(clock.split(":"))))
 
 
-def replay_process(vge: Path, data: Path, out: Path, workers: int) -> dict[str, float]:
-    """One `vge replay` of every run into a fresh `out`, under /usr/bin/time -v."""
+SPLIT = """import resource, sys
+if __name__ == "__main__":  # what the `vge` script does, then the CPU of this process and
+    from vge_analytics.cli import main  # of the workers it waited for
+
+    sys.argv[0] = "vge"
+    try:
+        code = main()
+    except SystemExit as exc:
+        code = exc.code
+    me, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    print("VGE_SPLIT", me.ru_utime + me.ru_stime, kids.ru_utime + kids.ru_stime, file=sys.stderr)
+    sys.exit(code)
+"""
+
+
+def replay_process(
+    vge: Path, data: Path, out: Path, workers: int, tree: Path | None = None
+) -> dict[str, float]:
+    """One `vge replay` of every run into a fresh `out`, under /usr/bin/time -v; `tree`, a
+    checkout without a virtualenv of its own, is put first on the module path. The command
+    runs as the `vge` script does, from a script (`SPLIT`) that also reports the CPU of the
+    main process apart from that of its workers."""
     shutil.rmtree(out, ignore_errors=True)
+    split = out.parent / "vge_split.py"
+    split.write_text(SPLIT)
     command = [
-        "/usr/bin/time", "-v", str(vge), "replay", *map(str, _runs(data)),
+        "/usr/bin/time", "-v", str(vge.parent / "python"), str(split), "replay",
+        *map(str, _runs(data)),
         "--bench", str(data / BENCH_DIR), "--out", str(out),
         "--workers", str(workers), "--no-progress",
     ]  # fmt: skip
-    done = subprocess.run(command, capture_output=True, text=True, cwd=vge.parents[2])
+    env = dict(os.environ)
+    if tree is not None:  # the workers inherit it
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, (str(tree), env.get("PYTHONPATH"))))
+    cwd = tree if tree is not None else vge.parents[2]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=cwd, env=env)
     if done.returncode not in (0, 2):  # 2: some records quarantined
         sys.exit(f"{vge} failed ({done.returncode}):\n{done.stderr[-2000:]}")
     got = {k: re.search(p, done.stderr) for k, p in _TIME_FIELDS.items()}
     if not all(got.values()):
         sys.exit(f"no /usr/bin/time -v report in:\n{done.stderr[-2000:]}")
+    main_cpu, workers_cpu = re.findall(r"VGE_SPLIT ([\d.]+) ([\d.]+)", done.stderr)[-1]
     return {
+        "main_cpu": float(main_cpu),
+        "workers_cpu": float(workers_cpu),
         "wall": _seconds(got["wall"].group(1)),  # type: ignore[union-attr]
         "cpu": float(got["user"].group(1)) + float(got["sys"].group(1)),  # type: ignore[union-attr]
         "rss_mb": int(got["rss_kb"].group(1)) / 1024,  # type: ignore[union-attr]
@@ -163,9 +196,12 @@ def _row(
         b_cpu = statistics.median(r["cpu"] for r in base)
         ratio = f"{cpu / b_cpu:.3f} / {wall / b_wall:.2f}"
     tries = ", ".join(f"{r['cpu']:.2f}" for r in runs)
+    main = statistics.median(r["main_cpu"] for r in runs)
+    others = statistics.median(r["workers_cpu"] for r in runs)
     return (
-        f"| {label} | {wall:.2f} | {cpu:.2f} ({tries}) | {1e6 * cpu / steps:.2f} | "
-        f"{steps / wall:,.0f} | {cores * steps / cpu:,.0f} | {rss:.0f} | {ratio} |"
+        f"| {label} | {wall:.2f} | {cpu:.2f} ({tries}) | {main:.2f} / {others:.2f} | "
+        f"{1e6 * cpu / steps:.2f} | {steps / wall:,.0f} | {cores * steps / cpu:,.0f} | "
+        f"{steps / max(main, others, cpu / cores):,.0f} | {rss:.0f} | {ratio} |"
     )
 
 
@@ -181,7 +217,13 @@ def main() -> None:
         "--parts", metavar="RUN_ID", help="also time Parquet parts against one part for a run"
     )
     args = parser.parse_args()
-    sides = {"base": args.base / ".venv/bin/vge", "this": Path(__file__).parents[1] / ".venv/bin/vge"}
+    here = Path(__file__).parents[1] / ".venv/bin/vge"
+    # a base checkout without a virtualenv (a `git worktree add` of a commit, its kernel
+    # built in place) runs with this one's, the base tree first on the module path
+    base_venv = args.base / ".venv/bin/vge"
+    base_tree = None if base_venv.exists() else args.base
+    sides = {"base": base_venv if base_tree is None else here, "this": here}
+    trees = {"base": base_tree, "this": None}
     workers = [int(w) for w in args.workers.split(",") if w]
     results: dict[tuple[str, int], list[dict[str, float]]] = {}
     floors: list[dict[str, float]] = []
@@ -192,7 +234,9 @@ def main() -> None:
             order = list(sides.items())
             for side, vge in order if round_ % 2 == 0 else order[::-1]:  # who goes first alternates
                 out = args.scratch / f"out-{side}-{w}"
-                results.setdefault((side, w), []).append(replay_process(vge, args.data, out, w))
+                results.setdefault((side, w), []).append(
+                    replay_process(vge, args.data, out, w, trees[side])
+                )
     steps = int(floors[0]["steps"])
     identical = all(
         digests(args.scratch / f"out-base-{w}") == digests(args.scratch / f"out-this-{w}")
@@ -206,16 +250,18 @@ def main() -> None:
         + "\n"
     )
     print(
-        "| measure | wall s | CPU s (each round) | CPU µs/step | steps/s (wall) |"
-        " steps/s if its CPU were spread over idle cores | peak RSS MB | this / base: CPU / wall |"
+        "| measure | wall s | CPU s (each round) | CPU s: main / workers | CPU µs/step |"
+        " steps/s (wall) | steps/s if its CPU were spread over idle cores |"
+        " steps/s on idle cores, at most (the busier process) | peak RSS MB |"
+        " this / base: CPU / wall |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     for name in ("untyped", "typed"):
         cpu = statistics.median(f[f"{name}_cpu"] for f in floors)
         wall = statistics.median(f[f"{name}_wall"] for f in floors)
         print(
-            f"| bare decode, msgspec {name} | {wall:.2f} | {cpu:.2f} | "
-            f"{1e6 * cpu / steps:.2f} | {steps / wall:,.0f} | | | |"
+            f"| bare decode, msgspec {name} | {wall:.2f} | {cpu:.2f} | | "
+            f"{1e6 * cpu / steps:.2f} | {steps / wall:,.0f} | | | | |"
         )
     for w in workers:
         for side in sides:

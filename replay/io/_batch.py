@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, NamedTuple
 
 import msgspec
+import numpy as np
 import pyarrow.compute as pc
 
 from .._errors import OutputError, TaskError, VGEError
@@ -189,17 +190,11 @@ def _replay(state: WorkerState, task: BatchTask) -> BatchReport:
     try:
         outcomes, todo = _prepare_lines(state, task)
         tables, results = _replay_episodes(task, todo)
-        mcap = _write_mcaps(state, ctx, todo, tables, results)
-        for j, (at, number, e) in enumerate(todo):
+        mcap = _write_mcaps(state, ctx, todo, tables, results) if ctx.mcap else {}
+        counts = zip(*(np.asarray(c).tolist() for c in tables[3:]), strict=True)
+        for j, ((at, number, e), (n_steps, n_goals)) in enumerate(zip(todo, counts, strict=True)):
             outcomes[at] = LineOutcome(
-                number,
-                e.task.episode_id,
-                True,
-                None,
-                None,
-                int(tables.step_counts[j]),
-                int(tables.goal_counts[j]),
-                mcap.get(j),
+                number, e.task.episode_id, True, None, None, n_steps, n_goals, mcap.get(j)
             )
         parts = _write_parts(task, tables)
         return BatchReport(
