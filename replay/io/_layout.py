@@ -132,6 +132,12 @@ def schema_cache_path(out: _P, table: str, contents_key: str) -> _P:
     return out / METRIC_CACHE_DIR / f"schema-{table}-{contents_key}.arrow"
 
 
+def result_cache_path(out: _P, contents_key: str, result_key: str) -> _P:
+    """`OUT/.metric-cache/result-<contents_key>-<result_key>.arrow`: one result the dashboard
+    computed from OUT (a function of its tables and its arguments), kept for one content."""
+    return out / METRIC_CACHE_DIR / f"result-{contents_key}-{result_key}.arrow"
+
+
 def runs_path(out: _P) -> _P:
     """`OUT/runs/runs.parquet`."""
     return out / RUNS_TABLE / RUNS_FILE

@@ -1,6 +1,7 @@
 """Reading OUT safely (PROTOCOL §9): a DuckDB connection that opens no file, over exactly the
 Parquet files the manifest lists; the limits of user SQL, queries in a process of their own,
-the read-only guard; filters and groupings; the tables as frames; the metric cache."""
+the read-only guard; filters and groupings; the tables as frames; the metric cache and the
+results kept beside it."""
 
 from typing import TYPE_CHECKING
 
@@ -46,6 +47,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         ratio_query,
         term_name,
     )
+    from ._results import MAX_RESULT_BYTES, MAX_RESULTS, code_key, kept_result
     from ._scope import (
         DEFAULT_BY,
         Filters,
@@ -151,6 +153,10 @@ __all__ = [
     "quote_ident",
     "Ratio",
     "ratio_query",
+    "kept_result",
+    "code_key",
+    "MAX_RESULT_BYTES",
+    "MAX_RESULTS",
     "register_all",
     "resolve_input",
     "run_isolated",
