@@ -9,9 +9,11 @@ size and modification time of every table file), `<key>` a hash of the function'
 arguments, the caller's `version` (the metric definitions) and the code of `replay` and
 `vge_analytics` (`code_key`). Whatever changes names another file; nothing stale is read.
 
-The file is an Arrow IPC file written by polars (its dtypes, enums included, come back as they
-were), the value's shape in its schema's metadata: the same value, bit for bit, is read back.
-A value of another kind (a record, an object) is not kept. Bounds: a result over
+The file is an Arrow IPC file with a row per frame of the value, each as polars writes it
+(its dtypes, enums included, come back as they were), and the value's shape in the schema's
+metadata: the same value, bit for bit, is read back. A value may be a frame, a number, a
+string, a list, tuple or dict of those, or a dataclass of `replay` or `vge_analytics` (found
+by its name among the modules loaded, made again from its fields); another kind is not kept. Bounds: a result over
 `MAX_RESULT_BYTES` is not kept and a file over it is not read; at most `MAX_RESULTS` files are
 kept (the oldest go), and a write removes the results kept for other contents. Nothing is kept
 for an OUT in memory or object storage, without a manifest, or whose cache folder is a link; a
@@ -21,10 +23,12 @@ file that is a link is not read; an OUT that cannot be written computes every ti
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import io
 import json
 import os
+import sys
 from collections.abc import Callable
 from functools import cache
 from pathlib import Path
@@ -48,21 +52,26 @@ MAX_RESULTS = 512
 """Result files kept in one OUT's cache folder (the oldest are removed past it)."""
 
 _META = b"vge-result"
-"""The schema metadata key holding the value's shape and what it was computed from."""
+"""The schema metadata key holding the value's shape."""
+_FRAMES = "frame"
+"""The column of a result file: one row per frame of the value, as polars writes it."""
 
 
 class _NotKept(Exception):
     """A value (or argument) of a kind this cache does not write."""
 
 
+_RECORD_HOMES = ("vge_analytics.", "replay.")
+"""The packages whose dataclasses a result may hold (a record's class is found by its name)."""
+
+
 def _shape(value: Any, frames: list[pl.DataFrame]) -> Any:
-    """`value` as JSON with its kinds tagged (a tuple stays a tuple, a dict keeps its order);
-    a frame becomes a reference to `frames`, where it is appended (at most one)."""
+    """`value` as JSON with its kinds tagged (a tuple stays a tuple, a dict keeps its order, a
+    record of this code names its class and holds the fields it is made from); each frame is
+    appended to `frames` and named by its place there."""
     if isinstance(value, pl.DataFrame):
-        if frames:
-            raise _NotKept("two frames")
         frames.append(value)
-        return ["frame"]
+        return ["frame", len(frames) - 1]
     if value is None or isinstance(value, (bool, int, str)):
         return ["v", value]
     if isinstance(value, float):
@@ -71,25 +80,43 @@ def _shape(value: Any, frames: list[pl.DataFrame]) -> Any:
         return ["tuple" if isinstance(value, tuple) else "list", [_shape(v, frames) for v in value]]
     if isinstance(value, dict) and all(isinstance(k, str) for k in value):
         return ["dict", [[k, _shape(v, frames)] for k, v in value.items()]]
-    raise _NotKept(type(value).__name__)
+    kind = type(value)
+    if dataclasses.is_dataclass(value) and kind.__module__.startswith(_RECORD_HOMES):
+        made = [f.name for f in dataclasses.fields(value) if f.init]
+        fields = [[n, _shape(getattr(value, n), frames)] for n in made]
+        return ["record", f"{kind.__module__}:{kind.__qualname__}", fields]
+    raise _NotKept(kind.__name__)
 
 
-def _value(shape: Any, frame: pl.DataFrame | None) -> Any:
+def _record_class(name: str) -> type:
+    """The dataclass `module:qualname` of this code (nothing else is looked up)."""
+    module, _, qualname = name.partition(":")
+    if not module.startswith(_RECORD_HOMES) or module not in sys.modules:
+        raise _NotKept(name)
+    found: Any = sys.modules[module]
+    for part in qualname.split("."):
+        found = getattr(found, part)
+    if not (isinstance(found, type) and dataclasses.is_dataclass(found)):
+        raise _NotKept(name)
+    return found
+
+
+def _value(shape: Any, frames: list[pl.DataFrame]) -> Any:
     """The value `_shape` described."""
     kind = shape[0]
     if kind == "frame":
-        if frame is None:
-            raise _NotKept("no frame")
-        return frame
+        return frames[shape[1]]
     if kind == "v":
         return shape[1]
     if kind == "float":
         return float.fromhex(shape[1])
     if kind in ("tuple", "list"):
-        items = [_value(s, frame) for s in shape[1]]
+        items = [_value(s, frames) for s in shape[1]]
         return tuple(items) if kind == "tuple" else items
     if kind == "dict":
-        return {k: _value(s, frame) for k, s in shape[1]}
+        return {k: _value(s, frames) for k, s in shape[1]}
+    if kind == "record":
+        return _record_class(shape[1])(**{k: _value(s, frames) for k, s in shape[2]})
     raise _NotKept(str(kind))
 
 
@@ -124,28 +151,30 @@ def _read(path: Path) -> tuple[bool, Any]:
             data = fh.read(MAX_RESULT_BYTES + 1)
         if len(data) > MAX_RESULT_BYTES:
             return False, None
-        reader = pa.ipc.open_file(pa.py_buffer(data))
-        shape = json.loads((reader.schema.metadata or {})[_META])
-        frame = pl.read_ipc(io.BytesIO(data)) if shape[0] == ["frame"] else None
-        return True, _value(shape[1], frame)
-    except (OSError, KeyError, ValueError, TypeError, IndexError, pa.ArrowException, _NotKept):
+        table = pa.ipc.open_file(pa.py_buffer(data)).read_all()
+        shape = json.loads((table.schema.metadata or {})[_META])
+        frames = [pl.read_ipc(io.BytesIO(b)) for b in table.column(_FRAMES).to_pylist()]
+        return True, _value(shape, frames)
+    except (OSError, KeyError, ValueError, TypeError, IndexError, AttributeError, _NotKept):
         return False, None
-    except pl.exceptions.PolarsError:
+    except (pa.ArrowException, pl.exceptions.PolarsError):
         return False, None
 
 
 def _write(path: Path, value: Any) -> None:
-    """Keep `value` at `path` (nothing when it is of another kind or too large)."""
+    """Keep `value` at `path` (nothing when it is of another kind or too large): an Arrow IPC
+    file of one row per frame (the frame as polars writes it), the shape in its metadata."""
     frames: list[pl.DataFrame] = []
     shape = _shape(value, frames)
-    frame = frames[0] if frames else pl.DataFrame()
-    if frame.estimated_size() > MAX_RESULT_BYTES:
+    if sum(f.estimated_size() for f in frames) > MAX_RESULT_BYTES:
         return
-    raw = io.BytesIO()
-    frame.write_ipc(raw, compression="zstd")
-    table = pa.ipc.open_file(pa.py_buffer(raw.getvalue())).read_all()
-    meta = json.dumps([["frame"] if frames else ["none"], shape]).encode()
-    table = table.replace_schema_metadata({**(table.schema.metadata or {}), _META: meta})
+    parts = []
+    for frame in frames:
+        raw = io.BytesIO()
+        frame.write_ipc(raw, compression="zstd")
+        parts.append(raw.getvalue())
+    table = pa.table({_FRAMES: pa.array(parts, pa.large_binary())})
+    table = table.replace_schema_metadata({_META: json.dumps(shape).encode()})
     sink = pa.BufferOutputStream()
     with pa.ipc.new_file(sink, table.schema) as writer:
         writer.write_table(table)

@@ -4,6 +4,7 @@ definitions change, and the bounds (size, count, links, an OUT that cannot be wr
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 from pathlib import Path
@@ -49,6 +50,9 @@ def _same(a, b) -> None:
             _same(a[k], b[k])
     elif isinstance(a, float):
         assert a.hex() == b.hex()
+    elif dataclasses.is_dataclass(a):
+        for f in dataclasses.fields(a):
+            _same(getattr(a, f.name), getattr(b, f.name))
     else:
         assert a == b
 
@@ -91,6 +95,9 @@ def _pages_calls(out: Path) -> list[tuple]:
         ("clicks", dash.click_points, (device, view), {"where": {}}),
         ("pair", dash.pair_rows, (runs[0], runs[1]), {}),
         ("columns", dash.table_columns_frame, (), {}),
+        ("compare", va.compare, (runs[0], runs[1]), {"resamples": 200}),
+        ("completeness", va.completeness, (), {}),
+        ("summary", dash.out_summary, (), {}),
     ]
 
 
@@ -163,17 +170,39 @@ def test_values_of_other_kinds_are_computed_every_time(pair_out: Path, tmp_path:
     out = _copy(pair_out, tmp_path / "out")
     calls = []
 
-    def records():
+    def paths():
         calls.append(1)
-        return va.completeness(out)  # a list of records: not kept
+        return [out]  # a path: not kept
 
-    first = _results.kept_result(out, "completeness", (), records)
-    again = _results.kept_result(out, "completeness", (), records)
-    assert first == again and len(calls) == 2
+    first = _results.kept_result(out, "paths", (), paths)
+    again = _results.kept_result(out, "paths", (), paths)
+    assert first == again == [out] and len(calls) == 2
     assert _results_kept(out) == []
     # An argument of another kind: nothing kept either.
     assert _results.kept_result(out, "f", (object(),), lambda: 3) == 3
     assert _results_kept(out) == []
+
+
+def test_a_record_names_a_class_of_this_code_only(pair_out: Path, tmp_path: Path):
+    """A record is made again from a dataclass of `replay` or `vge_analytics` already loaded;
+    a file naming any other class is not read (it is computed and written again)."""
+    out = _copy(pair_out, tmp_path / "out")
+    want = _results.kept_result(out, "done", (), lambda: va.completeness(out))
+    (name,) = _results_kept(out)
+    path = out / METRIC_CACHE_DIR / name
+    data = path.read_bytes()
+    table = pa.ipc.open_file(pa.py_buffer(data)).read_all()
+    shape = table.schema.metadata[b"vge-result"].decode()
+    record = want[0].__class__
+    for other in ("subprocess:Popen", "os:system", f"{record.__module__}:open_store"):
+        forged = shape.replace(f"{record.__module__}:{record.__qualname__}", other)
+        forged_table = table.replace_schema_metadata({b"vge-result": forged.encode()})
+        sink = pa.BufferOutputStream()
+        with pa.ipc.new_file(sink, forged_table.schema) as writer:
+            writer.write_table(forged_table)
+        path.write_bytes(sink.getvalue().to_pybytes())
+        assert _results._read(path) == (False, None), other
+    assert _results.kept_result(out, "done", (), lambda: va.completeness(out)) == want
 
 
 def test_the_bounds(pair_out: Path, tmp_path: Path, monkeypatch):
