@@ -157,6 +157,8 @@ def _read(path: Path) -> tuple[bool, Any]:
         return True, _value(shape, frames)
     except (OSError, KeyError, ValueError, TypeError, IndexError, AttributeError, _NotKept):
         return False, None
+    except RecursionError:  # a shape nested deeper than any value: not one this code wrote
+        return False, None
     except (pa.ArrowException, pl.exceptions.PolarsError):
         return False, None
 

@@ -260,6 +260,20 @@ def test_a_broken_file_is_computed_again(pair_out: Path, tmp_path: Path):
         assert _results.kept_result(out, "n", (), lambda: 3) == 2  # written again, then read
 
 
+def test_a_forged_deep_shape_is_not_read(pair_out: Path, tmp_path: Path):
+    out = _copy(pair_out, tmp_path / "out")
+    _results.kept_result(out, "n", (), lambda: 1)
+    (name,) = _results_kept(out)
+    deep = ("[" * 200_000 + "]" * 200_000).encode()  # 400 KB, far past Python's recursion
+    table = pa.table({"frame": pa.array([], pa.large_binary())})
+    table = table.replace_schema_metadata({b"vge-result": deep})
+    sink = pa.BufferOutputStream()
+    with pa.ipc.new_file(sink, table.schema) as writer:
+        writer.write_table(table)
+    (out / METRIC_CACHE_DIR / name).write_bytes(sink.getvalue().to_pybytes())
+    assert _results.kept_result(out, "n", (), lambda: 2) == 2
+
+
 def test_no_result_kept_without_a_manifest(pair_out: Path, tmp_path: Path):
     out = _copy(pair_out, tmp_path / "out")
     (out / "manifest.json").unlink()
