@@ -58,8 +58,9 @@ MCAP_DIR = "mcap"
 QUARANTINE = "quarantine.jsonl"
 MANIFEST = "manifest.json"
 METRIC_CACHE_DIR = ".metric-cache"
-"""`OUT/.metric-cache/`: the metrics' per-episode terms, kept by the analytics (PROTOCOL §7.1;
-docs/METRICS.md); never read by the replay, safe to delete."""
+"""`OUT/.metric-cache/`: the metrics' per-run terms, the tables' schemas and the dashboard's
+kept results, kept by the analytics (PROTOCOL §7.1; docs/METRICS.md); never read by the
+replay, safe to delete."""
 
 _P = TypeVar("_P", Path, "Location")
 
