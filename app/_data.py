@@ -21,7 +21,7 @@ import streamlit as st
 import vge_analytics as va
 from vge_analytics import dashboard as dash
 from vge_analytics.metrics import default_folder
-from vge_analytics.store import CLI_TIMEOUT, check_selection
+from vge_analytics.store import CLI_TIMEOUT, check_selection, kept_result
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -60,10 +60,13 @@ _WRAPPED: dict[str, Callable[..., Any]] = {}
 """The functions `cached` wraps, by qualified name (the cache key names the function)."""
 
 
+_KEPT: set[str] = set()
+"""The functions whose results are also kept on disk beside OUT (`cached(kept=True)`)."""
+
+
 @st.cache_data(show_spinner=False, max_entries=1024)
 def _cached(key: str, out: str, version: str, args: tuple, kwargs: dict) -> Any:
-    del version  # part of the cache key only
-    return _call(key, out, args, kwargs)
+    return _call(key, out, args, kwargs, version)
 
 
 SQL_RESULTS_KEPT = 8
@@ -77,9 +80,18 @@ def _cached_sql(key: str, out: str, version: str, args: tuple, kwargs: dict) -> 
     return _call(key, out, args, kwargs)
 
 
-def _call(key: str, out: str, args: tuple, kwargs: dict) -> Any:
+def _call(key: str, out: str, args: tuple, kwargs: dict, version: str = "") -> Any:
+    """`fn(OUT, *args, **kwargs)` within the pages' bounds; for a kept function, read from
+    OUT's cache folder when a server on the same OUT computed it before (`kept_result`, keyed
+    by OUT's contents, the arguments and `version`, whose metric fingerprint is the
+    definitions')."""
+    fn = _WRAPPED[key]
     with query_bounds():
-        return _WRAPPED[key](out, *args, **kwargs)
+        if key not in _KEPT:
+            return fn(out, *args, **kwargs)
+        return kept_result(
+            out, key, (args, kwargs), lambda: fn(out, *args, **kwargs), version=version
+        )
 
 
 def query_bounds(argv: Sequence[str] | None = None) -> contextlib.AbstractContextManager:
@@ -105,14 +117,22 @@ def query_timeout(argv: Sequence[str] | None = None) -> float | None:
 
 
 def cached(
-    fn: Callable[Concatenate[Any, P], R], *, metrics: bool = False, sql: bool = False
+    fn: Callable[Concatenate[Any, P], R],
+    *,
+    metrics: bool = False,
+    sql: bool = False,
+    kept: bool = False,
 ) -> Callable[P, R]:
     """`fn(OUT, ...)` as a page calls it, `fn(...)`: OUT is the app's, and the result is
     cached per (OUT, manifest hash, arguments). With `metrics`, `fn` also gets `metrics_dir`
     (the app's folder, see `metrics_dir`), and the folder's fingerprint joins the key. With
-    `sql` (user queries' results), only the last `SQL_RESULTS_KEPT` are kept."""
+    `sql` (user queries' results), only the last `SQL_RESULTS_KEPT` are kept. With `kept`
+    (a function of OUT's tables alone, slow on a large OUT), the result is also kept on disk
+    beside OUT, for the next server (`vge_analytics.store.kept_result`)."""
     key = f"{fn.__module__}.{fn.__qualname__}"
     _WRAPPED[key] = fn
+    if kept:
+        _KEPT.add(key)
     cache = _cached_sql if sql else _cached
 
     @functools.wraps(fn)
@@ -141,35 +161,35 @@ def metric_set() -> va.MetricSet:
 
 # ------------------------------------------------------------------------ the data
 
-metrics = cached(va.metrics, metrics=True)
-compare = cached(va.compare, metrics=True)
-compare_all = cached(va.compare_all, metrics=True)
-metric_intervals = cached(va.metric_intervals, metrics=True)
-repeated = cached(va.repeated)
-rescore = cached(va.rescore, metrics=True)
+metrics = cached(va.metrics, metrics=True, kept=True)
+compare = cached(va.compare, metrics=True, kept=True)
+compare_all = cached(va.compare_all, metrics=True, kept=True)
+metric_intervals = cached(va.metric_intervals, metrics=True, kept=True)
+repeated = cached(va.repeated, kept=True)
+rescore = cached(va.rescore, metrics=True, kept=True)
 computed_sweep = cached(dash.computed_sweep, metrics=True)
-error_distribution = cached(va.error_distribution)
-switch_classes = cached(va.switch_classes)
-runs = cached(va.runs)
-facets = cached(dash.run_facets)
-episodes = cached(va.episodes)
+error_distribution = cached(va.error_distribution, kept=True)
+switch_classes = cached(va.switch_classes, kept=True)
+runs = cached(va.runs, kept=True)
+facets = cached(dash.run_facets, kept=True)
+episodes = cached(va.episodes, kept=True)
 goals = cached(va.goals)
 episode_steps = cached(va.episode_steps)
 viewer_steps = cached(dash.viewer_steps)
 out_summary = cached(dash.out_summary)
-column_values = cached(dash.column_values)
-error_step_sample = cached(dash.error_step_sample)
+column_values = cached(dash.column_values, kept=True)
+error_step_sample = cached(dash.error_step_sample, kept=True)
 step_picture = cached(dash.step_picture)
-pair_rows = cached(dash.pair_rows)
+pair_rows = cached(dash.pair_rows, kept=True)
 side_picture = cached(dash.side_picture)
 side_steps = cached(dash.side_steps)
-interaction_views = cached(dash.interaction_views)
-click_points = cached(dash.click_points)
+interaction_views = cached(dash.interaction_views, kept=True)
+click_points = cached(dash.click_points, kept=True)
 scatter_boxes = cached(dash.scatter_boxes)
 view_picture = cached(dash.view_picture)
-table_columns = cached(dash.table_columns_frame)
-sweep_size = cached(dash.sweep_size)
+table_columns = cached(dash.table_columns_frame, kept=True)
+sweep_size = cached(dash.sweep_size, kept=True)
 sql_preview = cached(dash.sql_preview, sql=True)
-completeness = cached(va.completeness)
-cost_table = cached(dash.cost_table)
+completeness = cached(va.completeness, kept=True)
+cost_table = cached(dash.cost_table, kept=True)
 selection_check = cached(check_selection)

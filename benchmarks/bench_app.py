@@ -1,6 +1,6 @@
 """Render time of every dashboard page, as a browser sees it.
 
-    python benchmarks/bench_app.py OUT [--repeat 3] [--sweep] [--pages Leaderboard,Errors]
+    python benchmarks/bench_app.py OUT [--repeat 3] [--sweep] [--pages Leaderboard,Errors] [--cold-disk]
 
 Starts `vge app OUT --headless` on a free localhost port and loads each page in headless
 Chromium through Playwright (the helpers of the browser tests, `tests/app/streamlit_browser.py`),
@@ -29,6 +29,11 @@ episode is computed on the first visit).
 `--pages` times only the pages named (titles as in the table, comma-separated; the switch
 is then from one of them to the next, and the heavy Side by side pair only with Side by
 side among them).
+
+`--cold-disk` first removes the results the dashboard keeps beside OUT
+(`OUT/.metric-cache/result-*.arrow`, docs/METRICS.md), so that the first visits compute them
+(the very first server on an OUT); without it, a server after another one on the same OUT
+reads them (docs/PERFORMANCE.md, *First visits at 100x*).
 
 `--sweep` also times the lambda sweep of every run (computed once and kept on disk; without
 it the Budgets page of a large OUT shows a button instead of computing it on a page load).
@@ -165,8 +170,14 @@ def main() -> None:
     parser.add_argument("--sweep", action="store_true", help="also time the lambda sweep")
     parser.add_argument("--screenshots", type=Path, help="save docs screenshots here")
     parser.add_argument("--pages", type=chosen_pages, default=PAGES, help="titles, a,b,...")
+    parser.add_argument("--cold-disk", action="store_true", help="forget the kept results")
     args = parser.parse_args()
     pages: tuple[tuple[str, str, str], ...] = args.pages
+    if args.cold_disk:
+        from replay.io import METRIC_CACHE_DIR
+
+        for kept in (args.out / METRIC_CACHE_DIR).glob("result-*.arrow"):
+            kept.unlink()
 
     import vge_analytics as va
     from vge_analytics import dashboard as dash

@@ -58,8 +58,9 @@ MCAP_DIR = "mcap"
 QUARANTINE = "quarantine.jsonl"
 MANIFEST = "manifest.json"
 METRIC_CACHE_DIR = ".metric-cache"
-"""`OUT/.metric-cache/`: the metrics' per-episode terms, kept by the analytics (PROTOCOL §7.1;
-docs/METRICS.md); never read by the replay, safe to delete."""
+"""`OUT/.metric-cache/`: the metrics' per-run terms, the tables' schemas and the dashboard's
+kept results, kept by the analytics (PROTOCOL §7.1; docs/METRICS.md); never read by the
+replay, safe to delete."""
 
 _P = TypeVar("_P", Path, "Location")
 
@@ -137,6 +138,12 @@ def answer_cache_path(out: _P, contents_key: str, question_key: str) -> _P:
     for one question (its options, the metrics' definitions, the code), kept for one content
     of OUT."""
     return out / METRIC_CACHE_DIR / f"answer-{contents_key}-{question_key}.json"
+
+
+def result_cache_path(out: _P, contents_key: str, result_key: str) -> _P:
+    """`OUT/.metric-cache/result-<contents_key>-<result_key>.arrow`: one result the dashboard
+    computed from OUT (a function of its tables and its arguments), kept for one content."""
+    return out / METRIC_CACHE_DIR / f"result-{contents_key}-{result_key}.arrow"
 
 
 def runs_path(out: _P) -> _P:

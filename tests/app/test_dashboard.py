@@ -199,6 +199,39 @@ def test_error_step_sample_is_the_head_of_steps_with_error(tiny_out):
     assert sample.rows() == every.select("run_id", "episode_id", "step").head(7).rows()
 
 
+def test_first_rows_are_those_of_one_sorted_query(tiny_out):
+    """The drill-downs read only the runs holding their first rows (`runs_holding_first`):
+    the same rows and total as one query sorting every match, whatever the limit (inside a
+    run, at a run's end, past every row, none)."""
+    from vge_analytics.reports import ERROR_TYPES
+
+    columns = ("run_id", "episode_id", "step", "error_type", "action_raw")
+    for error_type in ERROR_TYPES:
+        every = sql(
+            tiny_out,
+            "SELECT run_id, episode_id, step, error_type, action_raw FROM steps "
+            f"WHERE NOT truncated AND error_type = '{error_type}' "
+            "ORDER BY run_id, episode_id, step",
+        )
+        per_run = every.group_by("run_id", maintain_order=True).len()["len"].cum_sum()
+        for limit in {0, 1, 7, *per_run.to_list()[:3], every.height, every.height + 5}:
+            sample, total = dash.error_step_sample(tiny_out, error_type, {}, columns, limit=limit)
+            assert total == every.height
+            assert sample.rows() == every.head(limit).rows(), (error_type, limit)
+    views = dash.interaction_views(tiny_out)
+    for device_id, view in views.select("device_id", "view").head(4).iter_rows():
+        clicks = sql(
+            tiny_out,
+            "SELECT run_id, episode_id, step, x, y FROM steps WHERE NOT truncated "
+            f"AND is_interaction AND device_id = '{device_id}' AND view_before = '{view}' "
+            "AND x IS NOT NULL AND y IS NOT NULL ORDER BY run_id, episode_id, step",
+        )
+        for limit in (0, 1, 5, clicks.height, clicks.height + 1):
+            points = dash.click_points(tiny_out, device_id, view, limit=limit)
+            got = points.select("run_id", "episode_id", "step", "x", "y").rows()
+            assert got == clicks.head(limit).rows(), (device_id, view, limit)
+
+
 # ------------------------------------------------------------------------ grounding
 
 
@@ -503,7 +536,9 @@ def test_sql_preview_holds_a_bounded_result(tiny_out):
     """Wide rows come back cut by the query's process: text cells at 10,000 characters, the
     whole at RESULT_BYTES; the caption says what was cut."""
     limits = SqlLimits.make(memory="512MB", timeout=30)
-    wide = dash.sql_preview(tiny_out, "SELECT repeat('x', 2000000) AS s FROM range(20)", 100, limits)
+    wide = dash.sql_preview(
+        tiny_out, "SELECT repeat('x', 2000000) AS s FROM range(20)", 100, limits
+    )
     assert wide.frame["s"].to_list() == ["x" * 10_000 + "… [cut: 1990000 more characters]"] * 20
     assert (wide.cut.cells, wide.cut.rows, wide.truncated) == (20, 0, False)
     mark = len("… [cut: 1990000 more characters]".encode())  # 34 bytes

@@ -26,11 +26,9 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import importlib.util
 import json
 import os
 import stat
-import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +36,7 @@ from pathlib import Path
 import replay
 from replay.io import answer_cache_path, atomic_file
 
+from ..store._code import code_key
 from ._output import Printed, console_traits
 
 ANSWER_FORMAT = 1
@@ -48,9 +47,6 @@ MAX_ANSWER_BYTES = 1 << 20
 
 MAX_ANSWERS = 64
 """Answers kept per OUT: past it, keeping one removes the oldest."""
-
-LIBRARIES = ("click", "typer", "rich", "polars", "pyarrow", "duckdb", "msgspec")
-"""The libraries whose code computes or prints an answer, beside the package's own."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,31 +91,6 @@ def _decoded(data: bytes) -> Answer | None:
     return Answer(tuple(warnings), Printed(text, console=console))
 
 
-def _code_key() -> list[object]:
-    """What identifies the code that computes and prints an answer: Python's version, the
-    size and modification time of every file of the package and of `replay` (an editable
-    install changes them without a new version), and of each of `LIBRARIES`' first module
-    (found, not imported)."""
-    import vge_analytics
-
-    files: list[object] = [sys.version]
-    for package in (vge_analytics, replay):
-        root = os.path.dirname(package.__file__)
-        for folder, subfolders, names in os.walk(root):
-            subfolders[:] = sorted(d for d in subfolders if d != "__pycache__")
-            for name in sorted(names):
-                st = os.stat(os.path.join(folder, name))
-                files.append(
-                    [os.path.relpath(os.path.join(folder, name), root), st.st_size, st.st_mtime_ns]
-                )
-    for name in LIBRARIES:
-        spec = importlib.util.find_spec(name)
-        origin = spec.origin if spec is not None else None
-        st = os.stat(origin) if origin and os.path.exists(origin) else None
-        files.append([name, origin, st and st.st_size, st and st.st_mtime_ns])
-    return files
-
-
 def question_key(command: str, options: Mapping[str, object], definitions: str) -> str:
     """A hash of the question: the command, its options as given, the metrics' definitions
     (`metrics.folder_fingerprint`: the metric files of a folder, or the built-ins alone,
@@ -129,7 +100,7 @@ def question_key(command: str, options: Mapping[str, object], definitions: str) 
         "command": command,
         "options": dict(options),
         "metrics": definitions,
-        "code": _code_key(),
+        "code": code_key(),
         "console": console_traits() if options.get("fmt") == "table" else None,
     }
     text = json.dumps(doc, sort_keys=True, default=str)

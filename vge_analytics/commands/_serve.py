@@ -2,8 +2,9 @@
 
 `vge app` starts the dashboard through this module rather than `python -m streamlit`: before
 the server listens it imports the heavy libraries and opens the replay output (its tables,
-Parquet footers) and runs the leaderboard's default query, all in the server process, so the
-first page a person opens does not pay for them (they are most of a cold first load). It
+Parquet footers) and runs the leaderboard's default query, and hashes the manifest and the
+code (the keys of the pages' cached results), all in the server process, so the first page a
+person opens does not pay for them (they are most of a cold first load). It
 also starts the forkserver the SQL page's query processes come from.
 """
 
@@ -18,7 +19,8 @@ from vge_analytics.dashboard import OUT_ENV
 
 def _warm(out: str) -> None:
     import vge_analytics as va
-    from vge_analytics.store import warm_query_processes
+    from vge_analytics.dashboard import out_version
+    from vge_analytics.store import code_key, warm_query_processes
 
     app.warm()  # the dashboard's modules: the page scripts import the same module objects
     try:
@@ -26,6 +28,10 @@ def _warm(out: str) -> None:
         va.metrics(out)
     except va.AnalyticsError:
         pass  # the app itself reports a bad OUT to the person, in the page
+    # What every page's first data call asks for: the manifest's hash (the in-process key,
+    # 0.3-0.5 s for a large manifest) and the code's (the key of the results kept on disk).
+    out_version(out)
+    code_key()
     # The SQL page's query processes fork from a server that has the libraries loaded.
     warm_query_processes()
 

@@ -1,6 +1,5 @@
 """The Errors page: error shares and sampled steps of an error type."""
 
-
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -18,6 +17,7 @@ from ..store import (
     quote_ident,
     run_query,
 )
+from ._first_rows import runs_holding_first
 
 
 def error_step_sample(
@@ -36,20 +36,14 @@ def error_step_sample(
     order = "ORDER BY g.run_id, g.episode_id, g.step LIMIT ?"
     scope = build_scope(store, STEPS_TABLE, [], where)
     base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
-    params = [*scope.params, error_type, int(limit)]
-    total, runs = run_query(
-        store,
-        f"SELECT (SELECT count(*) {base}) AS total, "
-        f"(SELECT list(DISTINCT run_id) FROM (SELECT g.run_id {base} {order})) AS runs",
-        [*params[:-1], *params],
-    ).row(0)
-    # The wide columns are read from the runs of the first rows only: the scan skips the
-    # other runs' files instead of reading every column of every step (same rows).
-    scope = build_scope(store, STEPS_TABLE, [], {**(where or {}), "run_id": runs or []})
+    runs, total = runs_holding_first(store, base, [*scope.params, error_type], int(limit))
+    # The columns are read from the runs of the first rows only: the scan skips the other
+    # runs' files instead of sorting every match of every step (same rows).
+    scope = build_scope(store, STEPS_TABLE, [], {**(where or {}), "run_id": runs})
     cols = ", ".join(f"g.{quote_ident(c)}" for c in columns)
     base = f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.error_type = ?"
-    df = run_query(store, f"SELECT {cols} {base} {order}", [*scope.params, *params[-2:]])
-    return df, int(total)
+    df = run_query(store, f"SELECT {cols} {base} {order}", [*scope.params, error_type, int(limit)])
+    return df, total
 
 
 def error_share_wide(dist: pl.DataFrame) -> pl.DataFrame:

@@ -1,6 +1,5 @@
 """The Grounding page: clicks on a device view, and what they hit."""
 
-
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -17,6 +16,7 @@ from ..store import (
     open_store,
     run_query,
 )
+from ._first_rows import runs_holding_first
 from ._pictures import device_machine, view_boxes
 
 
@@ -57,13 +57,20 @@ def click_points(
     (`target hit`, `other component`, `miss`), error_type, distance, nearest_target."""
     store = open_store(out)
     check_columns(store, list(where or {}), [STEPS_TABLE], "filter")
+    clicks = (
+        "AND g.is_interaction AND g.device_id = ? AND g.view_before = ? "
+        "AND g.x IS NOT NULL AND g.y IS NOT NULL"
+    )
     scope = build_scope(store, STEPS_TABLE, [], where)
+    base = f"FROM {scope.from_sql} WHERE {scope.where_sql} {clicks}"
+    runs, _ = runs_holding_first(store, base, [*scope.params, device_id, view], int(limit))
+    # The columns are read from the runs of the first clicks only (same rows).
+    scope = build_scope(store, STEPS_TABLE, [], {**(where or {}), "run_id": runs})
     sql = (
         "SELECT g.run_id, g.model, g.episode_id, g.step, g.x, g.y, "
         "CASE WHEN g.hit_target THEN 'target hit' WHEN g.hit_component THEN 'other component' "
         "ELSE 'miss' END AS outcome, g.error_type, g.distance, g.nearest_target "
-        f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.is_interaction "
-        "AND g.device_id = ? AND g.view_before = ? AND g.x IS NOT NULL AND g.y IS NOT NULL "
+        f"FROM {scope.from_sql} WHERE {scope.where_sql} {clicks} "
         "ORDER BY g.run_id, g.episode_id, g.step LIMIT ?"
     )
     params = [*scope.params, device_id, view, int(limit)]
@@ -107,8 +114,6 @@ def scatter_boxes(
             "role": pl.String,
         },
     )
-
-
 
 
 def click_counts(points: pl.DataFrame) -> dict[str, int]:

@@ -1,6 +1,7 @@
 """Reading OUT safely (PROTOCOL §9): a DuckDB connection that opens no file, over exactly the
 Parquet files the manifest lists; the limits of user SQL, queries in a process of their own,
-the read-only guard; filters and groupings; the tables as frames; the metric cache."""
+the read-only guard; filters and groupings; the tables as frames; the metric cache and the
+results kept beside it."""
 
 from typing import TYPE_CHECKING
 
@@ -48,6 +49,8 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         ratio_query,
         term_name,
     )
+    from ._code import code_key
+    from ._results import MAX_RESULT_BYTES, MAX_RESULTS, kept_result
     from ._scope import (
         DEFAULT_BY,
         Filters,
@@ -155,6 +158,10 @@ __all__ = [
     "quote_ident",
     "Ratio",
     "ratio_query",
+    "kept_result",
+    "code_key",
+    "MAX_RESULT_BYTES",
+    "MAX_RESULTS",
     "register_all",
     "resolve_input",
     "run_isolated",

@@ -143,7 +143,7 @@ def test_the_question_holds_everything_that_decides_the_answer(monkeypatch, pair
     monkeypatch.setattr(_answers, "console_traits", lambda: {**traits, "width": 80})
     assert key != _answers.question_key("metrics", options, builtins)  # a narrower terminal
     json_key = _answers.question_key("metrics", {**options, "fmt": "json"}, builtins)
-    monkeypatch.setattr(_answers, "_code_key", lambda: ["another version"])
+    monkeypatch.setattr(_answers, "code_key", lambda: "another version")
     assert json_key != _answers.question_key("metrics", {**options, "fmt": "json"}, builtins)
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 
 import numpy as np
+import polars as pl
 
 from .._defaults import CLUSTER_UNITS, DEFAULT_CLUSTER
 
@@ -27,6 +28,16 @@ def cluster_codes(labels: Sequence[str]) -> tuple[np.ndarray, list[str]]:
     label in sorted order, so the order of the rows never changes a result."""
     names, codes = np.unique(np.asarray(labels, dtype=object).astype(str), return_inverse=True)
     return codes.reshape(-1).astype(np.int64), [str(n) for n in names]
+
+
+def cluster_code_column(column: str, over: Sequence[str]) -> pl.Expr:
+    """The codes `cluster_codes` gives the labels of `column` within each group of `over`, as
+    one expression over a whole frame (no Python string per row): the label's place among the
+    group's distinct labels in sorted order (UTF-8 byte order is code point order, numpy's),
+    a null counted as the label `None`, as `cluster_codes` reads it."""
+    label = pl.col(column).cast(pl.String).fill_null("None")
+    ranked = label.rank("dense").over(over) if over else label.rank("dense")
+    return (ranked.cast(pl.Int64) - 1).alias(f"{column}:cluster")
 
 
 def cluster_sums(values: np.ndarray, codes: np.ndarray, n_clusters: int) -> np.ndarray:
@@ -137,6 +148,7 @@ __all__ = [
     "B_NUM",
     "bootstrap_totals",
     "CLUSTER_UNITS",
+    "cluster_code_column",
     "cluster_codes",
     "cluster_draws",
     "cluster_sums",

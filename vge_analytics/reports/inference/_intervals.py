@@ -17,7 +17,7 @@ from ...store import Filters, check_columns, episodes, open_store, runs
 from ._clusters import (
     DEFAULT_CLUSTER,
     bootstrap_totals,
-    cluster_codes,
+    cluster_code_column,
     cluster_sums,
     cr1_variance,
     percentile_interval,
@@ -75,15 +75,18 @@ def metric_intervals(
     (chosen,) = available.resolve([metric])
     frame = _grouped_terms(store, chosen.name, by, where, available)
     num, den = f"{chosen.name}:num", f"{chosen.name}:den"
-    groups = frame.sort([*by, "run_id", "episode_id"], nulls_last=True).partition_by(
-        by, maintain_order=True, as_dict=True
+    code = cluster_code_column(CLUSTER_COLUMNS[cluster], by)  # each group's cluster codes
+    groups = (
+        frame.sort([*by, "run_id", "episode_id"], nulls_last=True)
+        .with_columns(code)
+        .partition_by(by, maintain_order=True, as_dict=True)
     )
     keys, sums, naive = [], [], []
     for key, part in groups.items():
         values = np.ascontiguousarray(part.select(num, den).to_numpy(), dtype=np.float64)
-        codes, names = cluster_codes(part[CLUSTER_COLUMNS[cluster]].to_list())
+        codes = part[code.meta.output_name()].to_numpy().astype(np.int64)
         keys.append(key)
-        sums.append(cluster_sums(values.reshape(part.height, 2), codes, len(names)))
+        sums.append(cluster_sums(values.reshape(part.height, 2), codes, int(codes.max()) + 1))
         naive.append(values.reshape(part.height, 2))
     usable = [i for i, s in enumerate(sums) if s.shape[0] >= 2]
     boots = dict(

@@ -4,11 +4,13 @@ checked against statsmodels' cluster-robust OLS and WLS (and by hand in test_com
 from __future__ import annotations
 
 import numpy as np
+import polars as pl
 import pytest
 import statsmodels.api as sm
 
 from vge_analytics.reports.inference import (
     bootstrap_totals,
+    cluster_code_column,
     cluster_codes,
     cluster_sums,
     cr1_variance,
@@ -99,3 +101,26 @@ def test_one_cluster_has_no_variance_and_an_empty_metric_no_difference() -> None
     totals = np.array([1.0, 0.0, 2.0, 4.0])
     assert np.isnan(paired_difference(totals, [100.0]))[0]
     assert paired_difference(np.array([1.0, 2.0, 3.0, 4.0]), [100.0])[0] == pytest.approx(25.0)
+
+
+def test_cluster_code_column_gives_the_codes_of_cluster_codes_per_group():
+    """The expression over a whole frame numbers each group's labels as `cluster_codes` does
+    on that group's list (sorted labels; non-ASCII ones and a null, read as `None`, too)."""
+    rng = np.random.default_rng(3)
+    labels = ["dev_b", "dev_a", "Dev_c", "é-device", "dev_ä", "日本", "None", None, "dev_a10"]
+    frame = pl.DataFrame(
+        {
+            "group": rng.integers(0, 4, 400).tolist(),
+            "device_id": [labels[i] for i in rng.integers(0, len(labels), 400)],
+        }
+    )
+    coded = frame.with_columns(cluster_code_column("device_id", ["group"]))
+    for _, part in coded.partition_by("group", as_dict=True, maintain_order=True).items():
+        codes, names = cluster_codes(part["device_id"].to_list())
+        assert part["device_id:cluster"].to_list() == codes.tolist()
+        assert part["device_id:cluster"].max() + 1 == len(names)
+    whole = frame.with_columns(cluster_code_column("device_id", []))
+    assert (
+        whole["device_id:cluster"].to_list()
+        == cluster_codes(frame["device_id"].to_list())[0].tolist()
+    )
