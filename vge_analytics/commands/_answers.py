@@ -36,7 +36,7 @@ from pathlib import Path
 import replay
 from replay.io import answer_cache_path, atomic_file
 
-from ..store._code import code_key
+from ..store import code_key
 from ._output import Printed, console_traits
 
 ANSWER_FORMAT = 1

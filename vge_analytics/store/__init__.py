@@ -18,6 +18,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._cache import (
         cached_store,
     )
+    from ._code import code_key
     from ._contents import local_contents
     from ._isolated import (
         IsolatedResult,
@@ -49,7 +50,6 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         ratio_query,
         term_name,
     )
-    from ._code import code_key
     from ._results import MAX_RESULT_BYTES, MAX_RESULTS, kept_result
     from ._scope import (
         DEFAULT_BY,
