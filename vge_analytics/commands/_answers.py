@@ -27,8 +27,6 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
-import os
-import stat
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +34,7 @@ from pathlib import Path
 import replay
 from replay.io import answer_cache_path, atomic_file
 
-from ..store import code_key
+from ..store import code_key, prune_kept, read_kept
 from ._output import Printed, console_traits
 
 ANSWER_FORMAT = 1
@@ -120,21 +118,8 @@ class Question:
 
     def answer(self) -> Answer | None:
         """The answer kept, or None."""
-        try:
-            # Not through a link; O_NONBLOCK: a FIFO planted there opens at once.
-            handle = os.open(self.path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
-        except OSError:
-            return None
-        try:
-            if not stat.S_ISREG(os.fstat(handle).st_mode):
-                return None
-            with os.fdopen(handle, "rb", closefd=False) as fh:
-                data = fh.read(MAX_ANSWER_BYTES + 1)
-        except OSError:
-            return None
-        finally:
-            os.close(handle)
-        return _decoded(data) if len(data) <= MAX_ANSWER_BYTES else None
+        data = read_kept(self.path, MAX_ANSWER_BYTES)
+        return None if data is None else _decoded(data)
 
     def keep(self, answer: Answer) -> None:
         """Keep `answer` when OUT's contents, and the question, are still those it was asked
@@ -151,24 +136,7 @@ class Question:
             self.path.parent.mkdir(exist_ok=True)
             with atomic_file(self.path, sync=False) as fh:
                 fh.write(data)
-            _prune(self.path)
-
-
-def _prune(kept: Path) -> None:
-    """Remove the answers kept for other contents of OUT than `kept`'s, then the oldest
-    past `MAX_ANSWERS`."""
-    contents = kept.name.split("-")[1]
-    alive: list[tuple[int, str, Path]] = []
-    for path in kept.parent.glob("answer-*.json"):
-        with contextlib.suppress(OSError):
-            if path.name.split("-")[1] != contents:
-                path.unlink()
-            elif path != kept:
-                alive.append((path.lstat().st_mtime_ns, path.name, path))
-    alive.sort()
-    for _, _, path in alive[: max(0, len(alive) - (MAX_ANSWERS - 1))]:
-        with contextlib.suppress(OSError):
-            path.unlink()
+            prune_kept(self.path, "answer-*.json", MAX_ANSWERS)
 
 
 def question(

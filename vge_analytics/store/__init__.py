@@ -26,7 +26,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         run_isolated,
         warm_query_processes,
     )
-    from ._kept import own_folder
+    from ._kept import own_folder, prune_kept, read_kept
     from ._limits import (
         APP_MAX_ROWS,
         APP_TIMEOUT,
@@ -148,6 +148,8 @@ __all__ = [
     "open_store",
     "order_by",
     "own_folder",
+    "prune_kept",
+    "read_kept",
     "parse_by",
     "process_memory_cap",
     "QueryBounds",

@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import stat
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -54,17 +55,55 @@ def own_folder(out: Path) -> bool:
     return not folder.is_symlink() and (folder.is_dir() or not folder.exists())
 
 
+def read_kept(path: Path, limit: int) -> bytes | None:
+    """The bytes of a file kept in the cache folder, or None: absent, a link (never followed),
+    not a regular file (a FIFO planted there opens at once, `O_NONBLOCK`, and is not read),
+    over `limit` bytes, or unreadable."""
+    try:
+        handle = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(handle).st_mode):
+            return None
+        with os.fdopen(handle, "rb", closefd=False) as fh:
+            data = fh.read(limit + 1)
+    except OSError:
+        return None
+    finally:
+        os.close(handle)
+    return data if len(data) <= limit else None
+
+
+def prune_kept(kept: Path, pattern: str, limit: int) -> None:
+    """Remove the files of `pattern` (`<kind>-<contents>-<key>.<ext>`) beside `kept` that were
+    kept for other contents of OUT than `kept`'s, then the oldest past `limit` in all."""
+    contents = kept.name.split("-")[1]
+    alive: list[tuple[int, str, Path]] = []
+    for path in kept.parent.glob(pattern):
+        with contextlib.suppress(OSError):
+            if path.name.split("-")[1] != contents:
+                path.unlink()
+            elif path != kept:
+                alive.append((path.lstat().st_mtime_ns, path.name, path))
+    alive.sort()
+    for _, _, path in alive[: max(0, len(alive) - (limit - 1))]:
+        with contextlib.suppress(OSError):
+            path.unlink()
+
+
 def kept_schema(out: replay.Location, table: str, key: str | None) -> pa.Schema | None:
     """The unified schema of `table` kept for contents `key`, or None."""
     import pyarrow as pa  # (here: the key and the folder's check are read without it)
 
     if key is None or not own_folder(out.local):
         return None
-    path = schema_cache_path(out.local, table, key)
+    data = read_kept(schema_cache_path(out.local, table, key), 1 << 20)
+    if data is None:
+        return None
     try:
-        with open(path, "rb") as fh:
-            return pa.ipc.read_schema(pa.py_buffer(fh.read(1 << 20)))
-    except (OSError, pa.ArrowException):
+        return pa.ipc.read_schema(pa.py_buffer(data))
+    except pa.ArrowException:
         return None
 
 
@@ -83,4 +122,12 @@ def keep_schema(out: replay.Location, table: str, key: str | None, schema: pa.Sc
                 old.unlink()
 
 
-__all__ = ["Files", "contents_key", "keep_schema", "kept_schema", "own_folder"]
+__all__ = [
+    "Files",
+    "contents_key",
+    "keep_schema",
+    "kept_schema",
+    "own_folder",
+    "prune_kept",
+    "read_kept",
+]

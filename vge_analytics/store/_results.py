@@ -27,7 +27,6 @@ import dataclasses
 import hashlib
 import io
 import json
-import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -40,7 +39,7 @@ from replay import OutputError
 from replay.io import atomic_file, result_cache_path
 
 from ._code import code_key
-from ._kept import own_folder
+from ._kept import own_folder, prune_kept, read_kept
 from ._store import open_store
 
 T = TypeVar("T")
@@ -128,15 +127,10 @@ def _key(name: str, arguments: Any, version: str) -> str:
 def _read(path: Path) -> tuple[bool, Any]:
     """(True, the value kept at `path`) or (False, None) when there is none to read (absent, a
     link, too large, unreadable, or not a result)."""
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
-    except OSError:
+    data = read_kept(path, MAX_RESULT_BYTES)
+    if data is None:
         return False, None
     try:
-        with os.fdopen(fd, "rb") as fh:
-            data = fh.read(MAX_RESULT_BYTES + 1)
-        if len(data) > MAX_RESULT_BYTES:
-            return False, None
         table = pa.ipc.open_file(pa.py_buffer(data)).read_all()
         shape = json.loads((table.schema.metadata or {})[_META])
         frames = [pl.read_ipc(io.BytesIO(b)) for b in table.column(_FRAMES).to_pylist()]
@@ -149,13 +143,14 @@ def _read(path: Path) -> tuple[bool, Any]:
         return False, None
 
 
-def _write(path: Path, value: Any) -> None:
+def _write(path: Path, value: Any) -> bool:
     """Keep `value` at `path` (nothing when it is of another kind or too large): an Arrow IPC
-    file of one row per frame (the frame as polars writes it), the shape in its metadata."""
+    file of one row per frame (the frame as polars writes it), the shape in its metadata.
+    Whether it was kept."""
     frames: list[pl.DataFrame] = []
     shape = _shape(value, frames)
     if sum(f.estimated_size() for f in frames) > MAX_RESULT_BYTES:
-        return
+        return False
     parts = []
     for frame in frames:
         raw = io.BytesIO()
@@ -168,25 +163,11 @@ def _write(path: Path, value: Any) -> None:
         writer.write_table(table)
     data = sink.getvalue().to_pybytes()
     if len(data) > MAX_RESULT_BYTES:
-        return
+        return False
     path.parent.mkdir(exist_ok=True)
     with atomic_file(path, sync=False) as fh:
         fh.write(data)
-
-
-def _prune(path: Path) -> None:
-    """Remove the results kept for other contents of OUT, and the oldest past `MAX_RESULTS`."""
-    contents = path.name.split("-")[1]
-    kept = []
-    for old in path.parent.glob("result-*.arrow"):
-        with contextlib.suppress(OSError):
-            if old.name.split("-")[1] != contents:
-                old.unlink()
-            else:
-                kept.append((old.lstat().st_mtime_ns, old.name, old))
-    for _, _, old in sorted(kept)[: max(0, len(kept) - MAX_RESULTS)]:
-        with contextlib.suppress(OSError):
-            old.unlink()
+    return True
 
 
 def kept_result(
@@ -210,8 +191,8 @@ def kept_result(
     with contextlib.suppress(
         OSError, OutputError, _NotKept, pa.ArrowException, pl.exceptions.PolarsError
     ):
-        _write(path, value)
-        _prune(path)
+        if _write(path, value):
+            prune_kept(path, "result-*.arrow", MAX_RESULTS)
     return value
 
 
