@@ -20,6 +20,11 @@ Each try runs in a fresh interpreter (`--inner`), one after the other:
   written as one part (what bigger parts could save at most);
 - the floor of a bare untyped decode, as `bench_replay_process.py` measures it.
 The least CPU of `--repeat` tries is kept for each piece. Prints a Markdown report.
+
+With `--one-pass`, one fresh process instead runs the pieces once, cold, as a 1-worker
+replay meets them, and prints them as JSON with the process's CPU ("total"):
+`bench_replay_process.py --pieces` runs it in each round beside the whole process, so that
+what the runner adds is the difference of two measurements made minutes apart.
 """
 
 from __future__ import annotations
@@ -164,6 +169,30 @@ def inner(data: Path) -> dict[str, float]:
     return got
 
 
+def one_pass(data: Path) -> dict[str, float]:
+    """The pieces as one replay with 1 worker meets them, in this fresh process, without
+    the runner: the imports a worker needs, opening BENCH, then one pass over every batch
+    (compiling, planning and the kernel's tables met cold, in the per-step pieces), the
+    collector paused as in a batch. "total" is this process's CPU, its start included:
+    what `vge replay --workers 1` would cost if the runner (the reading thread, the
+    reports, the quarantine, the hashes, the commits, the CLI) cost nothing."""
+    import gc
+
+    got = dict.fromkeys(PER_STEP, 0.0)
+    import replay.io
+
+    replay.io.replay_batch  # noqa: B018  (loads the batch module, as a worker does)
+    got["start"] = time.process_time()  # the interpreter and the imports
+    gc.disable()
+    c0 = time.process_time()
+    state = replay.io.worker_state(str(data / "bench"))
+    got["open"] = time.process_time() - c0
+    with tempfile.TemporaryDirectory(prefix="vge-floor-") as tmp:
+        got["steps"] = _pass(data, Path(tmp), state, got, write=True)
+    got["total"] = time.process_time()
+    return got
+
+
 def _bare_untyped(data: Path) -> float:
     """CPU seconds of `bench_replay_process.bare_decode`'s untyped floor."""
     sys.path.insert(0, str(Path(__file__).parent))
@@ -177,7 +206,13 @@ def main() -> None:
     parser.add_argument("data", type=Path, help="directory with bench/ and runs/")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--one-pass", action="store_true", help="print the pieces of one cold pass as JSON"
+    )
     args = parser.parse_args()
+    if args.one_pass:
+        print(json.dumps(one_pass(args.data)))
+        return
     if args.inner:
         print(json.dumps(inner(args.data)))
         return

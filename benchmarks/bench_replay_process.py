@@ -6,6 +6,7 @@ Usage (on the full synthetic benchmark):
     vge synth --out /tmp/vge-full --scale full --seed 0
     .venv/bin/python benchmarks/bench_replay_process.py /tmp/vge-full --base /work/main
         [--workers 1,2] [--rounds 3] [--scratch /tmp/bench-replay] [--rows /tmp/ref-out]
+        [--pieces]
 
 Each round runs, for each worker count, `vge replay RUNS --bench BENCH --out OUT --workers N
 --no-progress` under `/usr/bin/time -v` with the base checkout's `vge` (`BASE/.venv/bin/vge`)
@@ -21,6 +22,10 @@ hold. Beside them, in each
 round, the floor any replay of these logs pays, in this process: reading, inflating and
 decoding every line with msgspec, untyped (to dicts) and typed (`EpisodeLog`).
 
+With `--pieces`, each round also runs the pieces of a 1-worker replay in one fresh process
+of this checkout, once and cold, without the runner (`bench_replay_floor.py --one-pass`):
+the whole process less that, round by round, is what the runner adds.
+
 The outputs of the two sides are compared file by file (sha256; `.replay/` left out), and
 with `--rows REF` the rows of the three tables with those of a reference output directory
 (e.g. `/work/baseline/full-out`). Prints a Markdown report (docs/PERFORMANCE.md records one).
@@ -31,6 +36,7 @@ from __future__ import annotations
 import argparse
 import gzip
 import hashlib
+import json
 import os
 import re
 import shutil
@@ -106,6 +112,7 @@ def replay_process(
     runs as the `vge` script does, from a script (`SPLIT`) that also reports the CPU of the
     main process apart from that of its workers."""
     shutil.rmtree(out, ignore_errors=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
     split = out.parent / "vge_split.py"
     split.write_text(SPLIT)
     command = [
@@ -133,6 +140,17 @@ def replay_process(
         "rss_mb": int(got["rss_kb"].group(1)) / 1024,  # type: ignore[union-attr]
         "load": os.getloadavg()[0],
     }
+
+
+def pieces_process(python: Path, data: Path) -> dict[str, float]:
+    """The replay's pieces in one fresh process of this checkout, one cold pass without the
+    runner (`bench_replay_floor.py --one-pass`): CPU seconds per piece and in all."""
+    floor = Path(__file__).with_name("bench_replay_floor.py")
+    done = subprocess.run(
+        [str(python), str(floor), str(data), "--one-pass"],
+        capture_output=True, text=True, check=True, cwd=floor.parents[1],
+    )  # fmt: skip
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def digests(out: Path) -> dict[str, str]:
@@ -205,6 +223,40 @@ def _row(
     )
 
 
+PIECES = (
+    ("start", "start: interpreter and the imports a worker needs"),
+    ("open", "opening BENCH"),
+    ("read", "reading and inflating the lines"),
+    ("decode", "decoding (`EpisodeLog`, with the depth check)"),
+    ("prepare", "preparing the lines (compiling and planning met cold, look-ups)"),
+    ("kernel_arrow", "the kernel and its Arrow tables (its tables per machine met cold)"),
+    ("parquet_parts", "Parquet, a part per batch and table"),
+)
+
+
+def _pieces_report(pieces: list[dict[str, float]], whole: list[dict[str, float]], steps: int):
+    """The pieces of one cold pass beside the whole 1-worker process of the same rounds."""
+    print("\n| 1 worker, this checkout (median of the rounds) | CPU s | CPU µs/step |")
+    print("|---|---:|---:|")
+    for key, label in PIECES:
+        cpu = statistics.median(p[key] for p in pieces)
+        print(f"| {label} | {cpu:.2f} | {1e6 * cpu / steps:.2f} |")
+    total = statistics.median(p["total"] for p in pieces)
+    # both before the interpreter's teardown: the pieces' process is timed from inside, the
+    # replay's at the end of its command (`SPLIT`); the replay's teardown is its CPU less that
+    one = statistics.median(r["main_cpu"] for r in whole)
+    down = statistics.median(r["cpu"] - r["main_cpu"] for r in whole)
+    print(f"| **the pieces, one process, no runner** | {total:.2f} | {1e6 * total / steps:.2f} |")
+    print(
+        f"| **`vge replay --workers 1`, whole process** (teardown left out: {down:.2f} s) |"
+        f" {one:.2f} | {1e6 * one / steps:.2f} |"
+    )
+    gaps = [r["main_cpu"] - p["total"] for r, p in zip(whole, pieces, strict=True)]
+    each = ", ".join(f"{g:+.2f}" for g in gaps)
+    gap = statistics.median(gaps)
+    print(f"| what the runner adds (each round: {each}) | {gap:+.2f} | {1e6 * gap / steps:+.2f} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("data", type=Path, help="directory with bench/ and runs/")
@@ -215,6 +267,11 @@ def main() -> None:
     parser.add_argument("--rows", type=Path, help="reference output directory to compare rows")
     parser.add_argument(
         "--parts", metavar="RUN_ID", help="also time Parquet parts against one part for a run"
+    )
+    parser.add_argument(
+        "--pieces",
+        action="store_true",
+        help="also run the pieces of a 1-worker replay without the runner, once per round",
     )
     args = parser.parse_args()
     here = Path(__file__).parents[1] / ".venv/bin/vge"
@@ -228,8 +285,11 @@ def main() -> None:
     results: dict[tuple[str, int], list[dict[str, float]]] = {}
     floors: list[dict[str, float]] = []
     load0 = " / ".join(f"{x:.1f}" for x in os.getloadavg())
+    pieces: list[dict[str, float]] = []
     for round_ in range(args.rounds):
         floors.append(bare_decode(args.data))
+        if args.pieces:
+            pieces.append(pieces_process(here.parent / "python", args.data))
         for w in workers:
             order = list(sides.items())
             for side, vge in order if round_ % 2 == 0 else order[::-1]:  # who goes first alternates
@@ -276,6 +336,8 @@ def main() -> None:
             one = statistics.median(r["cpu"] for r in results[(side, 1)])
             print(f"- {side}, 1 worker: {one / untyped:.1f}x the CPU of a bare untyped decode")
     print(f"- outputs of base and this: {'byte-identical' if identical else 'DIFFER'}")
+    if pieces and 1 in workers:
+        _pieces_report(pieces, results[("this", 1)], steps)
     if args.parts:
         print(f"\n| {args.parts}: table | rows | parts | CPU µs/row as parts | as one part |")
         print("|---|---:|---:|---:|---:|")

@@ -207,10 +207,13 @@ class Manifest:
 
 
 class Hasher:
-    """sha256 of files, each computed once per call (None for a missing file)."""
+    """sha256 of files, each computed once per call (None for a missing file); `ssm_refs`
+    keeps the reference of each device's SSM, by (BENCH as given, device id), made once per
+    call too (`_outdir.run_inputs`: every run of a benchmark names the same SSMs)."""
 
     def __init__(self) -> None:
         self._cache: dict[str, str | None] = {}
+        self.ssm_refs: dict[tuple[str, str], FileRef] = {}
 
     def __call__(self, path: str | Path | Location) -> str | None:
         key = str(path)

@@ -52,11 +52,17 @@ def run_inputs(run: RunInput, bench_dir: str, hasher: Hasher, devices: Iterable[
     cannot name a file, or an SSM linked out of BENCH, is never made a path nor read."""
     bench = location(bench_dir)
     ssm: dict[str, FileRef] = {}
-    confined = confinement(bench)
+    known = hasher.ssm_refs  # the runs of a replay share their SSMs: each made once
+    confined = None
     for d in sorted(devices):
-        if not_a_file_name(d) is None:
+        ref = known.get((bench_dir, d))
+        if ref is None and not_a_file_name(d) is None:
+            confined = confined or confinement(bench)
             path = ssm_path(bench, d)
-            ssm[d] = hasher.ref(path) if confined(path) else FileRef(str(path), None)
+            ref = hasher.ref(path) if confined(path) else FileRef(str(path), None)
+            known[(bench_dir, d)] = ref
+        if ref is not None:
+            ssm[d] = ref
     return RunInputs(
         run_dir=run.run_dir,
         run_json=hasher.ref(run_json_path(location(run.run_dir))),

@@ -179,7 +179,8 @@ def _check_views(ssm: StateMachine, err: _Report) -> set[str]:
             )
         elif view not in offered:
             err(where, f"dashboard region on view {region.view!r} that the device does not offer")
-        _check_coordinate(region.coordinate, where, err)
+        for message in _coordinate_problems(region.coordinate):
+            err(where, message)
     return offered
 
 
@@ -201,31 +202,39 @@ def _check_component(
         err(where_c, f"more than one {comp} transition; only the first is taken", "warning")
     seen_triggers: dict[tuple, int] = {}
     for k, tr in enumerate(transitions):
-        where = f"state {sname!r}, component {comp!r}, transition {k}"
+        # where: formatted only for a problem (a benchmark has tens of thousands of these)
         if tr.next_state not in ssm.states:
-            err(where, f"dangling next_state {tr.next_state!r}")
+            err(f"{where_c}, transition {k}", f"dangling next_state {tr.next_state!r}")
         if comp in PSEUDO_COMPONENTS:
             if tr.bbox:
-                err(where, f"{comp} transitions have no bbox; it is ignored", "warning")
+                err(
+                    f"{where_c}, transition {k}",
+                    f"{comp} transitions have no bbox; it is ignored",
+                    "warning",
+                )
             continue
         action = tr.atomic_action.lower() if tr.atomic_action else None
         if action is None:
             if require_geometry:
-                err(where, "missing atomic_action")
+                err(f"{where_c}, transition {k}", "missing atomic_action")
         elif action not in ATOMIC_ACTIONS:
-            err(where, f"unknown atomic action {tr.atomic_action!r}")
+            err(f"{where_c}, transition {k}", f"unknown atomic action {tr.atomic_action!r}")
         if require_geometry and not tr.bbox:
-            err(where, "no bbox: the component cannot be clicked in any view", "warning")
+            err(
+                f"{where_c}, transition {k}",
+                "no bbox: the component cannot be clicked in any view",
+                "warning",
+            )
         for b, box in enumerate(tr.bbox):
-            where_b = f"{where}, bbox {b}"
             if box.view.lower() not in offered:
-                err(where_b, f"bbox on unknown view {box.view!r}")
-            _check_coordinate(box.coordinate, where_b, err)
+                err(f"{where_c}, transition {k}, bbox {b}", f"bbox on unknown view {box.view!r}")
+            for message in _coordinate_problems(box.coordinate):
+                err(f"{where_c}, transition {k}, bbox {b}", message)
         if action is not None:
             trigger = (action, tuple(normalize_param(p) for p in (tr.parameter or ())))
             if trigger in seen_triggers:
                 err(
-                    where,
+                    f"{where_c}, transition {k}",
                     f"same action and params as transition {seen_triggers[trigger]}; "
                     "only the first can ever fire",
                     "warning",
@@ -324,28 +333,26 @@ MAX_PIXELS = 1 << 24
 picture is far smaller, and the planner's arithmetic on the 0..1000 scale stays finite."""
 
 
-def _check_coordinate(coord: list[float], where: str, err) -> None:
+def _coordinate_problems(coord: list[float]) -> list[str]:
+    """What is wrong with a box's [x, y, w, h, W, H] (nothing, mostly: the numbers are
+    formatted only for a message, and a benchmark has some 20,000 boxes)."""
     if len(coord) != 6:
-        err(where, f"coordinate must be [x, y, w, h, W, H], got {len(coord)} numbers")
-        return
+        return [f"coordinate must be [x, y, w, h, W, H], got {len(coord)} numbers"]
+    x, y, w, h, width, height = coord
     if not all(math.isfinite(v) and abs(v) <= MAX_PIXELS for v in coord):
         # normalising multiplies by the scale: a larger number overflows to inf, then NaN
         numbers = ", ".join(f"{v:g}" for v in coord)
-        err(where, f"coordinate [{numbers}] holds a number past {MAX_PIXELS:,} pixels")
-        return
-    x, y, w, h, width, height = (f"{v:g}" for v in coord)
-    if coord[4] <= 0 or coord[5] <= 0:
-        err(where, f"image size W x H must be positive, got {width} x {height}")
-        return
-    if coord[2] <= 0 or coord[3] <= 0:
-        err(where, f"bbox with non-positive size w={w}, h={h}")
-    if (
-        coord[0] < 0
-        or coord[1] < 0
-        or coord[0] + coord[2] > coord[4]
-        or coord[1] + coord[3] > coord[5]
-    ):
-        err(where, f"bbox [{x}, {y}, {w}, {h}] outside its {width} x {height} image")
+        return [f"coordinate [{numbers}] holds a number past {MAX_PIXELS:,} pixels"]
+    if width <= 0 or height <= 0:
+        return [f"image size W x H must be positive, got {width:g} x {height:g}"]
+    problems = []
+    if w <= 0 or h <= 0:
+        problems.append(f"bbox with non-positive size w={w:g}, h={h:g}")
+    if x < 0 or y < 0 or x + w > width or y + h > height:
+        problems.append(
+            f"bbox [{x:g}, {y:g}, {w:g}, {h:g}] outside its {width:g} x {height:g} image"
+        )
+    return problems
 
 
 def compile_machine(

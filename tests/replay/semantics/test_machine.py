@@ -137,6 +137,17 @@ def test_each_problem_is_named(mutation, needle: str) -> None:
         assert "state 'Standby', component 'power_button', transition 0" in hit
 
 
+def test_a_box_with_two_problems_has_both_named_at_its_place() -> None:
+    # 0 wide and past the left edge: two errors, each at the box, numbers as written
+    box = [-5, 815, 0, 57.5, 1138, 1122]
+    errors = _errors(_mutate(lambda d: _first_power(d)["bbox"][0].update(coordinate=box)))
+    at = "state 'Standby', component 'power_button', transition 0, bbox 0"
+    assert [e for e in errors if at in e] == [
+        f"bad.json [{at}]: bbox with non-positive size w=0, h=57.5",
+        f"bad.json [{at}]: bbox [-5, 815, 0, 57.5] outside its 1138 x 1122 image",
+    ]
+
+
 def test_all_problems_are_reported_not_just_the_first(tmp_path: Path) -> None:
     def two_faults(d: dict) -> None:
         _first_power(d).update(next_state="Nowhere")
