@@ -20,6 +20,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     )
     from ._code import code_key
     from ._contents import local_contents
+    from ._episode_terms import EPISODE_COLUMNS, kept_episode_terms
     from ._isolated import (
         IsolatedResult,
         query_isolated,
@@ -96,6 +97,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         episodes,
         facets,
         goals,
+        run_columns,
         runs,
         steps,
         steps_with_error,
@@ -124,6 +126,7 @@ __all__ = [
     "CLI_MAX_ROWS",
     "CLI_TIMEOUT",
     "DEFAULT_BY",
+    "EPISODE_COLUMNS",
     "episode_steps",
     "episodes",
     "facets",
@@ -162,6 +165,7 @@ __all__ = [
     "ratio_query",
     "kept_result",
     "code_key",
+    "kept_episode_terms",
     "MAX_RESULT_BYTES",
     "MAX_RESULTS",
     "register_all",
@@ -170,6 +174,7 @@ __all__ = [
     "run_keys_scope",
     "run_query",
     "SelectionCheck",
+    "run_columns",
     "runs",
     "SLOT_WAIT",
     "sql",

@@ -1,0 +1,210 @@
+"""The metrics' terms per (run, episode), kept beside OUT with the episodes' cluster columns.
+
+An interval of the Leaderboard resamples each group's clusters of episodes: it needs every
+episode's numerator and denominator of the metric, and the episode's device and category.
+At 100 times the full benchmark (9.3 million episodes) computing them took most of a first
+visit: the terms' query over the grain table, the episodes' columns, and a join of the two.
+The first computation keeps them, per grain, for every metric of the set on that grain, in
+`OUT/.metric-cache/terms_<grain>-<contents>-<definitions>.parquet`
+(`replay.io.episode_terms_path`): run_id, episode_id, the episodes' columns of
+`EPISODE_COLUMNS`, and each metric's terms, the rows the direct computation joins (the terms
+of the metrics' own query grouped by run_id and episode_id, unfiltered, joined to the
+episodes). Later computations read the file and keep the rows `where` selects.
+
+Filtering the kept rows gives the same rows and the same bits as filtering before: a filter
+on a column fixed per episode (its device, category, goal count) or per run (run_id, model,
+a facet) selects whole episodes, and an episode's terms add up the same rows either way. A
+filter or grouping on any other column (a step's or a goal's) is answered from the tables.
+
+Keyed as the per-run terms are (`_cache`): OUT's contents and the definitions of the metrics
+in the file; another replay, a table file changed by hand or another metric file names
+another file. Bounded: at most `MAX_TERMS_FILES` files per grain (the oldest go, and those
+of other contents), none read over `MAX_TERMS_BYTES`; a file that is a link, not a regular
+file, not Parquet or without the columns and types written here is computed again.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import duckdb
+import polars as pl
+
+from replay.io import EPISODES_TABLE, RUNS_TABLE, atomic_file, episode_terms_path
+
+from .._errors import QueryError, QueryLimitError
+from ._bounds import query_bounds
+from ._cache import _where, definitions_key
+from ._kept import prune_kept, read_kept
+from ._ratios import Ratio, ratio_query, term_name
+from ._scope import Filters, _filter_condition, quote_ident, run_level
+from ._sql import run_query
+from ._store import Store
+
+EPISODE_COLUMNS: tuple[str, ...] = ("device_id", "category", "n_goals")
+"""The episodes' columns kept beside the terms: the clusters an interval resamples (device,
+category; `episode_id` is a key) and the Leaderboard's episode filters and groupings."""
+
+MAX_TERMS_BYTES = 1 << 30
+"""A kept file of terms over this is not read (a row per episode: 9.3 million rows at 100x
+the full benchmark, every metric of the steps, in well under this)."""
+
+MAX_TERMS_FILES = 4
+"""Files kept per grain for one content of OUT (one per set of metric definitions)."""
+
+_KEYS = ("run_id", "episode_id")
+
+
+def _held(store: Store) -> list[str]:
+    """The columns of `EPISODE_COLUMNS` the episodes table has as scalars."""
+    return [c for c in EPISODE_COLUMNS if store.is_scalar(EPISODES_TABLE, c)]
+
+
+def _answers(store: Store, columns: Sequence[str], held: Sequence[str]) -> bool:
+    """Whether kept rows can be selected and grouped on `columns`: each held, run_id or
+    fixed per run."""
+    return all(c in _KEYS or c in held or run_level(store, EPISODES_TABLE, c) for c in columns)
+
+
+def _compute(store: Store, ratios: Sequence[Ratio], held: Sequence[str], sources) -> pl.DataFrame:
+    """The rows the direct computation joins: the terms of `ratios` per (run, episode) (their
+    own query, unfiltered) joined to the episodes' keys and `held` columns."""
+    from ._tables import episodes
+
+    sql, params = ratio_query(store, _KEYS, ratios, None, terms=True)
+    terms = run_query(store, sql, params, sources=sources)
+    rows = episodes(store, None, columns=[*_KEYS, *held])
+    return rows.join(terms, on=list(_KEYS), how="inner")
+
+
+def _valid(frame: pl.DataFrame, held: Sequence[str], names: Sequence[str]) -> bool:
+    """Whether a kept frame holds the keys as text, `held` as text or integers, and every
+    term in `names` as numbers (a sum of integers is a decimal in DuckDB)."""
+    schema = frame.schema
+
+    def typed(name: str, check: Callable[[pl.DataType], bool]) -> bool:
+        return name in schema and check(schema[name])
+
+    def text(kind: pl.DataType) -> bool:
+        return kind == pl.String
+
+    return (
+        all(typed(n, text) for n in _KEYS)
+        and all(typed(n, lambda t: text(t) or t.is_integer()) for n in held)
+        and all(typed(n, lambda t: t.is_numeric()) for n in names)
+    )
+
+
+def _read(path: Path, held: Sequence[str], names: Sequence[str]) -> pl.DataFrame | None:
+    """The keys, `held` and `names` of the kept frame at `path` (never through a link, within
+    `MAX_TERMS_BYTES`), or None when it is absent or not one this module writes."""
+    data = read_kept(path, MAX_TERMS_BYTES)
+    if data is None:
+        return None
+    try:  # polars reads it several times faster than pyarrow (9.3M rows: 0.7 s, 7.7 s)
+        frame = pl.read_parquet(io.BytesIO(data), columns=[*_KEYS, *held, *names])
+    except (OSError, pl.exceptions.PolarsError, ValueError):
+        return None
+    return frame if _valid(frame, held, names) else None
+
+
+def _write(path: Path, rows: pl.DataFrame) -> None:
+    """Keep `rows` at `path` (whole or not at all), then prune the grain's other files."""
+    path.parent.mkdir(exist_ok=True)
+    with atomic_file(path, sync=False) as fh:
+        rows.write_parquet(fh, compression="zstd")
+    prune_kept(path, f"{path.name.split('-')[0]}-*.parquet", MAX_TERMS_FILES)
+
+
+def _kept_table(
+    store: Store, ratio: Ratio, on_grain: Sequence[Ratio], held: Sequence[str], sources
+) -> pl.DataFrame | None:
+    """The terms of `ratio` per (run, episode) from the file of every ratio of `on_grain`
+    (those of its grain) in OUT's cache folder, computed and kept first when missing; None
+    when OUT keeps nothing."""
+    out = _where(store)
+    if out is None:
+        return None
+    names = [term_name(ratio, p) for p in ("num", "den")]
+    path = episode_terms_path(out, ratio.grain, store.contents, definitions_key(on_grain))
+    kept = _read(path, held, names)
+    if kept is not None:
+        return kept
+    rows = _compute(store, on_grain, held, sources)
+    with contextlib.suppress(OSError, pl.exceptions.PolarsError):
+        _write(path, rows)
+    return rows
+
+
+def _selected(
+    store: Store, kept: pl.DataFrame, columns: Sequence[str], where: Filters
+) -> pl.DataFrame:
+    """`columns` of the kept rows that `where` selects, in the kept order; a filter on a
+    held column or run_id is bound as the tables' query binds it (`_filter_condition`, the
+    column's type in the episodes table), one on a run column through the runs table."""
+    if not where:
+        return kept.select(columns)
+    params: list[object] = []
+    conditions = []
+    on_runs = []
+    for column, value in where.items():
+        if column in kept.columns:
+            sql_type = store.columns[EPISODES_TABLE][column]
+            expr = f"g.{quote_ident(column)}"
+            conditions.append(_filter_condition(expr, sql_type, value, params))
+        else:
+            sql_type = store.columns[RUNS_TABLE][column]
+            expr = f"r.{quote_ident(column)}"
+            on_runs.append(_filter_condition(expr, sql_type, value, params))
+    if on_runs:
+        conditions.append(
+            f"g.run_id IN (SELECT r.run_id FROM runs AS r WHERE {' AND '.join(on_runs)})"
+        )
+    select = ", ".join(f"g.{quote_ident(c)}" for c in columns)
+    sql = f"SELECT {select} FROM __episode_terms AS g WHERE {' AND '.join(conditions)}"
+    table = kept.select(columns).to_arrow()
+    derived = dataclasses.replace(store, sources={**store.sources, "__episode_terms": table})
+    return run_query(derived, sql, params)
+
+
+def kept_episode_terms(
+    store: Store,
+    ratio: Ratio,
+    ratio_set: Sequence[Ratio],
+    by: Sequence[str],
+    where: Filters,
+    *,
+    files_of: Callable[[Sequence[Ratio]], Sequence[str]] = lambda ratios: (),
+) -> pl.DataFrame | None:
+    """run_id, episode_id, the episodes' columns of `EPISODE_COLUMNS` and `by`, and the terms
+    of `ratio` (`<name>:num`, `<name>:den`), one row per episode `where` selects that has
+    terms: from the terms of every ratio of `ratio_set` on its grain kept beside OUT, or
+    None when they cannot answer (OUT keeps nothing, a column of `by` or `where` that is not
+    one of those, a metric file's terms in a process of its own, a term that fails)."""
+    held = _held(store)
+    columns = [*by, *(where or {})]
+    bounds = query_bounds()
+    isolated = bounds is not None and bounds.isolated and bool(files_of([ratio]))
+    if isolated or not _answers(store, columns, held):
+        return None
+    on_grain = [r for r in ratio_set if r.grain == ratio.grain]
+    try:
+        kept = _kept_table(store, ratio, on_grain, held, files_of(on_grain))
+    except QueryLimitError:
+        raise  # a bound stopped it: the tables would be stopped the same way
+    except (OSError, duckdb.Error, pl.exceptions.PolarsError, QueryError):
+        return None
+    if kept is None:
+        return None
+    wanted = [*_KEYS, *held, *(c for c in by if c in held and c not in _KEYS)]
+    wanted = list(dict.fromkeys(wanted))
+    return _selected(
+        store, kept, [*wanted, term_name(ratio, "num"), term_name(ratio, "den")], where
+    )
+
+
+__all__ = ["EPISODE_COLUMNS", "MAX_TERMS_BYTES", "MAX_TERMS_FILES", "kept_episode_terms"]
