@@ -40,7 +40,7 @@ import duckdb
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from replay.io import atomic_file, metric_cache_path
+from replay.io import EPISODES_TABLE, atomic_file, metric_cache_path
 
 from .._errors import QueryError, QueryLimitError
 from ._bounds import query_bounds
@@ -141,6 +141,10 @@ def _terms_source(
         raise  # a bound stopped it: the tables would be stopped the same way
     except (OSError, duckdb.Error, pa.ArrowException, QueryError):
         return None  # read-only or full OUT, or a term that fails: the tables answer
+    if grain == EPISODES_TABLE:  # and the terms per episode the Leaderboard's SR interval reads
+        from ._episode_terms import keep_episode_terms
+
+        keep_episode_terms(store, ratio_set, sources)
     return _read(path, names)
 
 

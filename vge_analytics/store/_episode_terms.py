@@ -72,13 +72,21 @@ def _answers(store: Store, columns: Sequence[str], held: Sequence[str]) -> bool:
 
 def _compute(store: Store, ratios: Sequence[Ratio], held: Sequence[str], sources) -> pl.DataFrame:
     """The rows the direct computation joins: the terms of `ratios` per (run, episode) (their
-    own query, unfiltered) joined to the episodes' keys and `held` columns."""
-    from ._tables import episodes
-
+    own query, unfiltered) joined to the episodes' keys and `held` columns, in one statement
+    (the join of 9.3 million rows in DuckDB rather than in polars: 4 s less at 100x)."""
     sql, params = ratio_query(store, _KEYS, ratios, None, terms=True)
-    terms = run_query(store, sql, params, sources=sources)
-    rows = episodes(store, None, columns=[*_KEYS, *held])
-    return rows.join(terms, on=list(_KEYS), how="inner")
+    names = [term_name(r, p) for r in ratios for p in ("num", "den")]
+    select = ", ".join(
+        [*(f"t.{quote_ident(c)}" for c in _KEYS), *(f"e.{quote_ident(c)}" for c in held)]
+        + [f"t.{quote_ident(n)}" for n in names]
+    )
+    columns = ", ".join(quote_ident(c) for c in held)
+    joined = (
+        f"SELECT {select} FROM ({sql}) AS t JOIN (SELECT run_id AS __run_id, episode_id AS "
+        f"__episode_id{', ' if held else ''}{columns} FROM episodes) AS e "
+        "ON e.__run_id = t.run_id AND e.__episode_id = t.episode_id"
+    )
+    return run_query(store, joined, params, sources=sources)
 
 
 def _valid(frame: pl.DataFrame, held: Sequence[str], names: Sequence[str]) -> bool:
@@ -169,6 +177,19 @@ def _selected(
     table = kept.select(columns).to_arrow()
     derived = dataclasses.replace(store, sources={**store.sources, "__episode_terms": table})
     return run_query(derived, sql, params)
+
+
+def keep_episode_terms(store: Store, on_grain: Sequence[Ratio], sources: Sequence[str]) -> None:
+    """Compute and keep the terms per (run, episode) of `on_grain` (every ratio of a set on
+    one grain) unless a valid file holds them: what the metric cache adds when it writes the
+    per-run terms of the episodes (`_cache`), so that `vge metrics OUT`, run first, also
+    fills what the Leaderboard's first interval (SR's) reads. Nothing when OUT keeps nothing
+    or the terms cannot be computed (the command has its answer already)."""
+    if not on_grain:
+        return
+    held = _held(store)
+    with contextlib.suppress(OSError, duckdb.Error, pl.exceptions.PolarsError, QueryError):
+        _kept_table(store, on_grain[0], on_grain, held, sources)
 
 
 def kept_episode_terms(
