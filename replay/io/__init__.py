@@ -91,6 +91,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         runs_path,
         schema_cache_path,
         ssm_path,
+        step_counts_path,
         tasks_path,
     )
     from ._lines import MAX_RECORD_BYTES, iter_lines
@@ -211,6 +212,7 @@ __all__ = [
     "episode_terms_path",
     "metric_cache_path",
     "result_cache_path",
+    "step_counts_path",
     "schema_cache_path",
     "partition",
     "partition_dir",

@@ -134,6 +134,13 @@ def episode_terms_path(out: _P, grain: str, contents_key: str, definitions_key: 
     return out / METRIC_CACHE_DIR / f"terms_{grain}-{contents_key}-{definitions_key}.parquet"
 
 
+def step_counts_path(out: _P, contents_key: str, query_key: str) -> _P:
+    """`OUT/.metric-cache/counts_steps-<contents_key>-<query_key>.parquet`: the scored steps
+    counted per run, category, device, view, error type and switch class, for one content
+    of OUT and one version of the query counting them."""
+    return out / METRIC_CACHE_DIR / f"counts_steps-{contents_key}-{query_key}.parquet"
+
+
 def schema_cache_path(out: _P, table: str, contents_key: str) -> _P:
     """`OUT/.metric-cache/schema-<table>-<contents_key>.arrow`: a table's schema as its files
     unify it, kept for one content of OUT."""

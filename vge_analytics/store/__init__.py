@@ -81,6 +81,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         sql_head,
         stream,
     )
+    from ._step_counts import COUNTS_TABLE, counted_steps
     from ._store import (
         NUMERIC_TYPES,
         Store,
@@ -125,6 +126,7 @@ __all__ = [
     "clear_cache",
     "CLI_MAX_ROWS",
     "CLI_TIMEOUT",
+    "COUNTS_TABLE",
     "DEFAULT_BY",
     "EPISODE_COLUMNS",
     "episode_steps",
@@ -165,6 +167,7 @@ __all__ = [
     "ratio_query",
     "kept_result",
     "code_key",
+    "counted_steps",
     "kept_episode_terms",
     "MAX_RESULT_BYTES",
     "MAX_RESULTS",

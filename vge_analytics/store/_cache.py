@@ -141,10 +141,10 @@ def _terms_source(
         raise  # a bound stopped it: the tables would be stopped the same way
     except (OSError, duckdb.Error, pa.ArrowException, QueryError):
         return None  # read-only or full OUT, or a term that fails: the tables answer
-    if grain == EPISODES_TABLE:  # and the terms per episode the Leaderboard's SR interval reads
-        from ._episode_terms import keep_episode_terms
+    if grain == EPISODES_TABLE and ratio_set:  # and the first metric's terms per episode,
+        from ._episode_terms import keep_episode_terms  # the Leaderboard's first interval
 
-        keep_episode_terms(store, ratio_set, sources)
+        keep_episode_terms(store, ratio_set[0], sources)
     return _read(path, names)
 
 

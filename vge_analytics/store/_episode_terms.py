@@ -1,26 +1,28 @@
-"""The metrics' terms per (run, episode), kept beside OUT with the episodes' cluster columns.
+"""A metric's terms per (run, episode), kept beside OUT with the episodes' cluster columns.
 
 An interval of the Leaderboard resamples each group's clusters of episodes: it needs every
 episode's numerator and denominator of the metric, and the episode's device and category.
 At 100 times the full benchmark (9.3 million episodes) computing them took most of a first
 visit: the terms' query over the grain table, the episodes' columns, and a join of the two.
-The first computation keeps them, per grain, for every metric of the set on that grain, in
-`OUT/.metric-cache/terms_<grain>-<contents>-<definitions>.parquet`
+The first computation keeps them, a file per metric, in
+`OUT/.metric-cache/terms_<grain>-<contents>-<definition>.parquet`
 (`replay.io.episode_terms_path`): run_id, episode_id, the episodes' columns of
-`EPISODE_COLUMNS`, and each metric's terms, the rows the direct computation joins (the terms
-of the metrics' own query grouped by run_id and episode_id, unfiltered, joined to the
-episodes). Later computations read the file and keep the rows `where` selects.
+`EPISODE_COLUMNS`, and the metric's terms, the rows the direct computation joins (the terms
+of the metric's own query grouped by run_id and episode_id, unfiltered, joined to the
+episodes). Later computations read the file and keep the rows `where` selects. (A file per
+metric, not per grain: the terms of every metric of the episodes per episode in one query
+needed more than a command's memory limit at 100x.)
 
 Filtering the kept rows gives the same rows and the same bits as filtering before: a filter
 on a column fixed per episode (its device, category, goal count) or per run (run_id, model,
 a facet) selects whole episodes, and an episode's terms add up the same rows either way. A
 filter or grouping on any other column (a step's or a goal's) is answered from the tables.
 
-Keyed as the per-run terms are (`_cache`): OUT's contents and the definitions of the metrics
-in the file; another replay, a table file changed by hand or another metric file names
-another file. Bounded: at most `MAX_TERMS_FILES` files per grain (the oldest go, and those
-of other contents), none read over `MAX_TERMS_BYTES`; a file that is a link, not a regular
-file, not Parquet or without the columns and types written here is computed again.
+Keyed as the per-run terms are (`_cache`): OUT's contents and the metric's definition; another
+replay, a table file changed by hand or another metric file names another file. Bounded: at
+most `MAX_TERMS_FILES` files (the oldest go, and those of other contents), none read over
+`MAX_TERMS_BYTES`; a file that is a link, not a regular file, not Parquet or without the
+columns and types written here is computed again.
 """
 
 from __future__ import annotations
@@ -53,8 +55,8 @@ MAX_TERMS_BYTES = 1 << 30
 """A kept file of terms over this is not read (a row per episode: 9.3 million rows at 100x
 the full benchmark, every metric of the steps, in well under this)."""
 
-MAX_TERMS_FILES = 4
-"""Files kept per grain for one content of OUT (one per set of metric definitions)."""
+MAX_TERMS_FILES = 32
+"""Files of terms kept for one content of OUT (one per metric: 14 built-in)."""
 
 _KEYS = ("run_id", "episode_id")
 
@@ -72,21 +74,14 @@ def _answers(store: Store, columns: Sequence[str], held: Sequence[str]) -> bool:
 
 def _compute(store: Store, ratios: Sequence[Ratio], held: Sequence[str], sources) -> pl.DataFrame:
     """The rows the direct computation joins: the terms of `ratios` per (run, episode) (their
-    own query, unfiltered) joined to the episodes' keys and `held` columns, in one statement
-    (the join of 9.3 million rows in DuckDB rather than in polars: 4 s less at 100x)."""
+    own query, unfiltered) joined to the episodes' keys and `held` columns. (Joined here, not
+    in DuckDB: the join of 9.3 million rows at 100x did not fit a command's memory limit.)"""
+    from ._tables import episodes
+
     sql, params = ratio_query(store, _KEYS, ratios, None, terms=True)
-    names = [term_name(r, p) for r in ratios for p in ("num", "den")]
-    select = ", ".join(
-        [*(f"t.{quote_ident(c)}" for c in _KEYS), *(f"e.{quote_ident(c)}" for c in held)]
-        + [f"t.{quote_ident(n)}" for n in names]
-    )
-    columns = ", ".join(quote_ident(c) for c in held)
-    joined = (
-        f"SELECT {select} FROM ({sql}) AS t JOIN (SELECT run_id AS __run_id, episode_id AS "
-        f"__episode_id{', ' if held else ''}{columns} FROM episodes) AS e "
-        "ON e.__run_id = t.run_id AND e.__episode_id = t.episode_id"
-    )
-    return run_query(store, joined, params, sources=sources)
+    terms = run_query(store, sql, params, sources=sources)
+    rows = episodes(store, None, columns=[*_KEYS, *held])
+    return rows.join(terms, on=list(_KEYS), how="inner")
 
 
 def _valid(frame: pl.DataFrame, held: Sequence[str], names: Sequence[str]) -> bool:
@@ -125,24 +120,21 @@ def _write(path: Path, rows: pl.DataFrame) -> None:
     path.parent.mkdir(exist_ok=True)
     with atomic_file(path, sync=False) as fh:
         rows.write_parquet(fh, compression="zstd")
-    prune_kept(path, f"{path.name.split('-')[0]}-*.parquet", MAX_TERMS_FILES)
+    prune_kept(path, "terms_*.parquet", MAX_TERMS_FILES)
 
 
-def _kept_table(
-    store: Store, ratio: Ratio, on_grain: Sequence[Ratio], held: Sequence[str], sources
-) -> pl.DataFrame | None:
-    """The terms of `ratio` per (run, episode) from the file of every ratio of `on_grain`
-    (those of its grain) in OUT's cache folder, computed and kept first when missing; None
-    when OUT keeps nothing."""
+def _kept_table(store: Store, ratio: Ratio, held: Sequence[str], sources) -> pl.DataFrame | None:
+    """The terms of `ratio` per (run, episode) from OUT's cache folder, computed and kept
+    first when missing; None when OUT keeps nothing."""
     out = _where(store)
     if out is None:
         return None
     names = [term_name(ratio, p) for p in ("num", "den")]
-    path = episode_terms_path(out, ratio.grain, store.contents, definitions_key(on_grain))
+    path = episode_terms_path(out, ratio.grain, store.contents, definitions_key([ratio]))
     kept = _read(path, held, names)
     if kept is not None:
         return kept
-    rows = _compute(store, on_grain, held, sources)
+    rows = _compute(store, [ratio], held, sources)
     with contextlib.suppress(OSError, pl.exceptions.PolarsError):
         _write(path, rows)
     return rows
@@ -179,23 +171,19 @@ def _selected(
     return run_query(derived, sql, params)
 
 
-def keep_episode_terms(store: Store, on_grain: Sequence[Ratio], sources: Sequence[str]) -> None:
-    """Compute and keep the terms per (run, episode) of `on_grain` (every ratio of a set on
-    one grain) unless a valid file holds them: what the metric cache adds when it writes the
-    per-run terms of the episodes (`_cache`), so that `vge metrics OUT`, run first, also
-    fills what the Leaderboard's first interval (SR's) reads. Nothing when OUT keeps nothing
-    or the terms cannot be computed (the command has its answer already)."""
-    if not on_grain:
-        return
-    held = _held(store)
+def keep_episode_terms(store: Store, ratio: Ratio, sources: Sequence[str]) -> None:
+    """Compute and keep the terms per (run, episode) of `ratio` unless a valid file holds
+    them: what the metric cache adds when it writes the per-run terms of the episodes
+    (`_cache`), for the set's first metric of the episodes (SR's, the Leaderboard's first
+    interval), so that `vge metrics OUT`, run first, also fills what that reads. Nothing
+    when OUT keeps nothing or the terms cannot be had (the command has its answer already)."""
     with contextlib.suppress(OSError, duckdb.Error, pl.exceptions.PolarsError, QueryError):
-        _kept_table(store, on_grain[0], on_grain, held, sources)
+        _kept_table(store, ratio, _held(store), sources)
 
 
 def kept_episode_terms(
     store: Store,
     ratio: Ratio,
-    ratio_set: Sequence[Ratio],
     by: Sequence[str],
     where: Filters,
     *,
@@ -203,8 +191,8 @@ def kept_episode_terms(
 ) -> pl.DataFrame | None:
     """run_id, episode_id, the episodes' columns of `EPISODE_COLUMNS` and `by`, and the terms
     of `ratio` (`<name>:num`, `<name>:den`), one row per episode `where` selects that has
-    terms: from the terms of every ratio of `ratio_set` on its grain kept beside OUT, or
-    None when they cannot answer (OUT keeps nothing, a column of `by` or `where` that is not
+    terms: from its terms kept beside OUT (computed and kept first when missing), or None
+    when they cannot answer (OUT keeps nothing, a column of `by` or `where` that is not
     one of those, a metric file's terms in a process of its own, a term that fails)."""
     held = _held(store)
     columns = [*by, *(where or {})]
@@ -212,9 +200,8 @@ def kept_episode_terms(
     isolated = bounds is not None and bounds.isolated and bool(files_of([ratio]))
     if isolated or not _answers(store, columns, held):
         return None
-    on_grain = [r for r in ratio_set if r.grain == ratio.grain]
     try:
-        kept = _kept_table(store, ratio, on_grain, held, files_of(on_grain))
+        kept = _kept_table(store, ratio, held, files_of([ratio]))
     except QueryLimitError:
         raise  # a bound stopped it: the tables would be stopped the same way
     except (OSError, duckdb.Error, pl.exceptions.PolarsError, QueryError):

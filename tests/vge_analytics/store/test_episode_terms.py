@@ -64,22 +64,19 @@ def test_kept_terms_give_the_tables_intervals_on_the_sample(
             again = _interval(out, **choice)  # reads them
             assert first.equals(want) and first.schema == want.schema, choice
             assert again.equals(want) and again.schema == want.schema, choice
-    # one file per grain, for every metric of the set on it
-    assert [n.split("-")[0] for n in _kept(out)] == [
-        "terms_episodes",
-        "terms_goals",
-        "terms_steps",
-    ]
+    # one file per metric, named by its grain
+    grains = sorted({va.MetricSet.builtin().get(m).grain for m, _, _ in CHOICES})
+    assert sorted({n.split("-")[0] for n in _kept(out)}) == [f"terms_{g}" for g in grains]
+    assert len(_kept(out)) == len({m for m, _, _ in CHOICES})
 
 
 def test_a_column_not_kept_is_answered_from_the_tables(pair_out: Path, tmp_path: Path):
     out = _copy(pair_out, tmp_path / "out")
     store = va.open_store(out)
     (sr,) = va.MetricSet.builtin().resolve(["SR"])
-    ratios = list(va.MetricSet.builtin())
-    assert _episode_terms.kept_episode_terms(store, sr, ratios, ["termination"], None) is None
+    assert _episode_terms.kept_episode_terms(store, sr, ["termination"], None) is None
     assert _kept(out) == []  # nothing computed for a question it cannot answer
-    rows = _episode_terms.kept_episode_terms(store, sr, ratios, ["model"], {"run_id": "A"})
+    rows = _episode_terms.kept_episode_terms(store, sr, ["model"], {"run_id": "A"})
     assert rows is not None and rows["run_id"].unique().to_list() == ["A"]
     assert rows.columns == ["run_id", "episode_id", "device_id", "category", "n_goals"] + [
         "SR:num",

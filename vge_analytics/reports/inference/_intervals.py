@@ -51,9 +51,7 @@ def _grouped_terms(
     """One row per (run, episode) with the group columns, the cluster columns, num and den:
     from the terms kept beside OUT where they answer (`store.kept_episode_terms`), else from
     the tables."""
-    rows = kept_episode_terms(
-        store, metric, list(available), by, where, files_of=available.files_of
-    )
+    rows = kept_episode_terms(store, metric, by, where, files_of=available.files_of)
     if rows is None:
         terms = episode_terms(store, [metric.name], where, metrics_dir=available)
         wanted = ["run_id", "episode_id", "device_id", "category"]
