@@ -113,7 +113,7 @@ def error_distribution(
         where,
         [types, groups, types],
         "error_type",
-        ("count(*)", "steps"),
+        ("count(*)", "scored"),
     )
     df = df.sort([*by_cols, "type_order"], nulls_last=True).drop("type_order")
     df = df.with_columns(pl.col("count").cast(pl.Int64), pl.col("share").cast(pl.Float64))

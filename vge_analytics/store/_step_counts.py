@@ -6,7 +6,7 @@ The Errors page's shares (`error_distribution`), the Navigation page's switch cl
 the scored steps of the whole steps table: 13 to 18 s each at 100 times the full benchmark
 (91 million steps), on every first visit and for every other grouping or filter. One scan
 now counts them together, per run, category, device, view, error type and switch class
-(`COUNT_COLUMNS`): every scored step (`steps`), the successful switches (`switches`) and the
+(`COUNT_COLUMNS`): every scored step (`scored`), the successful switches (`switches`) and the
 interactions (`interactions`), kept in `OUT/.metric-cache/counts_steps-<contents>-<key>.parquet`
 (`replay.io.step_counts_path`; `<key>` a hash of the query that counts them). A page then
 adds up those rows for its groups and filters: counts are integers, so the sums are the
@@ -51,7 +51,7 @@ COUNT_COLUMNS: tuple[str, ...] = (
 """The steps' columns the kept counts are grouped by, besides run_id."""
 
 COUNTS: tuple[tuple[str, str], ...] = (
-    ("count(*)", "steps"),
+    ("count(*)", "scored"),
     ("count(*) FILTER (WHERE g.is_switch)", "switches"),
     ("count(*) FILTER (WHERE g.is_interaction)", "interactions"),
 )

@@ -90,7 +90,7 @@ def test_the_kept_file_is_what_answers(pair_out: Path, tmp_path: Path):
     before = va.error_distribution(out, by="run_id")
     (path,) = _kept(out)
     frame = pl.read_parquet(path)
-    frame.with_columns(pl.col("steps") * 2).write_parquet(path)
+    frame.with_columns(pl.col("scored") * 2).write_parquet(path)
     va.clear_cache()
     after = va.error_distribution(out, by="run_id")
     assert after["count"].to_list() == [2 * n for n in before["count"].to_list()]
@@ -117,14 +117,14 @@ def test_another_content_of_out_counts_again(pair_out: Path, tmp_path: Path):
     "plant",
     [
         lambda path, tmp: path.write_bytes(b"not parquet"),
-        lambda path, tmp: pl.DataFrame({"run_id": ["A"], "steps": [1]}).write_parquet(path),
+        lambda path, tmp: pl.DataFrame({"run_id": ["A"], "scored": [1]}).write_parquet(path),
         lambda path, tmp: (
-            pl.read_parquet(path).with_columns(pl.col("steps").cast(pl.String)).write_parquet(path)
+            pl.read_parquet(path).with_columns(pl.col("scored").cast(pl.String)).write_parquet(path)
         ),
         lambda path, tmp: (path.unlink(), os.mkfifo(path)),
         lambda path, tmp: (
             pl.read_parquet(path)
-            .with_columns(pl.col("steps") * 0)
+            .with_columns(pl.col("scored") * 0)
             .write_parquet(tmp / "elsewhere.parquet"),
             path.unlink(),
             path.symlink_to(tmp / "elsewhere.parquet"),
@@ -149,7 +149,7 @@ def test_a_file_over_the_bound_is_not_read(pair_out: Path, tmp_path: Path, monke
     out = _copy(pair_out, tmp_path / "out")
     want = va.error_distribution(out, by="run_id")
     (path,) = _kept(out)
-    pl.read_parquet(path).with_columns(pl.col("steps") * 0).write_parquet(path)
+    pl.read_parquet(path).with_columns(pl.col("scored") * 0).write_parquet(path)
     monkeypatch.setattr(_step_counts, "MAX_COUNTS_BYTES", 100)
     va.clear_cache()
     assert va.error_distribution(out, by="run_id").equals(want)
