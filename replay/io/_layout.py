@@ -134,11 +134,11 @@ def episode_terms_path(out: _P, grain: str, contents_key: str, definitions_key: 
     return out / METRIC_CACHE_DIR / f"terms_{grain}-{contents_key}-{definitions_key}.parquet"
 
 
-def step_counts_path(out: _P, contents_key: str, query_key: str) -> _P:
-    """`OUT/.metric-cache/counts_steps-<contents_key>-<query_key>.parquet`: the scored steps
-    counted per run, category, device, view, error type and switch class, for one content
-    of OUT and one version of the query counting them."""
-    return out / METRIC_CACHE_DIR / f"counts_steps-{contents_key}-{query_key}.parquet"
+def step_counts_path(out: _P, part: str, contents_key: str, query_key: str) -> _P:
+    """`OUT/.metric-cache/counts_<part>-<contents_key>-<query_key>.parquet`: the scored steps
+    counted per run, category and the columns of `part` (error type; switch class; device
+    and view), for one content of OUT and one version of the query counting them."""
+    return out / METRIC_CACHE_DIR / f"counts_{part}-{contents_key}-{query_key}.parquet"
 
 
 def schema_cache_path(out: _P, table: str, contents_key: str) -> _P:

@@ -30,7 +30,7 @@ def interaction_views(out: str | Path, where: Filters = None) -> pl.DataFrame:
     store = open_store(out)
     check_columns(store, list(where or {}), [STEPS_TABLE], "filter")
     order = " ORDER BY interactions DESC, device_id, view"
-    counted = counted_steps(store, list(where or {}))
+    counted = counted_steps(store, "views", list(where or {}))
     if counted is not None:  # integers: the same sums in any order, typed as a count
         keys = ["device_id", "category", "view_before"]
         total = [("CAST(sum(g.interactions) AS BIGINT)", "interactions")]

@@ -72,12 +72,13 @@ def _run(
     params: list,
     column: str,
     count: tuple[str, str],
+    part: str,
 ) -> pl.DataFrame:
     """Query `name` over the scored steps counted per group and `column`: added up from the
     steps counted per run kept beside OUT (`store.counted_steps`; `count[1]`, the kept count
-    to add) where they answer, else counted on the steps table (`count[0]`)."""
+    to add, of `part`) where they answer, else counted on the steps table (`count[0]`)."""
     check_columns(store, [*by, *(where or {})], [STEPS_TABLE], "grouping/filter")
-    counted = counted_steps(store, [*by, *(where or {})])
+    counted = counted_steps(store, part, [*by, *(where or {})])
     if counted is None:
         scoped, scope_params = _scoped(store, STEPS_TABLE, by, where, column, count[0])
     else:  # integers: the same sums in any order; typed as the count of the steps table
@@ -114,6 +115,7 @@ def error_distribution(
         [types, groups, types],
         "error_type",
         ("count(*)", "scored"),
+        "errors",
     )
     df = df.sort([*by_cols, "type_order"], nulls_last=True).drop("type_order")
     df = df.with_columns(pl.col("count").cast(pl.Int64), pl.col("share").cast(pl.Float64))
@@ -169,6 +171,7 @@ def switch_classes(out, by: GroupBy = None, where: Filters = None) -> pl.DataFra
         [classes, classes],
         "switch_class",
         ("count(*) FILTER (WHERE g.is_switch)", "switches"),
+        "switches",
     )
     df = df.sort([*by_cols, "class_order"], nulls_last=True).drop("class_order")
     return df.with_columns(

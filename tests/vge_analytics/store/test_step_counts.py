@@ -1,6 +1,6 @@
 """The scored steps counted per run and kept beside OUT (`store._step_counts`,
 docs/METRICS.md): the error shares, switch classes and clicked views they give are the
-tables', one count serves all three, and a file that is not one of ours is counted again."""
+tables', the file is what answers, and a file that is not one of ours is counted again."""
 
 from __future__ import annotations
 
@@ -36,9 +36,9 @@ def _copy(out: Path, target: Path) -> Path:
     return target
 
 
-def _kept(out: Path) -> list[Path]:
+def _kept(out: Path, part: str = "*") -> list[Path]:
     folder = out / METRIC_CACHE_DIR
-    return sorted(folder.glob("counts_steps-*")) if folder.is_dir() else []
+    return sorted(folder.glob(f"counts_{part}-*")) if folder.is_dir() else []
 
 
 def _three(out: Path, by, where) -> tuple[pl.DataFrame, ...]:
@@ -69,20 +69,25 @@ def test_kept_counts_give_the_tables_values_on_the_sample(
         want = _direct(out, monkeypatch, by, where)
         assert _same(_three(out, by, where), want), (by, where)  # counts, then reads
         assert _same(_three(out, by, where), want), (by, where)
-    assert len(_kept(out)) == 1  # one count for the three pages
+    assert [p.name.split("-")[0] for p in _kept(out)] == [
+        "counts_errors",
+        "counts_switches",
+        "counts_views",
+    ]
     assert va.error_distribution(out, by="run_id")["count"].sum() > 0
 
 
-def test_one_visit_fills_what_the_other_pages_read(pair_out: Path, tmp_path: Path, monkeypatch):
+def test_a_second_grouping_reads_what_the_first_counted(
+    pair_out: Path, tmp_path: Path, monkeypatch
+):
     out = _copy(pair_out, tmp_path / "out")
-    va.error_distribution(out, by="run_id")
-    (path,) = _kept(out)
+    _three(out, ("run_id",), None)
+    kept = _kept(out)
     calls = []
     real = _step_counts.run_query
     monkeypatch.setattr(_step_counts, "run_query", lambda *a, **k: calls.append(1) or real(*a, **k))
-    va.switch_classes(out, by="model")
-    dash.interaction_views(out)
-    assert calls == [] and _kept(out) == [path]  # read, not counted again
+    _three(out, ("model",), {"run_id": "A"})
+    assert calls == [] and _kept(out) == kept  # read, not counted again
 
 
 def test_the_kept_file_is_what_answers(pair_out: Path, tmp_path: Path):
@@ -99,7 +104,7 @@ def test_the_kept_file_is_what_answers(pair_out: Path, tmp_path: Path):
 
 def test_another_content_of_out_counts_again(pair_out: Path, tmp_path: Path):
     out = _copy(pair_out, tmp_path / "out")
-    va.switch_classes(out, by="run_id")
+    va.error_distribution(out, by="run_id")
     (old,) = _kept(out)
     (part,) = sorted((out / "steps" / "run_id=A").glob("*.parquet"))
     frame = pl.read_parquet(part)
@@ -138,7 +143,7 @@ def test_a_file_that_is_not_ours_is_counted_again(
     out = _copy(pair_out, tmp_path / "out")
     want = _direct(out, monkeypatch, ("run_id",), None)
     _three(out, ("run_id",), None)
-    (path,) = _kept(out)
+    (path,) = _kept(out, "errors")
     plant(path, tmp_path)
     va.clear_cache()
     assert _same(_three(out, ("run_id",), None), want)
