@@ -170,7 +170,6 @@ def cached_store(
         return store, {}
     key = store.contents
     sources: dict[str, object] = {}
-    catalogue: dict[str, dict[str, str]] = {}
     for grain in dict.fromkeys(r.grain for r in ratios):
         if not _cacheable(store, grain, by, where):
             continue
@@ -180,14 +179,22 @@ def cached_store(
             sources[f"__terms_{grain}"] = data
     if not sources:
         return store, {}
-    derived = dataclasses.replace(store, sources={**store.sources, **sources})
-    for name in sources:
+    derived = with_tables(store, sources)
+    return derived, {name.removeprefix("__terms_"): name for name in sources}
+
+
+def with_tables(store: Store, tables: dict[str, object]) -> Store:
+    """`store` with `tables` (Arrow tables, by our own names) added to its sources and its
+    catalogue of columns, so that they can be grouped and filtered as its tables are."""
+    derived = dataclasses.replace(store, sources={**store.sources, **tables})
+    catalogue: dict[str, dict[str, str]] = {}
+    for name in tables:
         statement = f"DESCRIBE {name}"  # our own names
         with derived.cursor(statement) as cursor:
             rows = cursor.execute(statement).fetchall()
         catalogue[name] = {r[0]: str(r[1]) for r in rows}
     derived.columns = {**store.columns, **catalogue}
-    return derived, {name.removeprefix("__terms_"): name for name in sources}
+    return derived
 
 
 def cached_terms(ratios: Sequence[Ratio]) -> list[tuple[str, str]]:
@@ -201,4 +208,5 @@ __all__ = [
     "cached_store",
     "cached_terms",
     "definitions_key",
+    "with_tables",
 ]

@@ -24,9 +24,7 @@ ones written here (then it is counted again).
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
-import io
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
@@ -34,11 +32,11 @@ from typing import NamedTuple
 import duckdb
 import polars as pl
 
-from replay.io import STEPS_TABLE, atomic_file, step_counts_path
+from replay.io import STEPS_TABLE, step_counts_path
 
 from .._errors import QueryError, QueryLimitError
-from ._cache import _where
-from ._kept import prune_kept, read_kept
+from ._cache import _where, with_tables
+from ._kept import keep_frame, read_kept_frame
 from ._scope import build_scope, quote_ident, run_level
 from ._sql import run_query
 from ._store import Store
@@ -101,14 +99,8 @@ def _valid(frame: pl.DataFrame, part: Part) -> bool:
 
 
 def _read(path: Path, part: Part) -> pl.DataFrame | None:
-    data = read_kept(path, MAX_COUNTS_BYTES)
-    if data is None:
-        return None
-    try:
-        frame = pl.read_parquet(io.BytesIO(data))
-    except (OSError, pl.exceptions.PolarsError, ValueError):
-        return None
-    return frame if _valid(frame, part) else None
+    frame = read_kept_frame(path, MAX_COUNTS_BYTES)
+    return frame if frame is not None and _valid(frame, part) else None
 
 
 def _counts(store: Store, name: str) -> pl.DataFrame | None:
@@ -126,10 +118,7 @@ def _counts(store: Store, name: str) -> pl.DataFrame | None:
         return kept
     counts = run_query(store, sql, params)
     with contextlib.suppress(OSError, pl.exceptions.PolarsError):
-        path.parent.mkdir(exist_ok=True)
-        with atomic_file(path, sync=False) as fh:
-            counts.write_parquet(fh, compression="zstd")
-        prune_kept(path, f"counts_{name}-*.parquet", MAX_COUNTS_FILES)
+        keep_frame(path, counts, f"counts_{name}-*.parquet", MAX_COUNTS_FILES)
     return counts
 
 
@@ -148,12 +137,7 @@ def counted_steps(store: Store, part: str, columns: Sequence[str]) -> Store | No
         return None
     if counts is None:
         return None
-    derived = dataclasses.replace(store, sources={**store.sources, COUNTS_TABLE: counts.to_arrow()})
-    statement = f"DESCRIBE {COUNTS_TABLE}"  # our own name
-    with derived.cursor(statement) as cursor:
-        rows = cursor.execute(statement).fetchall()
-    derived.columns = {**store.columns, COUNTS_TABLE: {r[0]: str(r[1]) for r in rows}}
-    return derived
+    return with_tables(store, {COUNTS_TABLE: counts.to_arrow()})
 
 
 __all__ = [

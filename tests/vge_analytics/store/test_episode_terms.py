@@ -15,6 +15,7 @@ import vge_analytics as va
 from replay.io import METRIC_CACHE_DIR
 from vge_analytics.reports.inference import _intervals
 from vge_analytics.store import _episode_terms
+from vge_analytics.store import _kept as kept_files
 
 CHOICES = (
     ("SR", ("run_id", "model"), None),
@@ -195,7 +196,7 @@ def test_nothing_is_kept_where_out_cannot_be_written(pair_out: Path, tmp_path: P
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Read-only file system")
 
-    monkeypatch.setattr(_episode_terms, "atomic_file", refuse)
+    monkeypatch.setattr(kept_files, "atomic_file", refuse)
     assert _interval(out, by=["run_id"]).equals(_direct(out, monkeypatch, by=["run_id"]))
     assert _kept(out) == []
 

@@ -16,6 +16,7 @@ from replay.io import METRIC_CACHE_DIR
 from vge_analytics import dashboard as dash
 from vge_analytics.dashboard import _grounding
 from vge_analytics.reports import _taxonomy
+from vge_analytics.store import _kept as kept_files
 from vge_analytics.store import _step_counts
 
 CHOICES = (
@@ -166,7 +167,7 @@ def test_nothing_is_kept_where_out_cannot_be_written(pair_out: Path, tmp_path: P
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Read-only file system")
 
-    monkeypatch.setattr(_step_counts, "atomic_file", refuse)
+    monkeypatch.setattr(kept_files, "atomic_file", refuse)
     want = _direct(out, monkeypatch, ("run_id", "model"), None)
     assert _same(_three(out, ("run_id", "model"), None), want)
     assert _kept(out) == []
