@@ -37,10 +37,10 @@ import polars as pl
 
 from replay.io import EPISODES_TABLE, RUNS_TABLE, episode_terms_path
 
-from .._errors import QueryError, QueryLimitError
+from .._errors import QueryError
 from ._bounds import query_bounds
 from ._cache import _where, definitions_key
-from ._kept import keep_frame, read_kept_frame
+from ._kept import keep_frame, read_kept_frame, unless_failed
 from ._ratios import Ratio, ratio_query, term_name
 from ._scope import Filters, _filter_condition, quote_ident, run_level
 from ._sql import run_query
@@ -185,12 +185,7 @@ def kept_episode_terms(
     isolated = bounds is not None and bounds.isolated and bool(files_of([ratio]))
     if isolated or not _answers(store, columns, held):
         return None
-    try:
-        kept = _kept_table(store, ratio, held, files_of([ratio]))
-    except QueryLimitError:
-        raise  # a bound stopped it: the tables would be stopped the same way
-    except (OSError, duckdb.Error, pl.exceptions.PolarsError, QueryError):
-        return None
+    kept = unless_failed(lambda: _kept_table(store, ratio, held, files_of([ratio])))
     if kept is None:
         return None
     wanted = [*_KEYS, *held, *(c for c in by if c in held and c not in _KEYS)]

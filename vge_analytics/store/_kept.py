@@ -17,15 +17,17 @@ import contextlib
 import hashlib
 import os
 import stat
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import replay
 from replay.io import METRIC_CACHE_DIR, atomic_file, schema_cache_path
 
 if TYPE_CHECKING:
     import pyarrow as pa
+
+T = TypeVar("T")
 
 Files = Mapping[str, Sequence[tuple[str, str | None]]]
 """table -> (path relative to OUT, run) of each of its files (`_contents.table_files`)."""
@@ -119,6 +121,23 @@ def keep_frame(path: Path, frame, pattern: str, limit: int) -> None:
     prune_kept(path, pattern, limit)
 
 
+def unless_failed(compute: Callable[[], T]) -> T | None:
+    """`compute()` (which reads or computes and keeps a file), or None when it failed in a
+    way the tables answer around (an OUT that cannot be written, a term that fails); a bound
+    that stopped its query is raised: the tables' query would be stopped the same way."""
+    import duckdb
+    import polars as pl
+
+    from .._errors import QueryError, QueryLimitError
+
+    try:
+        return compute()
+    except QueryLimitError:
+        raise
+    except (OSError, duckdb.Error, pl.exceptions.PolarsError, QueryError):
+        return None
+
+
 def kept_schema(out: replay.Location, table: str, key: str | None) -> pa.Schema | None:
     """The unified schema of `table` kept for contents `key`, or None."""
     import pyarrow as pa  # (here: the key and the folder's check are read without it)
@@ -159,4 +178,5 @@ __all__ = [
     "prune_kept",
     "read_kept",
     "read_kept_frame",
+    "unless_failed",
 ]

@@ -29,14 +29,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
 
-import duckdb
 import polars as pl
 
 from replay.io import STEPS_TABLE, step_counts_path
 
-from .._errors import QueryError, QueryLimitError
 from ._cache import _where, with_tables
-from ._kept import keep_frame, read_kept_frame
+from ._kept import keep_frame, read_kept_frame, unless_failed
 from ._scope import build_scope, quote_ident, run_level
 from ._sql import run_query
 from ._store import Store
@@ -129,12 +127,7 @@ def counted_steps(store: Store, part: str, columns: Sequence[str]) -> Store | No
     nothing."""
     if not answers(store, columns):
         return None
-    try:
-        counts = _counts(store, part)
-    except QueryLimitError:
-        raise  # a bound stopped it: the tables would be stopped the same way
-    except (OSError, duckdb.Error, pl.exceptions.PolarsError, QueryError):
-        return None
+    counts = unless_failed(lambda: _counts(store, part))
     if counts is None:
         return None
     return with_tables(store, {COUNTS_TABLE: counts.to_arrow()})

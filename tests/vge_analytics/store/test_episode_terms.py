@@ -4,8 +4,6 @@ another definition names another file, and a file that is not one of ours is not
 
 from __future__ import annotations
 
-import os
-import shutil
 from pathlib import Path
 
 import polars as pl
@@ -13,9 +11,10 @@ import pytest
 
 import vge_analytics as va
 from replay.io import METRIC_CACHE_DIR
+from tests.vge_analytics.store.kept import copy_out, kept_files, plants
 from vge_analytics.reports.inference import _intervals
 from vge_analytics.store import _episode_terms
-from vge_analytics.store import _kept as kept_files
+from vge_analytics.store import _kept as kept_module
 
 CHOICES = (
     ("SR", ("run_id", "model"), None),
@@ -32,14 +31,11 @@ CHOICES = (
 )
 
 
-def _copy(out: Path, target: Path) -> Path:
-    shutil.copytree(out, target, ignore=shutil.ignore_patterns(METRIC_CACHE_DIR))
-    return target
+_copy = copy_out
 
 
 def _kept(out: Path) -> list[str]:
-    folder = out / METRIC_CACHE_DIR
-    return sorted(p.name for p in folder.glob("terms_*")) if folder.is_dir() else []
+    return [p.name for p in kept_files(out, "terms_*")]
 
 
 def _direct(out: Path, monkeypatch, **choice) -> pl.DataFrame:
@@ -147,33 +143,17 @@ def test_files_past_the_bound_are_removed(pair_out: Path, tmp_path: Path, monkey
     assert len(_kept(out)) == 2
 
 
-@pytest.mark.parametrize(
-    "plant",
-    [
-        lambda path, tmp: path.write_bytes(b"not parquet"),
-        lambda path, tmp: pl.DataFrame({"run_id": [1], "episode_id": ["e"]}).write_parquet(path),
-        lambda path, tmp: (
-            pl.read_parquet(path).with_columns(pl.col("SR:num").cast(pl.String)).write_parquet(path)
-        ),
-        lambda path, tmp: (path.unlink(), os.mkfifo(path)),
-        lambda path, tmp: (
-            shutil.copy(path, tmp / "elsewhere.parquet"),
-            path.unlink(),
-            path.symlink_to(tmp / "elsewhere.parquet"),
-        ),
-    ],
-    ids=["garbage", "other-columns", "text-terms", "fifo", "link"],
-)
+PLANTS, PLANT_IDS = plants("SR:num")
+
+
+@pytest.mark.parametrize("plant", PLANTS, ids=PLANT_IDS)
 def test_a_file_that_is_not_ours_is_computed_again(
     pair_out: Path, tmp_path: Path, monkeypatch, plant
 ):
     out = _copy(pair_out, tmp_path / "out")
     want = _interval(out, by=["run_id"])
     path = _terms_file(out)
-    plant(path, tmp_path)
-    if path.is_symlink():  # a link's target, made to say SR 0, is never read
-        target = tmp_path / "elsewhere.parquet"
-        pl.read_parquet(target).with_columns(pl.lit(0).alias("SR:num")).write_parquet(target)
+    plant(path, tmp_path)  # a link's target says SR 0: never read
     va.clear_cache()
     assert _interval(out, by=["run_id"]).equals(want)
     assert _interval(out, by=["run_id"]).equals(_direct(out, monkeypatch, by=["run_id"]))
@@ -196,7 +176,7 @@ def test_nothing_is_kept_where_out_cannot_be_written(pair_out: Path, tmp_path: P
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Read-only file system")
 
-    monkeypatch.setattr(kept_files, "atomic_file", refuse)
+    monkeypatch.setattr(kept_module, "atomic_file", refuse)
     assert _interval(out, by=["run_id"]).equals(_direct(out, monkeypatch, by=["run_id"]))
     assert _kept(out) == []
 

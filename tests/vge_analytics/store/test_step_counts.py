@@ -4,19 +4,17 @@ tables', the file is what answers, and a file that is not one of ours is counted
 
 from __future__ import annotations
 
-import os
-import shutil
 from pathlib import Path
 
 import polars as pl
 import pytest
 
 import vge_analytics as va
-from replay.io import METRIC_CACHE_DIR
+from tests.vge_analytics.store.kept import copy_out, kept_files, plants
 from vge_analytics import dashboard as dash
 from vge_analytics.dashboard import _grounding
 from vge_analytics.reports import _taxonomy
-from vge_analytics.store import _kept as kept_files
+from vge_analytics.store import _kept as kept_module
 from vge_analytics.store import _step_counts
 
 CHOICES = (
@@ -32,14 +30,11 @@ CHOICES = (
 )
 
 
-def _copy(out: Path, target: Path) -> Path:
-    shutil.copytree(out, target, ignore=shutil.ignore_patterns(METRIC_CACHE_DIR))
-    return target
+_copy = copy_out
 
 
 def _kept(out: Path, part: str = "*") -> list[Path]:
-    folder = out / METRIC_CACHE_DIR
-    return sorted(folder.glob(f"counts_{part}-*")) if folder.is_dir() else []
+    return kept_files(out, f"counts_{part}-*")
 
 
 def _three(out: Path, by, where) -> tuple[pl.DataFrame, ...]:
@@ -119,25 +114,10 @@ def test_another_content_of_out_counts_again(pair_out: Path, tmp_path: Path):
     assert want.filter(pl.col("run_id") == "A")["count"].sum() == errors
 
 
-@pytest.mark.parametrize(
-    "plant",
-    [
-        lambda path, tmp: path.write_bytes(b"not parquet"),
-        lambda path, tmp: pl.DataFrame({"run_id": ["A"], "scored": [1]}).write_parquet(path),
-        lambda path, tmp: (
-            pl.read_parquet(path).with_columns(pl.col("scored").cast(pl.String)).write_parquet(path)
-        ),
-        lambda path, tmp: (path.unlink(), os.mkfifo(path)),
-        lambda path, tmp: (
-            pl.read_parquet(path)
-            .with_columns(pl.col("scored") * 0)
-            .write_parquet(tmp / "elsewhere.parquet"),
-            path.unlink(),
-            path.symlink_to(tmp / "elsewhere.parquet"),
-        ),
-    ],
-    ids=["garbage", "other-columns", "text-counts", "fifo", "link"],
-)
+PLANTS, PLANT_IDS = plants("scored")
+
+
+@pytest.mark.parametrize("plant", PLANTS, ids=PLANT_IDS)
 def test_a_file_that_is_not_ours_is_counted_again(
     pair_out: Path, tmp_path: Path, monkeypatch, plant
 ):
@@ -167,7 +147,7 @@ def test_nothing_is_kept_where_out_cannot_be_written(pair_out: Path, tmp_path: P
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Read-only file system")
 
-    monkeypatch.setattr(kept_files, "atomic_file", refuse)
+    monkeypatch.setattr(kept_module, "atomic_file", refuse)
     want = _direct(out, monkeypatch, ("run_id", "model"), None)
     assert _same(_three(out, ("run_id", "model"), None), want)
     assert _kept(out) == []
