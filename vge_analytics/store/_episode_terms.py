@@ -73,14 +73,21 @@ def _answers(store: Store, columns: Sequence[str], held: Sequence[str]) -> bool:
 
 def _compute(store: Store, ratios: Sequence[Ratio], held: Sequence[str], sources) -> pl.DataFrame:
     """The rows the direct computation joins: the terms of `ratios` per (run, episode) (their
-    own query, unfiltered) joined to the episodes' keys and `held` columns. (Joined here, not
-    in DuckDB: the join of 9.3 million rows at 100x did not fit a command's memory limit.)"""
-    from ._tables import episodes
-
+    own query, unfiltered) joined to the episodes' keys and `held` columns, in one statement
+    (the join in DuckDB, within the query's memory bound)."""
     sql, params = ratio_query(store, _KEYS, ratios, None, terms=True)
-    terms = run_query(store, sql, params, sources=sources)
-    rows = episodes(store, None, columns=[*_KEYS, *held])
-    return rows.join(terms, on=list(_KEYS), how="inner")
+    names = [term_name(r, p) for r in ratios for p in ("num", "den")]
+    select = ", ".join(
+        [*(f"t.{quote_ident(c)}" for c in _KEYS), *(f"e.{quote_ident(c)}" for c in held)]
+        + [f"t.{quote_ident(n)}" for n in names]
+    )
+    columns = "".join(f", {quote_ident(c)}" for c in held)
+    joined = (
+        f"SELECT {select} FROM ({sql}) AS t JOIN (SELECT run_id AS __run_id, episode_id AS "
+        f"__episode_id{columns} FROM episodes) AS e "
+        "ON e.__run_id = t.run_id AND e.__episode_id = t.episode_id"
+    )
+    return run_query(store, joined, params, sources=sources)
 
 
 def _valid(frame: pl.DataFrame, held: Sequence[str], names: Sequence[str]) -> bool:
