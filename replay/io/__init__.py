@@ -75,6 +75,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         TASKS,
         UCSM_DIR,
         answer_cache_path,
+        episode_terms_path,
         image_path,
         image_paths,
         listed_mcap,
@@ -90,6 +91,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         runs_path,
         schema_cache_path,
         ssm_path,
+        step_counts_path,
         tasks_path,
     )
     from ._lines import MAX_RECORD_BYTES, iter_lines
@@ -207,8 +209,10 @@ __all__ = [
     "manifest_path",
     "mcap_dir",
     "answer_cache_path",
+    "episode_terms_path",
     "metric_cache_path",
     "result_cache_path",
+    "step_counts_path",
     "schema_cache_path",
     "partition",
     "partition_dir",

@@ -127,6 +127,20 @@ def metric_cache_path(out: _P, grain: str, manifest_key: str, definitions_key: s
     return out / METRIC_CACHE_DIR / f"{grain}-{manifest_key}-{definitions_key}.parquet"
 
 
+def episode_terms_path(out: _P, grain: str, contents_key: str, definitions_key: str) -> _P:
+    """`OUT/.metric-cache/terms_<grain>-<contents_key>-<definitions_key>.parquet`: the terms
+    of the metrics of one grain per (run, episode), with the episodes' cluster columns, for
+    one content of OUT and one set of definitions."""
+    return out / METRIC_CACHE_DIR / f"terms_{grain}-{contents_key}-{definitions_key}.parquet"
+
+
+def step_counts_path(out: _P, part: str, contents_key: str, query_key: str) -> _P:
+    """`OUT/.metric-cache/counts_<part>-<contents_key>-<query_key>.parquet`: the scored steps
+    counted per run, category and the columns of `part` (error type; switch class; device
+    and view), for one content of OUT and one version of the query counting them."""
+    return out / METRIC_CACHE_DIR / f"counts_{part}-{contents_key}-{query_key}.parquet"
+
+
 def schema_cache_path(out: _P, table: str, contents_key: str) -> _P:
     """`OUT/.metric-cache/schema-<table>-<contents_key>.arrow`: a table's schema as its files
     unify it, kept for one content of OUT."""

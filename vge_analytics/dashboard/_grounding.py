@@ -10,9 +10,12 @@ import polars as pl
 from replay.io import STEPS_TABLE
 
 from ..store import (
+    COUNTS_TABLE,
     Filters,
     build_scope,
     check_columns,
+    counted_steps,
+    grouped_aggregate,
     open_store,
     run_query,
 )
@@ -22,14 +25,27 @@ from ._pictures import device_machine, view_boxes
 
 def interaction_views(out: str | Path, where: Filters = None) -> pl.DataFrame:
     """(device_id, category, view, interactions) for every device view clicked in, most
-    clicked first: what the grounding scatter can show."""
+    clicked first: what the grounding scatter can show. Added up from the steps counted per
+    run kept beside OUT (`store.counted_steps`) where they answer, else counted on the steps."""
     store = open_store(out)
     check_columns(store, list(where or {}), [STEPS_TABLE], "filter")
+    order = " ORDER BY interactions DESC, device_id, view"
+    counted = counted_steps(store, "views", list(where or {}))
+    if counted is not None:  # integers: the same sums in any order, typed as a count
+        keys = ["device_id", "category", "view_before"]
+        total = [("CAST(sum(g.interactions) AS BIGINT)", "interactions")]
+        summed, params = grouped_aggregate(counted, COUNTS_TABLE, keys, where, total)
+        sql = (
+            "SELECT device_id, category, view_before AS view, "
+            f"CAST(interactions AS BIGINT) AS interactions FROM ({summed}) AS c "
+            f"WHERE interactions > 0{order}"
+        )
+        return run_query(counted, sql, params)
     scope = build_scope(store, STEPS_TABLE, [], where)
     sql = (
         "SELECT g.device_id, g.category, g.view_before AS view, count(*) AS interactions "
         f"FROM {scope.from_sql} WHERE {scope.where_sql} AND g.is_interaction "
-        "GROUP BY ALL ORDER BY interactions DESC, g.device_id, view"
+        f"GROUP BY ALL{order.replace('device_id', 'g.device_id')}"
     )
     return run_query(store, sql, scope.params)
 

@@ -16,10 +16,12 @@ import replay
 from replay.io import STEPS_TABLE
 
 from ..store import (
+    COUNTS_TABLE,
     Filters,
     GroupBy,
     Store,
     check_columns,
+    counted_steps,
     grouped_aggregate,
     open_store,
     parse_by,
@@ -48,11 +50,11 @@ ERROR_LABELS: dict[str, str] = {
 
 
 def _scoped(
-    store: Store, by: Sequence[str], where: Filters, column: str, count: str
+    store: Store, grain: str, by: Sequence[str], where: Filters, column: str, count: str
 ) -> tuple[str, list]:
     """Scored steps counted per group and `column`, with the group key as a struct `__g`."""
     counted, params = grouped_aggregate(
-        store, STEPS_TABLE, by, where, [(count, "n")], extra_keys=[(f"g.{column}", column)]
+        store, grain, by, where, [(count, "n")], extra_keys=[(f"g.{column}", column)]
     )
     if by:
         key = "struct_pack(" + ", ".join(f"{quote_ident(c)} := c.{quote_ident(c)}" for c in by)
@@ -69,10 +71,20 @@ def _run(
     where: Filters,
     params: list,
     column: str,
-    count: str,
+    count: tuple[str, str],
+    part: str,
 ) -> pl.DataFrame:
+    """Query `name` over the scored steps counted per group and `column`: added up from the
+    steps counted per run kept beside OUT (`store.counted_steps`; `count[1]`, the kept count
+    to add, of `part`) where they answer, else counted on the steps table (`count[0]`)."""
     check_columns(store, [*by, *(where or {})], [STEPS_TABLE], "grouping/filter")
-    scoped, scope_params = _scoped(store, by, where, column, count)
+    counted = counted_steps(store, part, [*by, *(where or {})])
+    if counted is None:
+        scoped, scope_params = _scoped(store, STEPS_TABLE, by, where, column, count[0])
+    else:  # integers: the same sums in any order; typed as the count of the steps table
+        kept = f"CAST(sum(g.{quote_ident(count[1])}) AS BIGINT)"
+        scoped, scope_params = _scoped(counted, COUNTS_TABLE, by, where, column, kept)
+        store = counted
     sql = f"WITH scoped AS ({scoped}) SELECT * FROM ({query_text(name)}) AS q"
     df = run_query(store, sql, [*scope_params, *params])
     df = df.unnest("__g")
@@ -102,7 +114,8 @@ def error_distribution(
         where,
         [types, groups, types],
         "error_type",
-        "count(*)",
+        ("count(*)", "scored"),
+        "errors",
     )
     df = df.sort([*by_cols, "type_order"], nulls_last=True).drop("type_order")
     df = df.with_columns(pl.col("count").cast(pl.Int64), pl.col("share").cast(pl.Float64))
@@ -157,7 +170,8 @@ def switch_classes(out, by: GroupBy = None, where: Filters = None) -> pl.DataFra
         where,
         [classes, classes],
         "switch_class",
-        "count(*) FILTER (WHERE g.is_switch)",
+        ("count(*) FILTER (WHERE g.is_switch)", "switches"),
+        "switches",
     )
     df = df.sort([*by_cols, "class_order"], nulls_last=True).drop("class_order")
     return df.with_columns(

@@ -20,6 +20,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     )
     from ._code import code_key
     from ._contents import local_contents
+    from ._episode_terms import EPISODE_COLUMNS, kept_episode_terms
     from ._isolated import (
         IsolatedResult,
         query_isolated,
@@ -80,6 +81,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         sql_head,
         stream,
     )
+    from ._step_counts import COUNTS_TABLE, counted_steps
     from ._store import (
         NUMERIC_TYPES,
         Store,
@@ -96,6 +98,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         episodes,
         facets,
         goals,
+        run_columns,
         runs,
         steps,
         steps_with_error,
@@ -123,7 +126,9 @@ __all__ = [
     "clear_cache",
     "CLI_MAX_ROWS",
     "CLI_TIMEOUT",
+    "COUNTS_TABLE",
     "DEFAULT_BY",
+    "EPISODE_COLUMNS",
     "episode_steps",
     "episodes",
     "facets",
@@ -162,6 +167,8 @@ __all__ = [
     "ratio_query",
     "kept_result",
     "code_key",
+    "counted_steps",
+    "kept_episode_terms",
     "MAX_RESULT_BYTES",
     "MAX_RESULTS",
     "register_all",
@@ -170,6 +177,7 @@ __all__ = [
     "run_keys_scope",
     "run_query",
     "SelectionCheck",
+    "run_columns",
     "runs",
     "SLOT_WAIT",
     "sql",

@@ -40,7 +40,7 @@ import duckdb
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from replay.io import atomic_file, metric_cache_path
+from replay.io import EPISODES_TABLE, atomic_file, metric_cache_path
 
 from .._errors import QueryError, QueryLimitError
 from ._bounds import query_bounds
@@ -141,6 +141,10 @@ def _terms_source(
         raise  # a bound stopped it: the tables would be stopped the same way
     except (OSError, duckdb.Error, pa.ArrowException, QueryError):
         return None  # read-only or full OUT, or a term that fails: the tables answer
+    if grain == EPISODES_TABLE and ratio_set:  # and the first metric's terms per episode,
+        from ._episode_terms import keep_episode_terms  # the Leaderboard's first interval
+
+        keep_episode_terms(store, ratio_set[0], sources)
     return _read(path, names)
 
 
@@ -166,7 +170,6 @@ def cached_store(
         return store, {}
     key = store.contents
     sources: dict[str, object] = {}
-    catalogue: dict[str, dict[str, str]] = {}
     for grain in dict.fromkeys(r.grain for r in ratios):
         if not _cacheable(store, grain, by, where):
             continue
@@ -176,14 +179,22 @@ def cached_store(
             sources[f"__terms_{grain}"] = data
     if not sources:
         return store, {}
-    derived = dataclasses.replace(store, sources={**store.sources, **sources})
-    for name in sources:
+    derived = with_tables(store, sources)
+    return derived, {name.removeprefix("__terms_"): name for name in sources}
+
+
+def with_tables(store: Store, tables: dict[str, object]) -> Store:
+    """`store` with `tables` (Arrow tables, by our own names) added to its sources and its
+    catalogue of columns, so that they can be grouped and filtered as its tables are."""
+    derived = dataclasses.replace(store, sources={**store.sources, **tables})
+    catalogue: dict[str, dict[str, str]] = {}
+    for name in tables:
         statement = f"DESCRIBE {name}"  # our own names
         with derived.cursor(statement) as cursor:
             rows = cursor.execute(statement).fetchall()
         catalogue[name] = {r[0]: str(r[1]) for r in rows}
     derived.columns = {**store.columns, **catalogue}
-    return derived, {name.removeprefix("__terms_"): name for name in sources}
+    return derived
 
 
 def cached_terms(ratios: Sequence[Ratio]) -> list[tuple[str, str]]:
@@ -197,4 +208,5 @@ __all__ = [
     "cached_store",
     "cached_terms",
     "definitions_key",
+    "with_tables",
 ]

@@ -17,15 +17,17 @@ import contextlib
 import hashlib
 import os
 import stat
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import replay
 from replay.io import METRIC_CACHE_DIR, atomic_file, schema_cache_path
 
 if TYPE_CHECKING:
     import pyarrow as pa
+
+T = TypeVar("T")
 
 Files = Mapping[str, Sequence[tuple[str, str | None]]]
 """table -> (path relative to OUT, run) of each of its files (`_contents.table_files`)."""
@@ -92,6 +94,50 @@ def prune_kept(kept: Path, pattern: str, limit: int) -> None:
             path.unlink()
 
 
+def read_kept_frame(path: Path, limit: int, columns: Sequence[str] | None = None):
+    """The Parquet frame kept at `path` (`columns` of it), read as `read_kept` reads a file
+    (no link, no FIFO, within `limit` bytes), or None when it cannot be had: absent, not
+    Parquet, without those columns. By polars: 9.3 million rows in 0.7 s, pyarrow 7.7 s."""
+    import io
+
+    import polars as pl  # (here: the CLI's start reads the folder without it)
+
+    data = read_kept(path, limit)
+    if data is None:
+        return None
+    try:
+        return pl.read_parquet(io.BytesIO(data), columns=list(columns) if columns else None)
+    except (OSError, pl.exceptions.PolarsError, ValueError):
+        return None
+
+
+def keep_frame(path: Path, frame, pattern: str, limit: int) -> None:
+    """Keep `frame` at `path` as Parquet, written whole or not at all, then prune the files
+    of `pattern` (`prune_kept`, at most `limit`). An OUT that cannot be written raises
+    `OSError`."""
+    path.parent.mkdir(exist_ok=True)
+    with atomic_file(path, sync=False) as fh:
+        frame.write_parquet(fh, compression="zstd")
+    prune_kept(path, pattern, limit)
+
+
+def unless_failed(compute: Callable[[], T]) -> T | None:
+    """`compute()` (which reads or computes and keeps a file), or None when it failed in a
+    way the tables answer around (an OUT that cannot be written, a term that fails); a bound
+    that stopped its query is raised: the tables' query would be stopped the same way."""
+    import duckdb
+    import polars as pl
+
+    from .._errors import QueryError, QueryLimitError
+
+    try:
+        return compute()
+    except QueryLimitError:
+        raise
+    except (OSError, duckdb.Error, pl.exceptions.PolarsError, QueryError):
+        return None
+
+
 def kept_schema(out: replay.Location, table: str, key: str | None) -> pa.Schema | None:
     """The unified schema of `table` kept for contents `key`, or None."""
     import pyarrow as pa  # (here: the key and the folder's check are read without it)
@@ -125,9 +171,12 @@ def keep_schema(out: replay.Location, table: str, key: str | None, schema: pa.Sc
 __all__ = [
     "Files",
     "contents_key",
+    "keep_frame",
     "keep_schema",
     "kept_schema",
     "own_folder",
     "prune_kept",
     "read_kept",
+    "read_kept_frame",
+    "unless_failed",
 ]

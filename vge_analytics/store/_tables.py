@@ -35,6 +35,12 @@ def runs(out) -> pl.DataFrame:
     return run_query(store, sql, [])
 
 
+def run_columns(out, columns: Sequence[str]) -> pl.DataFrame:
+    """`columns` of the runs table alone, a row per run sorted by run_id: without `runs`'
+    counts, which read the episodes table (1.6 s at 100x the full benchmark)."""
+    return _select(out, RUNS_TABLE, None, columns, ["run_id"])
+
+
 def facets(out) -> dict[str, list]:
     """Run facets (`meta_<key>` columns of runs) and their distinct values, sorted."""
     store = open_store(out)
@@ -129,6 +135,7 @@ __all__ = [
     "episodes",
     "facets",
     "goals",
+    "run_columns",
     "runs",
     "steps",
     "steps_with_error",

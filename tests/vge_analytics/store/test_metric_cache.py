@@ -48,10 +48,11 @@ def test_cached_values_are_the_tables_values_on_the_sample(sample_out: Path, tmp
         again = va.metrics(out, by=by, where=where)  # reads it
         assert first.equals(plain), (by, where)
         assert again.equals(plain), (by, where)
-    # One file per grain (episodes, steps, goals), the same for every grouping above, and
-    # the schema of each table.
+    # One file per grain (episodes, steps, goals), the same for every grouping above, the
+    # episodes' terms per episode (written with the per-run ones: the Leaderboard's SR
+    # interval reads them) and the schema of each table.
     terms = [n.split("-")[0] for n in _files(out) if n.endswith(".parquet")]
-    assert terms == ["episodes", "goals", "steps"]
+    assert terms == ["episodes", "goals", "steps", "terms_episodes"]
     schemas = [n.split("-")[1] for n in _files(out) if n.endswith(".arrow")]
     assert schemas == ["episodes", "goals", "runs", "steps"]
 
@@ -63,7 +64,7 @@ def test_cached_values_on_synthetic_runs(pair_out: Path, hand_out: Path, tmp_pat
             plain = va.metrics(out, by=by, cache=False)
             assert va.metrics(out, by=by).equals(plain), by
             assert va.metrics(out, by=by).equals(plain), by
-        assert len([n for n in _files(out) if n.endswith(".parquet")]) == 3
+        assert len([n for n in _files(out) if n.endswith(".parquet")]) == 4
 
 
 def test_the_cache_file_is_what_answers(pair_out: Path, tmp_path: Path):
@@ -101,7 +102,7 @@ def test_a_run_replayed_again_makes_a_new_file(pair: dict, tmp_path: Path):
     assert got["SR"].to_list() == pytest.approx([100 / 9, 700 / 11])
     assert got.equals(va.metrics(out, by="run_id", metrics="SR", cache=False))
     new = _files(out)
-    assert len(new) == 5 and not set(new) & set(old)  # the old files are gone
+    assert len(new) == 6 and not set(new) & set(old)  # the old files are gone
 
 
 def test_a_changed_metric_file_makes_a_new_file(pair_out: Path, tmp_path: Path):
@@ -157,7 +158,9 @@ def test_a_broken_cache_file_is_computed_again(pair_out: Path, tmp_path: Path):
     va.clear_cache()
     assert va.metrics(out, by="run_id").equals(want)
     for name in _files(out):
-        if name.endswith(".parquet"):
+        if name.startswith("terms_"):  # a row per episode: 10 of A, 11 of B
+            assert pq.read_table(out / METRIC_CACHE_DIR / name).num_rows == 21
+        elif name.endswith(".parquet"):
             assert pq.read_table(out / METRIC_CACHE_DIR / name).num_rows == 2
         else:
             assert pa.ipc.read_schema(pa.py_buffer((out / METRIC_CACHE_DIR / name).read_bytes()))

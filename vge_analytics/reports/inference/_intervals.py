@@ -5,15 +5,22 @@ terms; beside it the clustered (CR1) and naive standard errors and the design ef
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 import polars as pl
 
 from replay.io import EPISODES_TABLE
 
-from ...metrics import MetricsSource, episode_terms, metric_set
-from ...store import Filters, check_columns, episodes, open_store, runs
+from ...metrics import Metric, MetricsSource, episode_terms, metric_set
+from ...store import (
+    Filters,
+    check_columns,
+    episodes,
+    kept_episode_terms,
+    open_store,
+    run_columns,
+)
 from ._clusters import (
     DEFAULT_CLUSTER,
     bootstrap_totals,
@@ -39,17 +46,44 @@ INTERVAL_COLUMNS: dict[str, pl.DataType] = {
 
 
 def _grouped_terms(
-    store, metric: str, by: Sequence[str], where: Filters, available
+    store, metric: Metric, by: Sequence[str], where: Filters, available
 ) -> pl.DataFrame:
-    """One row per (run, episode) with the group columns, the cluster columns, num and den."""
-    terms = episode_terms(store, [metric], where, metrics_dir=available)
-    wanted = ["run_id", "episode_id", "device_id", "category"]
-    on_episodes = [c for c in by if store.has_column(EPISODES_TABLE, c) and c not in wanted]
-    rows = episodes(store, where, columns=[*wanted, *on_episodes])
-    on_runs = [c for c in by if c not in wanted and c not in on_episodes]
+    """One row per (run, episode) with the group columns, the cluster columns, num and den:
+    from the terms kept beside OUT where they answer (`store.kept_episode_terms`), else from
+    the tables."""
+    rows = kept_episode_terms(store, metric, by, where, files_of=available.files_of)
+    if rows is None:
+        terms = episode_terms(store, [metric.name], where, metrics_dir=available)
+        wanted = ["run_id", "episode_id", "device_id", "category"]
+        on_episodes = [c for c in by if store.has_column(EPISODES_TABLE, c) and c not in wanted]
+        rows = episodes(store, where, columns=[*wanted, *on_episodes])
+        rows = rows.join(terms, on=["run_id", "episode_id"], how="inner")
+    on_runs = [c for c in by if c not in rows.columns]
     if on_runs:
-        rows = rows.join(runs(store).select("run_id", *on_runs), on="run_id", how="left")
-    return rows.join(terms, on=["run_id", "episode_id"], how="inner")
+        rows = rows.join(run_columns(store, ["run_id", *on_runs]), on="run_id", how="left")
+    return rows
+
+
+def _groups(
+    ordered: pl.DataFrame, by: Sequence[str], terms: Sequence[str], code: str
+) -> Iterator[tuple[tuple, np.ndarray, np.ndarray]]:
+    """(group values, its (n x 2) terms as floats, its cluster codes) of each group of `by`
+    in a frame sorted by it: one conversion to numpy of the whole frame, sliced at the rows
+    where a group value changes (a null equal to a null), instead of a frame per group
+    (900 groups of 10,000 episodes at 100x: 3 s)."""
+    if ordered.height == 0:
+        return
+    values = np.ascontiguousarray(ordered.select(terms).to_numpy(), dtype=np.float64)
+    codes = ordered[code].to_numpy().astype(np.int64)
+    changed = pl.any_horizontal(
+        [pl.col(c).ne_missing(pl.col(c).shift(1)).fill_null(True) for c in by] or [pl.lit(False)]
+    )
+    starts = np.flatnonzero(ordered.select(changed.alias("start"))["start"].to_numpy())
+    starts = np.union1d([0], starts)
+    ends = [*starts[1:], ordered.height]
+    group_keys = ordered.select(by)[starts].rows() if by else [()]
+    for key, start, end in zip(group_keys, starts, ends, strict=True):
+        yield key, values[start:end], codes[start:end]
 
 
 def metric_intervals(
@@ -73,21 +107,15 @@ def metric_intervals(
     check_columns(store, by, [EPISODES_TABLE], "grouping")
     available = metric_set(metrics_dir)
     (chosen,) = available.resolve([metric])
-    frame = _grouped_terms(store, chosen.name, by, where, available)
+    frame = _grouped_terms(store, chosen, by, where, available)
     num, den = f"{chosen.name}:num", f"{chosen.name}:den"
     code = cluster_code_column(CLUSTER_COLUMNS[cluster], by)  # each group's cluster codes
-    groups = (
-        frame.sort([*by, "run_id", "episode_id"], nulls_last=True)
-        .with_columns(code)
-        .partition_by(by, maintain_order=True, as_dict=True)
-    )
+    ordered = frame.sort([*by, "run_id", "episode_id"], nulls_last=True).with_columns(code)
     keys, sums, naive = [], [], []
-    for key, part in groups.items():
-        values = np.ascontiguousarray(part.select(num, den).to_numpy(), dtype=np.float64)
-        codes = part[code.meta.output_name()].to_numpy().astype(np.int64)
+    for key, values, codes in _groups(ordered, by, [num, den], code.meta.output_name()):
         keys.append(key)
-        sums.append(cluster_sums(values.reshape(part.height, 2), codes, int(codes.max()) + 1))
-        naive.append(values.reshape(part.height, 2))
+        sums.append(cluster_sums(values, codes, int(codes.max()) + 1))
+        naive.append(values)
     usable = [i for i, s in enumerate(sums) if s.shape[0] >= 2]
     boots = dict(
         zip(usable, bootstrap_totals([sums[i] for i in usable], seed, resamples), strict=True)

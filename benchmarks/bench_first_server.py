@@ -1,0 +1,71 @@
+"""A first dashboard server's data calls, in one process: each page's first choice, then others.
+
+    python benchmarks/bench_first_server.py OUT [--cold]
+
+Calls, in order and timed once each, what the Leaderboard, Errors, Navigation and Grounding
+pages ask for on a first server (`va.metric_intervals`, `va.error_distribution`,
+`va.switch_classes`, `dashboard.interaction_views`): the page's default, then another
+grouping or a category filter, as a visitor choosing them would. The dashboard's kept results
+(`result-*`) are not used (the functions are called directly), so this times what a first
+server computes; `--cold` first removes the terms per episode and the step counts kept in
+`OUT/.metric-cache/` (`terms_*`, `counts_*`: docs/METRICS.md), so that the first calls
+compute them. Run it for BASE with `PYTHONPATH=BASE` beside this tree, alternating
+(docs/PERFORMANCE.md, *The first server at 100x*).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--cold", action="store_true", help="forget the kept terms and counts")
+    args = parser.parse_args()
+    out: Path = args.out
+    if args.cold:
+        from replay.io import METRIC_CACHE_DIR
+
+        for pattern in ("terms_*.parquet", "counts_*.parquet"):
+            for kept in (out / METRIC_CACHE_DIR).glob(pattern):
+                kept.unlink()
+
+    import vge_analytics as va
+    from vge_analytics import dashboard as dash
+
+    run = ["run_id", "model"]
+    category = {"category": ["Microwave"]}
+    calls = [
+        ("intervals of SR by run", lambda: va.metric_intervals(out, by=run, where={})),
+        ("intervals of SR by model", lambda: va.metric_intervals(out, by=["model"], where={})),
+        (
+            "intervals of SR by run, category filtered",
+            lambda: va.metric_intervals(out, by=run, where=category),
+        ),
+        (
+            "intervals of SPL by run",
+            lambda: va.metric_intervals(out, metric="SPL", by=run, where={}),
+        ),
+        ("error shares by run", lambda: va.error_distribution(out, by=run, labels=True)),
+        (
+            "error shares by model, category filtered",
+            lambda: va.error_distribution(out, by=["model"], where=category, labels=True),
+        ),
+        ("switch classes by run", lambda: va.switch_classes(out, by=run, where={})),
+        ("switch classes by category", lambda: va.switch_classes(out, by=["category"])),
+        ("clicked views", lambda: dash.interaction_views(out, where={})),
+        ("clicked views, category filtered", lambda: dash.interaction_views(out, where=category)),
+    ]
+    va.runs(out)  # OUT opened, as a server has it before a page asks
+    print("| call, in order | seconds |\n|---|---:|")
+    for name, call in calls:
+        started = time.perf_counter()
+        call()
+        print(f"| {name} | {time.perf_counter() - started:.2f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

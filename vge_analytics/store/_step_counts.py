@@ -1,0 +1,142 @@
+"""The scored steps counted per run, kept beside OUT: what the error shares, the switch classes
+and the clicked views add up.
+
+The Errors page's shares (`error_distribution`), the Navigation page's switch classes
+(`switch_classes`) and the Grounding page's clicked views (`interaction_views`) each count
+the scored steps of the whole steps table: 3 to 18 s each at 100 times the full benchmark
+(91 million steps), on every first visit and again for every other grouping or filter. The
+first count of each (`PARTS`) is now made per run and category and kept, in
+`OUT/.metric-cache/counts_<part>-<contents>-<key>.parquet` (`replay.io.step_counts_path`;
+`<key>` a hash of the query that counts): the errors per error type, the successful switches
+per switch class, the interactions per device and view. A page then adds up the kept rows
+for its groups and filters: counts are integers, so the sums are the tables' to the unit,
+whatever their order. (One scan for the three, grouped by all their columns or by grouping
+sets, took longer at 100x than the three scans together: 30 to 36 s.)
+
+They answer a grouping or a filter on run_id, category or a column fixed per run (model,
+agent kind, a facet), the pages' choices; any other column is counted on the tables as
+before. Keyed, bounded and checked as the other files of the folder: another content of OUT
+names another file (the part's old one is removed), at most `MAX_COUNTS_FILES` are kept per
+part, none is read over `MAX_COUNTS_BYTES`, through a link or when its columns are not the
+ones written here (then it is counted again).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NamedTuple
+
+import polars as pl
+
+from replay.io import STEPS_TABLE, step_counts_path
+
+from ._cache import _where, with_tables
+from ._kept import keep_frame, read_kept_frame, unless_failed
+from ._scope import build_scope, quote_ident, run_level
+from ._sql import run_query
+from ._store import Store
+
+
+class Part(NamedTuple):
+    """One kept count of the scored steps: per run, category and `columns`, `count` as
+    `name`, of the steps meeting `condition` too."""
+
+    columns: tuple[str, ...]
+    count: str
+    name: str
+    condition: str = "TRUE"
+
+
+PARTS: dict[str, Part] = {
+    "errors": Part(("error_type",), "count(*)", "scored"),
+    "switches": Part(("switch_class",), "count(*) FILTER (WHERE g.is_switch)", "switches"),
+    "views": Part(("device_id", "view_before"), "count(*)", "interactions", "g.is_interaction"),
+}
+"""The counts kept, a file each: what `error_distribution`, `switch_classes` and
+`interaction_views` add up."""
+
+ANSWERED: tuple[str, ...] = ("run_id", "category")
+"""The columns of the kept counts a page may group or filter by (besides run columns)."""
+
+COUNTS_TABLE = "__step_counts"
+"""The name the kept counts are registered under for a query."""
+
+MAX_COUNTS_BYTES = 256 << 20
+"""A kept file of counts over this is not read (at 100x the full benchmark: a few MB)."""
+
+MAX_COUNTS_FILES = 2
+"""Files of a part kept for one content of OUT (one per version of the counting query)."""
+
+
+def _query(store: Store, part: Part) -> tuple[str, list]:
+    """The scored steps (and `part.condition`) counted per run, category and `part.columns`."""
+    scope = build_scope(store, STEPS_TABLE, [], None)
+    keys = ", ".join(f"g.{quote_ident(c)}" for c in ("run_id", "category", *part.columns))
+    sql = (
+        f"SELECT {keys}, {part.count} AS {quote_ident(part.name)} "
+        f"FROM {scope.from_sql} WHERE {scope.where_sql} AND {part.condition} "
+        f"GROUP BY {keys} ORDER BY ALL"
+    )
+    return sql, list(scope.params)
+
+
+def answers(store: Store, columns: Sequence[str]) -> bool:
+    """Whether the kept counts can be grouped and filtered on `columns`."""
+    return all(c in ANSWERED or run_level(store, STEPS_TABLE, c) for c in columns)
+
+
+def _valid(frame: pl.DataFrame, part: Part) -> bool:
+    schema = frame.schema
+    text = ["run_id", "category", *part.columns]
+    return all(schema.get(c) == pl.String for c in text) and (
+        schema.get(part.name) is not None and schema[part.name].is_integer()
+    )
+
+
+def _read(path: Path, part: Part) -> pl.DataFrame | None:
+    frame = read_kept_frame(path, MAX_COUNTS_BYTES)
+    return frame if frame is not None and _valid(frame, part) else None
+
+
+def _counts(store: Store, name: str) -> pl.DataFrame | None:
+    """The kept counts `name` of OUT (counted and kept first when missing), or None when OUT
+    keeps nothing."""
+    out = _where(store)
+    if out is None:
+        return None
+    part = PARTS[name]
+    sql, params = _query(store, part)
+    key = hashlib.sha256(sql.encode()).hexdigest()[:16]
+    path = step_counts_path(out, name, store.contents, key)
+    kept = _read(path, part)
+    if kept is not None:
+        return kept
+    counts = run_query(store, sql, params)
+    with contextlib.suppress(OSError, pl.exceptions.PolarsError):
+        keep_frame(path, counts, f"counts_{name}-*.parquet", MAX_COUNTS_FILES)
+    return counts
+
+
+def counted_steps(store: Store, part: str, columns: Sequence[str]) -> Store | None:
+    """`store` with OUT's kept step counts `part` (of `PARTS`) registered as `COUNTS_TABLE`
+    (a grain for `grouped_aggregate`: run_id, category, the part's columns and its count),
+    or None when they cannot answer a grouping or filter on `columns`, or OUT keeps
+    nothing."""
+    if not answers(store, columns):
+        return None
+    counts = unless_failed(lambda: _counts(store, part))
+    if counts is None:
+        return None
+    return with_tables(store, {COUNTS_TABLE: counts.to_arrow()})
+
+
+__all__ = [
+    "COUNTS_TABLE",
+    "PARTS",
+    "MAX_COUNTS_BYTES",
+    "MAX_COUNTS_FILES",
+    "counted_steps",
+]
