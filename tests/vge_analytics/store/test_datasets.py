@@ -4,7 +4,6 @@ built only when a query of the analytics names it; the same catalogue either way
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pyarrow as pa
@@ -12,13 +11,10 @@ import pyarrow.parquet as pq
 
 import replay
 import vge_analytics as va
-from replay.io import METRIC_CACHE_DIR
+from tests.vge_analytics.store.kept import copy_out
 from vge_analytics.store import _datasets, _store, run_query
 
-
-def _copy(out: Path, target: Path) -> Path:
-    shutil.copytree(out, target, ignore=shutil.ignore_patterns(METRIC_CACHE_DIR))
-    return target
+_copy = copy_out  # an OUT without its cache folder
 
 
 def _built(store: _store.Store) -> list[str]:

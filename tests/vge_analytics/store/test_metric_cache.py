@@ -15,6 +15,7 @@ import pytest
 import vge_analytics as va
 from replay.io import METRIC_CACHE_DIR
 from tests.vge_analytics.conftest import replay_to
+from tests.vge_analytics.store.kept import copy_out
 from vge_analytics.metrics import metric_set
 from vge_analytics.store import _cache, _kept
 
@@ -30,9 +31,7 @@ GROUPINGS = (
 )
 
 
-def _copy(out: Path, target: Path) -> Path:
-    shutil.copytree(out, target, ignore=shutil.ignore_patterns(METRIC_CACHE_DIR))
-    return target
+_copy = copy_out  # an OUT without its cache folder
 
 
 def _files(out: Path) -> list[str]:

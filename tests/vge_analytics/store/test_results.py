@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import shutil
 from pathlib import Path
 
 import polars as pl
@@ -16,13 +15,11 @@ import pytest
 
 import vge_analytics as va
 from replay.io import METRIC_CACHE_DIR
+from tests.vge_analytics.store.kept import copy_out
 from vge_analytics import dashboard as dash
 from vge_analytics.store import _results
 
-
-def _copy(out: Path, target: Path) -> Path:
-    shutil.copytree(out, target, ignore=shutil.ignore_patterns(METRIC_CACHE_DIR))
-    return target
+_copy = copy_out  # an OUT without its cache folder
 
 
 def _results_kept(out: Path) -> list[str]:
