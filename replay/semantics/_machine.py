@@ -202,39 +202,32 @@ def _check_component(
         err(where_c, f"more than one {comp} transition; only the first is taken", "warning")
     seen_triggers: dict[tuple, int] = {}
     for k, tr in enumerate(transitions):
-        # where: formatted only for a problem (a benchmark has tens of thousands of these)
+        where = f"{where_c}, transition {k}"
         if tr.next_state not in ssm.states:
-            err(f"{where_c}, transition {k}", f"dangling next_state {tr.next_state!r}")
+            err(where, f"dangling next_state {tr.next_state!r}")
         if comp in PSEUDO_COMPONENTS:
             if tr.bbox:
-                err(
-                    f"{where_c}, transition {k}",
-                    f"{comp} transitions have no bbox; it is ignored",
-                    "warning",
-                )
+                err(where, f"{comp} transitions have no bbox; it is ignored", "warning")
             continue
         action = tr.atomic_action.lower() if tr.atomic_action else None
         if action is None:
             if require_geometry:
-                err(f"{where_c}, transition {k}", "missing atomic_action")
+                err(where, "missing atomic_action")
         elif action not in ATOMIC_ACTIONS:
-            err(f"{where_c}, transition {k}", f"unknown atomic action {tr.atomic_action!r}")
+            err(where, f"unknown atomic action {tr.atomic_action!r}")
         if require_geometry and not tr.bbox:
-            err(
-                f"{where_c}, transition {k}",
-                "no bbox: the component cannot be clicked in any view",
-                "warning",
-            )
+            err(where, "no bbox: the component cannot be clicked in any view", "warning")
         for b, box in enumerate(tr.bbox):
+            where_b = f"{where}, bbox {b}"
             if box.view.lower() not in offered:
-                err(f"{where_c}, transition {k}, bbox {b}", f"bbox on unknown view {box.view!r}")
+                err(where_b, f"bbox on unknown view {box.view!r}")
             for message in _coordinate_problems(box.coordinate):
-                err(f"{where_c}, transition {k}, bbox {b}", message)
+                err(where_b, message)
         if action is not None:
             trigger = (action, tuple(normalize_param(p) for p in (tr.parameter or ())))
             if trigger in seen_triggers:
                 err(
-                    f"{where_c}, transition {k}",
+                    where,
                     f"same action and params as transition {seen_triggers[trigger]}; "
                     "only the first can ever fire",
                     "warning",
