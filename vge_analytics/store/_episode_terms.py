@@ -40,7 +40,7 @@ from replay.io import EPISODES_TABLE, RUNS_TABLE, episode_terms_path
 from .._errors import QueryError
 from ._bounds import query_bounds
 from ._cache import _where, definitions_key
-from ._kept import keep_frame, read_kept_frame, unless_failed
+from ._kept import kept_frame, read_kept_frame, unless_failed
 from ._ratios import Ratio, ratio_query, term_name
 from ._scope import Filters, _filter_condition, quote_ident, run_level
 from ._sql import run_query
@@ -123,13 +123,13 @@ def _kept_table(store: Store, ratio: Ratio, held: Sequence[str], sources) -> pl.
         return None
     names = [term_name(ratio, p) for p in ("num", "den")]
     path = episode_terms_path(out, ratio.grain, store.contents, definitions_key([ratio]))
-    kept = _read(path, held, names)
-    if kept is not None:
-        return kept
-    rows = _compute(store, [ratio], held, sources)
-    with contextlib.suppress(OSError, pl.exceptions.PolarsError):
-        keep_frame(path, rows, "terms_*.parquet", MAX_TERMS_FILES)
-    return rows
+    return kept_frame(
+        path,
+        lambda at: _read(at, held, names),
+        lambda: _compute(store, [ratio], held, sources),
+        "terms_*.parquet",
+        MAX_TERMS_FILES,
+    )
 
 
 def _selected(

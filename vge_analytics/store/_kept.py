@@ -25,6 +25,7 @@ import replay
 from replay.io import METRIC_CACHE_DIR, atomic_file, schema_cache_path
 
 if TYPE_CHECKING:
+    import polars as pl
     import pyarrow as pa
 
 T = TypeVar("T")
@@ -111,14 +112,28 @@ def read_kept_frame(path: Path, limit: int, columns: Sequence[str] | None = None
         return None
 
 
-def keep_frame(path: Path, frame, pattern: str, limit: int) -> None:
-    """Keep `frame` at `path` as Parquet, written whole or not at all, then prune the files
-    of `pattern` (`prune_kept`, at most `limit`). An OUT that cannot be written raises
-    `OSError`."""
-    path.parent.mkdir(exist_ok=True)
-    with atomic_file(path, sync=False) as fh:
-        frame.write_parquet(fh, compression="zstd")
-    prune_kept(path, pattern, limit)
+def kept_frame(
+    path: Path,
+    read: Callable[[Path], pl.DataFrame | None],
+    compute: Callable[[], pl.DataFrame],
+    pattern: str,
+    limit: int,
+) -> pl.DataFrame:
+    """The polars frame `read(path)` gives (None: no valid frame kept there), else
+    `compute()`, kept at `path` as Parquet, written whole or not at all (not when OUT cannot be
+    written), and the files of `pattern` pruned (`prune_kept`, at most `limit`)."""
+    import polars as pl
+
+    kept = read(path)
+    if kept is not None:
+        return kept
+    frame = compute()
+    with contextlib.suppress(OSError, pl.exceptions.PolarsError):
+        path.parent.mkdir(exist_ok=True)
+        with atomic_file(path, sync=False) as fh:
+            frame.write_parquet(fh, compression="zstd")
+        prune_kept(path, pattern, limit)
+    return frame
 
 
 def unless_failed(compute: Callable[[], T]) -> T | None:
@@ -171,7 +186,7 @@ def keep_schema(out: replay.Location, table: str, key: str | None, schema: pa.Sc
 __all__ = [
     "Files",
     "contents_key",
-    "keep_frame",
+    "kept_frame",
     "keep_schema",
     "kept_schema",
     "own_folder",

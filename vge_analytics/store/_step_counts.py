@@ -23,7 +23,6 @@ ones written here (then it is counted again).
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 from collections.abc import Sequence
 from pathlib import Path
@@ -34,7 +33,7 @@ import polars as pl
 from replay.io import STEPS_TABLE, step_counts_path
 
 from ._cache import _where, with_tables
-from ._kept import keep_frame, read_kept_frame, unless_failed
+from ._kept import kept_frame, read_kept_frame, unless_failed
 from ._scope import build_scope, quote_ident, run_level
 from ._sql import run_query
 from ._store import Store
@@ -111,13 +110,13 @@ def _counts(store: Store, name: str) -> pl.DataFrame | None:
     sql, params = _query(store, part)
     key = hashlib.sha256(sql.encode()).hexdigest()[:16]
     path = step_counts_path(out, name, store.contents, key)
-    kept = _read(path, part)
-    if kept is not None:
-        return kept
-    counts = run_query(store, sql, params)
-    with contextlib.suppress(OSError, pl.exceptions.PolarsError):
-        keep_frame(path, counts, f"counts_{name}-*.parquet", MAX_COUNTS_FILES)
-    return counts
+    return kept_frame(
+        path,
+        lambda at: _read(at, part),
+        lambda: run_query(store, sql, params),
+        f"counts_{name}-*.parquet",
+        MAX_COUNTS_FILES,
+    )
 
 
 def counted_steps(store: Store, part: str, columns: Sequence[str]) -> Store | None:
