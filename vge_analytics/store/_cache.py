@@ -45,7 +45,7 @@ from replay.io import EPISODES_TABLE, atomic_file, metric_cache_path
 from .._errors import QueryError, QueryLimitError
 from ._bounds import query_bounds
 from ._kept import own_folder
-from ._ratios import Ratio, term_name
+from ._ratios import Ratio, ratio_terms, term_name
 from ._scope import Filters, grouped_aggregate, quote_ident, run_level
 from ._sql import run_query
 from ._store import Store
@@ -83,11 +83,7 @@ def _write(
     """Compute the per-run terms of `ratios` over `grain` and write them to `path`: one query
     as any other of the analytics (`run_query`, within the bounds of the block around it;
     `sources`, the metric files it holds, named if it is stopped); its result is a row a run."""
-    terms = []
-    for r in ratios:
-        terms.append((f"coalesce(\n{r.numerator}\n, 0)", term_name(r, "num")))
-        terms.append((f"coalesce(\n{r.denominator}\n, 0)", term_name(r, "den")))
-    sql, params = grouped_aggregate(store, grain, ("run_id",), None, terms)
+    sql, params = grouped_aggregate(store, grain, ("run_id",), None, ratio_terms(ratios))
     sql += " ORDER BY run_id"
     table = run_query(store, sql, params, sources=sources).to_arrow()
     path.parent.mkdir(exist_ok=True)

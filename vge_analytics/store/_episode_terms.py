@@ -40,9 +40,16 @@ from replay.io import EPISODES_TABLE, RUNS_TABLE, episode_terms_path
 from .._errors import QueryError
 from ._bounds import query_bounds
 from ._cache import _where, definitions_key
-from ._kept import kept_frame, read_kept_frame, unless_failed
-from ._ratios import Ratio, ratio_query, term_name
-from ._scope import Filters, _filter_condition, quote_ident, run_level
+from ._kept import keep_parts, read_kept_frame, unless_failed
+from ._ratios import Ratio, ratio_terms, term_name
+from ._scope import (
+    Filters,
+    _filter_condition,
+    check_columns,
+    grouped_aggregate,
+    quote_ident,
+    run_level,
+)
 from ._sql import run_query
 from ._store import Store
 
@@ -53,6 +60,11 @@ category; `episode_id` is a key) and the Leaderboard's episode filters and group
 MAX_TERMS_BYTES = 1 << 30
 """A kept file of terms over this is not read (a row per episode: 9.3 million rows at 100x
 the full benchmark, every metric of the steps, in well under this)."""
+
+EPISODES_PER_QUERY = 500_000
+"""Episodes whose terms one query computes when they are kept (`_run_parts`): at 100 times the
+full benchmark, the whole in one query (an aggregate, a sort and a join of 9.3 million rows)
+took 3.1 GB of memory at its peak, in parts of this size 1.1 GB, in about the same time."""
 
 MAX_TERMS_FILES = 32
 """Files of terms kept for one content of OUT (one per metric: 14 built-in)."""
@@ -71,23 +83,49 @@ def _answers(store: Store, columns: Sequence[str], held: Sequence[str]) -> bool:
     return all(c in _KEYS or c in held or run_level(store, EPISODES_TABLE, c) for c in columns)
 
 
-def _compute(store: Store, ratios: Sequence[Ratio], held: Sequence[str], sources) -> pl.DataFrame:
-    """The rows the direct computation joins: the terms of `ratios` per (run, episode) (their
-    own query, unfiltered) joined to the episodes' keys and `held` columns, in one statement
-    (the join in DuckDB, within the query's memory bound)."""
-    sql, params = ratio_query(store, _KEYS, ratios, None, terms=True)
-    names = [term_name(r, p) for r in ratios for p in ("num", "den")]
+def _compute(
+    store: Store,
+    ratio: Ratio,
+    held: Sequence[str],
+    sources,
+    runs: Sequence[str] | None = None,
+) -> pl.DataFrame:
+    """The rows the direct computation joins: the terms of `ratio` per (run, episode) (its
+    grain's rows grouped by run_id and episode_id, as `episode_terms` groups them; an
+    episode without rows has none) joined to the episodes' keys and `held` columns, in one
+    statement (the join in DuckDB, within the query's memory bound); `runs`: those of these
+    runs alone (a filter on run_id, which skips the other runs' files), the same rows."""
+    where = None if runs is None else {"run_id": list(runs)}
+    check_columns(store, [*_KEYS, *(where or {})], [ratio.grain], "grouping/filter")
+    sql, params = grouped_aggregate(store, ratio.grain, _KEYS, where, ratio_terms([ratio]))
+    names = [term_name(ratio, p) for p in ("num", "den")]
     select = ", ".join(
         [*(f"t.{quote_ident(c)}" for c in _KEYS), *(f"e.{quote_ident(c)}" for c in held)]
-        + [f"t.{quote_ident(n)}" for n in names]
+        + [f"coalesce(t.{quote_ident(n)}, 0) AS {quote_ident(n)}" for n in names]
     )
     columns = "".join(f", {quote_ident(c)}" for c in held)
+    on_runs = "TRUE"
+    if runs is not None:
+        on_runs = _filter_condition("run_id", store.columns[EPISODES_TABLE]["run_id"], runs, params)
     joined = (
         f"SELECT {select} FROM ({sql}) AS t JOIN (SELECT run_id AS __run_id, episode_id AS "
-        f"__episode_id{columns} FROM episodes) AS e "
+        f"__episode_id{columns} FROM episodes WHERE {on_runs}) AS e "
         "ON e.__run_id = t.run_id AND e.__episode_id = t.episode_id"
     )
     return run_query(store, joined, params, sources=sources)
+
+
+def _run_parts(store: Store) -> list[list[str]]:
+    """OUT's runs (the manifest's, sorted) in parts of about `EPISODES_PER_QUERY` episodes
+    (the manifest's count over its runs), at least one part."""
+    listed = store.manifest.get("runs", [])
+    runs = sorted({r["run_id"] for r in listed if isinstance(r.get("run_id"), str)})
+    totals = store.manifest.get("totals")
+    episodes = totals.get("replayed") if isinstance(totals, dict) else None
+    if not isinstance(episodes, int) or episodes <= 0 or not runs:
+        return [runs]
+    per = max(1, EPISODES_PER_QUERY * len(runs) // episodes)
+    return [runs[i : i + per] for i in range(0, len(runs), per)]
 
 
 def _valid(frame: pl.DataFrame, held: Sequence[str], names: Sequence[str]) -> bool:
@@ -108,28 +146,45 @@ def _valid(frame: pl.DataFrame, held: Sequence[str], names: Sequence[str]) -> bo
     )
 
 
-def _read(path: Path, held: Sequence[str], names: Sequence[str]) -> pl.DataFrame | None:
-    """The keys, `held` and `names` of the kept frame at `path`, or None when it is absent
-    or not one this module writes."""
-    frame = read_kept_frame(path, MAX_TERMS_BYTES, [*_KEYS, *held, *names])
+def _read(
+    path: Path, held: Sequence[str], names: Sequence[str], rows: int | None = None
+) -> pl.DataFrame | None:
+    """The keys, `held` and `names` of the kept frame at `path` (its first `rows`: 0 for
+    its columns alone), or None when it is absent or not one this module writes."""
+    frame = read_kept_frame(path, MAX_TERMS_BYTES, [*_KEYS, *held, *names], rows)
     return frame if frame is not None and _valid(frame, held, names) else None
 
 
-def _kept_table(store: Store, ratio: Ratio, held: Sequence[str], sources) -> pl.DataFrame | None:
-    """The terms of `ratio` per (run, episode) from OUT's cache folder, computed and kept
-    first when missing; None when OUT keeps nothing."""
+def _keep(store: Store, ratio: Ratio, held: Sequence[str], sources) -> Path | None:
+    """The file of the terms of `ratio` per (run, episode) in OUT's cache folder, computed
+    and written first when no valid one is there (its columns and types read, not its rows);
+    None when OUT keeps nothing or cannot be written. Written a part of the runs at a time
+    (`_run_parts`), so that neither DuckDB's join nor the result holds all the episodes."""
     out = _where(store)
     if out is None:
         return None
     names = [term_name(ratio, p) for p in ("num", "den")]
     path = episode_terms_path(out, ratio.grain, store.contents, definitions_key([ratio]))
-    return kept_frame(
-        path,
-        lambda at: _read(at, held, names),
-        lambda: _compute(store, [ratio], held, sources),
-        "terms_*.parquet",
-        MAX_TERMS_FILES,
-    )
+    if _read(path, held, names, rows=0) is not None:
+        return path
+    parts = (_compute(store, ratio, held, sources, runs) for runs in _run_parts(store))
+    return path if keep_parts(path, parts, "terms_*.parquet", MAX_TERMS_FILES) else None
+
+
+def _kept_table(store: Store, ratio: Ratio, held: Sequence[str], sources) -> pl.DataFrame | None:
+    """The terms of `ratio` per (run, episode) from OUT's cache folder, computed and kept
+    first when missing (`_keep`), then read; computed here, a part at a time, when OUT
+    cannot be written or the file written cannot be read (over `MAX_TERMS_BYTES`); None
+    when OUT keeps nothing."""
+    if _where(store) is None:
+        return None
+    path = _keep(store, ratio, held, sources)
+    names = [term_name(ratio, p) for p in ("num", "den")]
+    kept = None if path is None else _read(path, held, names)
+    if kept is not None:
+        return kept
+    parts = [_compute(store, ratio, held, sources, runs) for runs in _run_parts(store)]
+    return pl.concat(parts, how="vertical")
 
 
 def _selected(
@@ -167,10 +222,15 @@ def keep_episode_terms(store: Store, ratio: Ratio, sources: Sequence[str]) -> No
     """Compute and keep the terms per (run, episode) of `ratio` unless a valid file holds
     them: what the metric cache adds when it writes the per-run terms of the episodes
     (`_cache`), for the set's first metric of the episodes (SR's, the Leaderboard's first
-    interval), so that `vge metrics OUT`, run first, also fills what that reads. Nothing
-    when OUT keeps nothing or the terms cannot be had (the command has its answer already)."""
+    interval), so that `vge metrics OUT`, run first, also fills what that reads (written a
+    part at a time, never read back here). Nothing when OUT keeps nothing, the terms cannot
+    be had (the command has its answer already), or a metric file's query would run in a
+    process of its own for each part (a server's; its intervals read the tables then)."""
+    bounds = query_bounds()
+    if bounds is not None and bounds.isolated and sources:
+        return
     with contextlib.suppress(OSError, duckdb.Error, pl.exceptions.PolarsError, QueryError):
-        _kept_table(store, ratio, _held(store), sources)
+        _keep(store, ratio, _held(store), sources)
 
 
 def kept_episode_terms(

@@ -65,13 +65,19 @@ def _grain_query(
         from ._cache import cached_terms
 
         return grouped_aggregate(store, cached, by, where, cached_terms(ratios))
+    return grouped_aggregate(store, grain, by, where, ratio_terms(ratios))
+
+
+def ratio_terms(ratios: Sequence[Ratio]) -> list[tuple[str, str]]:
+    """(aggregate expression, column) of each numerator and denominator of `ratios` over their
+    grain's rows, an empty sum as 0 (`grouped_aggregate`'s terms)."""
     # Each expression on lines of its own, as the metric check binds it: a trailing `--`
     # comment in a metric file ends with its line.
     terms = []
     for r in ratios:
         terms.append((f"coalesce(\n{r.numerator}\n, 0)", term_name(r, "num")))
         terms.append((f"coalesce(\n{r.denominator}\n, 0)", term_name(r, "den")))
-    return grouped_aggregate(store, grain, by, where, terms)
+    return terms
 
 
 def _keys(
@@ -145,4 +151,4 @@ def ratio_query(
     return sql, params
 
 
-__all__ = ["Ratio", "ratio_query", "term_name"]
+__all__ = ["Ratio", "ratio_query", "ratio_terms", "term_name"]

@@ -13,7 +13,7 @@ import vge_analytics as va
 from replay.io import METRIC_CACHE_DIR
 from tests.vge_analytics.store.kept import copy_out, kept_files, plants
 from vge_analytics.reports.inference import _intervals
-from vge_analytics.store import _episode_terms
+from vge_analytics.store import _episode_terms, episodes
 from vge_analytics.store import _kept as kept_module
 
 CHOICES = (
@@ -188,3 +188,55 @@ def test_the_metric_cache_keeps_the_episodes_terms_with_the_runs(pair_out: Path,
     va.metrics(out, by="run_id")
     assert [n.split("-")[0] for n in _kept(out)] == ["terms_episodes"]
     assert pl.read_parquet(_terms_file(out)).height == 21  # 10 episodes of A, 11 of B
+
+
+def test_the_file_written_in_parts_holds_the_rows_and_types_of_the_tables(
+    sample_out: Path, tmp_path: Path, monkeypatch
+):
+    """Each run a part of its own (`EPISODES_PER_QUERY` 1): for every built-in metric, the
+    kept file holds the rows the tables' path joins (`episode_terms` joined to the
+    episodes, the frame the file was written from before), with their columns and types."""
+    monkeypatch.setattr(_episode_terms, "EPISODES_PER_QUERY", 1)
+    out = _copy(sample_out, tmp_path / "out")
+    store = va.open_store(out)
+    held = _episode_terms._held(store)
+    parts = _episode_terms._run_parts(store)
+    assert len(parts) == len(store.manifest["runs"]) > 1
+    keys = ["run_id", "episode_id"]
+    builtin = va.MetricSet.builtin()
+    rows = episodes(store, None, columns=[*keys, *held])
+    for ratio in builtin.resolve(list(builtin.metrics)):
+        path = _episode_terms._keep(store, ratio, held, ())
+        assert path is not None and path.is_file(), ratio.name
+        streamed = pl.read_parquet(path)
+        names = [f"{ratio.name}:num", f"{ratio.name}:den"]
+        terms = va.episode_terms(out, [ratio.name])
+        tables = rows.join(terms, on=keys, how="inner").select([*keys, *held, *names])
+        tables.write_parquet(tmp_path / "whole.parquet")  # as the frame was kept
+        assert streamed.schema == pl.read_parquet(tmp_path / "whole.parquet").schema, ratio.name
+        assert streamed.schema == tables.schema, ratio.name
+        assert streamed.sort(keys).equals(tables.sort(keys)), ratio.name
+        assert streamed.height == tables.height > 0
+
+
+def test_a_part_that_fails_leaves_nothing(pair_out: Path, tmp_path: Path, monkeypatch):
+    """The second part's query fails: no file is kept (not half of one, no temporary file),
+    `vge metrics` still answers, and an interval is answered from the tables."""
+    monkeypatch.setattr(_episode_terms, "EPISODES_PER_QUERY", 1)
+    out = _copy(pair_out, tmp_path / "out")
+    compute = _episode_terms._compute
+    calls = []
+
+    def second_fails(*args, **kwargs):
+        calls.append(args[-1])
+        if len(calls) == 2:
+            raise va.QueryError("the second part failed")
+        return compute(*args, **kwargs)
+
+    monkeypatch.setattr(_episode_terms, "_compute", second_fails)
+    va.metrics(out, by="run_id")
+    assert calls == [["A"], ["B"]]
+    assert _kept(out) == []
+    assert [p.name for p in (out / METRIC_CACHE_DIR).iterdir() if p.name.startswith(".")] == []
+    monkeypatch.setattr(_episode_terms, "_compute", compute)
+    assert _interval(out, by=["run_id"]).equals(_direct(out, monkeypatch, by=["run_id"]))
