@@ -93,8 +93,10 @@ def _compute(
     """The rows the direct computation joins: the terms of `ratio` per (run, episode) (its
     grain's rows grouped by run_id and episode_id, as `episode_terms` groups them; an
     episode without rows has none) joined to the episodes' keys and `held` columns, in one
-    statement (the join in DuckDB, within the query's memory bound); `runs`: those of these
-    runs alone (a filter on run_id, which skips the other runs' files), the same rows."""
+    statement (the join in DuckDB, within the query's memory bound), sorted by run and
+    episode (an interval sorts its rows so: sorted already, 9.3 million take 0.7 s, not 2.9);
+    `runs`: those of these runs alone (a filter on run_id, which skips the other runs'
+    files), the same rows."""
     where = None if runs is None else {"run_id": list(runs)}
     check_columns(store, [*_KEYS, *(where or {})], [ratio.grain], "grouping/filter")
     sql, params = grouped_aggregate(store, ratio.grain, _KEYS, where, ratio_terms([ratio]))
@@ -110,13 +112,13 @@ def _compute(
     joined = (
         f"SELECT {select} FROM ({sql}) AS t JOIN (SELECT run_id AS __run_id, episode_id AS "
         f"__episode_id{columns} FROM episodes WHERE {on_runs}) AS e "
-        "ON e.__run_id = t.run_id AND e.__episode_id = t.episode_id"
+        "ON e.__run_id = t.run_id AND e.__episode_id = t.episode_id ORDER BY t.run_id, t.episode_id"
     )
     return run_query(store, joined, params, sources=sources)
 
 
 def _run_parts(store: Store) -> list[list[str]]:
-    """OUT's runs (the manifest's, sorted) in parts of about `EPISODES_PER_QUERY` episodes
+    """OUT's runs (the manifest's, sorted: the parts' rows follow each other in order) in parts of about `EPISODES_PER_QUERY` episodes
     (the manifest's count over its runs), at least one part."""
     listed = store.manifest.get("runs", [])
     runs = sorted({r["run_id"] for r in listed if isinstance(r.get("run_id"), str)})
