@@ -1,6 +1,6 @@
 """A first dashboard server's data calls, in one process: each page's first choice, then others.
 
-    python benchmarks/bench_first_server.py OUT [--cold]
+    python benchmarks/bench_first_server.py OUT [--cold | --after-metrics]
 
 Calls, in order and timed once each, what the Leaderboard, Errors, Navigation and Grounding
 pages ask for on a first server (`va.metric_intervals`, `va.error_distribution`,
@@ -9,13 +9,19 @@ grouping or a category filter, as a visitor choosing them would. The dashboard's
 (`result-*`) are not used (the functions are called directly), so this times what a first
 server computes; `--cold` first removes the terms per episode and the step counts kept in
 `OUT/.metric-cache/` (`terms_*`, `counts_*`: docs/METRICS.md), so that the first calls
-compute them. Run it for BASE with `PYTHONPATH=BASE` beside this tree, alternating
-(docs/PERFORMANCE.md, *The first server at 100x*).
+compute them. `--after-metrics` does that, then runs the first `vge metrics OUT -f json` (its
+per-run terms and kept answers removed too, the tables' schemas kept; timed, in a process of
+its own, with this Python and PYTHONPATH), and times the Leaderboard's other calls of a
+first visit first (the run list, the filters' values, completeness, the metrics, the costs),
+as a first server after `vge metrics` makes them. Run it for BASE with `PYTHONPATH=BASE`
+beside this tree, alternating (docs/PERFORMANCE.md, *The first server at 100x*).
 """
 
 from __future__ import annotations
 
 import argparse
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -24,21 +30,26 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
     parser.add_argument("--cold", action="store_true", help="forget the kept terms and counts")
+    parser.add_argument(
+        "--after-metrics", action="store_true", help="--cold, then the first `vge metrics OUT`"
+    )
     args = parser.parse_args()
     out: Path = args.out
-    if args.cold:
-        from replay.io import METRIC_CACHE_DIR
-
-        for pattern in ("terms_*.parquet", "counts_*.parquet"):
-            for kept in (out / METRIC_CACHE_DIR).glob(pattern):
-                kept.unlink()
+    if args.cold or args.after_metrics:
+        forget(out, args.after_metrics)
+    if args.after_metrics:
+        started = time.perf_counter()
+        command = [sys.executable, "-m", "vge_analytics.cli", "metrics", str(out), "-f", "json"]
+        subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
+        print(f"first `vge metrics OUT`: {time.perf_counter() - started:.2f} s")
 
     import vge_analytics as va
     from vge_analytics import dashboard as dash
 
     run = ["run_id", "model"]
     category = {"category": ["Microwave"]}
-    calls = [
+    calls = leaderboard_calls(out) if args.after_metrics else []
+    calls += [
         ("intervals of SR by run", lambda: va.metric_intervals(out, by=run, where={})),
         ("intervals of SR by model", lambda: va.metric_intervals(out, by=["model"], where={})),
         (
@@ -59,12 +70,43 @@ def main() -> None:
         ("clicked views", lambda: dash.interaction_views(out, where={})),
         ("clicked views, category filtered", lambda: dash.interaction_views(out, where=category)),
     ]
-    va.runs(out)  # OUT opened, as a server has it before a page asks
+    if not args.after_metrics:  # (with it, the Leaderboard's first call opens OUT)
+        va.runs(out)  # OUT opened, as a server has it before a page asks
     print("| call, in order | seconds |\n|---|---:|")
     for name, call in calls:
         started = time.perf_counter()
         call()
         print(f"| {name} | {time.perf_counter() - started:.2f} |", flush=True)
+
+
+def forget(out: Path, answers: bool) -> None:
+    """Remove the kept terms per episode and step counts; with `answers`, also the per-run terms and kept answers of `vge metrics`."""
+    from replay.io import METRIC_CACHE_DIR
+
+    patterns = ["terms_*.parquet", "counts_*.parquet"]
+    if answers:
+        patterns += ["episodes-*.parquet", "steps-*.parquet", "goals-*.parquet", "answer-*"]
+    for pattern in patterns:
+        for kept in (out / METRIC_CACHE_DIR).glob(pattern):
+            kept.unlink()
+
+
+def leaderboard_calls(out: Path) -> list:
+    """The Leaderboard's calls of a first visit before its intervals, with its defaults."""
+    import vge_analytics as va
+    from vge_analytics import dashboard as dash
+
+    run = ["run_id", "model"]
+    return [
+        ("summary of OUT (opens it)", lambda: dash.out_summary(out)),
+        ("run facets", lambda: dash.run_facets(out)),
+        ("run list", lambda: va.runs(out)),
+        ("categories", lambda: dash.column_values(out, "episodes", "category")),
+        ("goal counts", lambda: dash.column_values(out, "episodes", "n_goals")),
+        ("completeness", lambda: va.completeness(out)),
+        ("metrics by run", lambda: va.metrics(out, by=run, where={})),
+        ("costs by run", lambda: dash.cost_table(out, run, {})),
+    ]
 
 
 if __name__ == "__main__":
