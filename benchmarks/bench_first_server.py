@@ -1,6 +1,6 @@
 """A first dashboard server's data calls, in one process: each page's first choice, then others.
 
-    python benchmarks/bench_first_server.py OUT [--cold]
+    python benchmarks/bench_first_server.py OUT [--cold] [--counts]
 
 Calls, in order and timed once each, what the Leaderboard, Errors, Navigation and Grounding
 pages ask for on a first server (`va.metric_intervals`, `va.error_distribution`,
@@ -9,8 +9,10 @@ grouping or a category filter, as a visitor choosing them would. The dashboard's
 (`result-*`) are not used (the functions are called directly), so this times what a first
 server computes; `--cold` first removes the terms per episode and the step counts kept in
 `OUT/.metric-cache/` (`terms_*`, `counts_*`: docs/METRICS.md), so that the first calls
-compute them. Run it for BASE with `PYTHONPATH=BASE` beside this tree, alternating
-(docs/PERFORMANCE.md, *The first server at 100x*).
+compute them. `--counts` times only the Errors, Navigation and Grounding calls (the step
+counts: their first count, then another choice each). Run it for BASE with
+`PYTHONPATH=BASE` beside this tree, alternating (docs/PERFORMANCE.md, *The first server at
+100x*).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
     parser.add_argument("--cold", action="store_true", help="forget the kept terms and counts")
+    parser.add_argument("--counts", action="store_true", help="only the step counts' calls")
     args = parser.parse_args()
     out: Path = args.out
     if args.cold:
@@ -59,6 +62,8 @@ def main() -> None:
         ("clicked views", lambda: dash.interaction_views(out, where={})),
         ("clicked views, category filtered", lambda: dash.interaction_views(out, where=category)),
     ]
+    if args.counts:  # the intervals left out
+        calls = [(name, call) for name, call in calls if not name.startswith("intervals")]
     va.runs(out)  # OUT opened, as a server has it before a page asks
     print("| call, in order | seconds |\n|---|---:|")
     for name, call in calls:
