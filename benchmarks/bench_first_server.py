@@ -9,8 +9,9 @@ grouping or a category filter, as a visitor choosing them would. The dashboard's
 (`result-*`) are not used (the functions are called directly), so this times what a first
 server computes; `--cold` first removes the terms per episode and the step counts kept in
 `OUT/.metric-cache/` (`terms_*`, `counts_*`: docs/METRICS.md), so that the first calls
-compute them. `--counts` times only the Errors, Navigation and Grounding calls (the step
-counts: their first count, then another choice each). Run it for BASE with
+compute them. The CPU seconds are this process's, all its threads (on a shared machine they
+vary less than the wall time). `--counts` times only the Errors, Navigation and Grounding
+calls (the step counts: their first count, then another choice each). Run it for BASE with
 `PYTHONPATH=BASE` beside this tree, alternating (docs/PERFORMANCE.md, *The first server at
 100x*).
 """
@@ -65,11 +66,12 @@ def main() -> None:
     if args.counts:  # the intervals left out
         calls = [(name, call) for name, call in calls if not name.startswith("intervals")]
     va.runs(out)  # OUT opened, as a server has it before a page asks
-    print("| call, in order | seconds |\n|---|---:|")
+    print("| call, in order | seconds | CPU seconds |\n|---|---:|---:|")
     for name, call in calls:
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         call()
-        print(f"| {name} | {time.perf_counter() - started:.2f} |", flush=True)
+        wall, cpu = time.perf_counter() - started, time.process_time() - cpu
+        print(f"| {name} | {wall:.2f} | {cpu:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
