@@ -167,7 +167,7 @@ def count_steps(
         if not set(part[PARTITION_KEY].unique().to_list()) <= held:  # read otherwise: DuckDB
             return None
         parts.append(part)
-    return pl.concat(parts)
+    return pl.concat(parts, rechunk=True)
 
 
 __all__ = ["count_steps"]
