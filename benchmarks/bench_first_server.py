@@ -1,6 +1,6 @@
 """A first dashboard server's data calls, in one process: each page's first choice, then others.
 
-    python benchmarks/bench_first_server.py OUT [--cold | --after-metrics]
+    python benchmarks/bench_first_server.py OUT [--cold | --after-metrics] [--counts]
 
 Calls, in order and timed once each, what the Leaderboard, Errors, Navigation and Grounding
 pages ask for on a first server (`va.metric_intervals`, `va.error_distribution`,
@@ -13,7 +13,10 @@ compute them. `--after-metrics` does that, then runs the first `vge metrics OUT 
 per-run terms and kept answers removed too, the tables' schemas kept; timed, in a process of
 its own, with this Python and PYTHONPATH), and times the Leaderboard's other calls of a
 first visit first (the run list, the filters' values, completeness, the metrics, the costs),
-as a first server after `vge metrics` makes them. Run it for BASE with `PYTHONPATH=BASE`
+as a first server after `vge metrics` makes them. The CPU seconds are this process's, all its
+threads (on a shared machine they vary less than the wall time). `--counts` times only the
+Errors, Navigation and Grounding calls (the step counts: their first count, then another
+choice each). Run it for BASE with `PYTHONPATH=BASE`
 beside this tree, alternating (docs/PERFORMANCE.md, *The first server at 100x*).
 """
 
@@ -33,6 +36,7 @@ def main() -> None:
     parser.add_argument(
         "--after-metrics", action="store_true", help="--cold, then the first `vge metrics OUT`"
     )
+    parser.add_argument("--counts", action="store_true", help="only the step counts' calls")
     args = parser.parse_args()
     out: Path = args.out
     if args.cold or args.after_metrics:
@@ -70,17 +74,21 @@ def main() -> None:
         ("clicked views", lambda: dash.interaction_views(out, where={})),
         ("clicked views, category filtered", lambda: dash.interaction_views(out, where=category)),
     ]
+    if args.counts:  # the intervals left out
+        calls = [(name, call) for name, call in calls if not name.startswith("intervals")]
     if not args.after_metrics:  # (with it, the Leaderboard's first call opens OUT)
         va.runs(out)  # OUT opened, as a server has it before a page asks
-    print("| call, in order | seconds |\n|---|---:|")
+    print("| call, in order | seconds | CPU seconds |\n|---|---:|---:|")
     for name, call in calls:
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         call()
-        print(f"| {name} | {time.perf_counter() - started:.2f} |", flush=True)
+        wall, cpu = time.perf_counter() - started, time.process_time() - cpu
+        print(f"| {name} | {wall:.2f} | {cpu:.2f} |", flush=True)
 
 
 def forget(out: Path, answers: bool) -> None:
-    """Remove the kept terms per episode and step counts; with `answers`, also the per-run terms and kept answers of `vge metrics`."""
+    """Remove the kept terms per episode and step counts; with `answers`, also the per-run
+    terms and kept answers of `vge metrics`."""
     from replay.io import METRIC_CACHE_DIR
 
     patterns = ["terms_*.parquet", "counts_*.parquet"]

@@ -15,7 +15,7 @@ from vge_analytics import dashboard as dash
 from vge_analytics.dashboard import _grounding
 from vge_analytics.reports import _taxonomy
 from vge_analytics.store import _kept as kept_module
-from vge_analytics.store import _step_counts
+from vge_analytics.store import _scan_counts, _step_counts, open_store, run_query
 
 CHOICES = (
     (("run_id", "model"), None),
@@ -80,8 +80,11 @@ def test_a_second_grouping_reads_what_the_first_counted(
     _three(out, ("run_id",), None)
     kept = _kept(out)
     calls = []
-    real = _step_counts.run_query
-    monkeypatch.setattr(_step_counts, "run_query", lambda *a, **k: calls.append(1) or real(*a, **k))
+    for counter in ("run_query", "count_steps"):
+        real = getattr(_step_counts, counter)
+        monkeypatch.setattr(
+            _step_counts, counter, lambda *a, real=real, **k: calls.append(1) or real(*a, **k)
+        )
     _three(out, ("model",), {"run_id": "A"})
     assert calls == [] and _kept(out) == kept  # read, not counted again
 
@@ -151,3 +154,79 @@ def test_nothing_is_kept_where_out_cannot_be_written(pair_out: Path, tmp_path: P
     want = _direct(out, monkeypatch, ("run_id", "model"), None)
     assert _same(_three(out, ("run_id", "model"), None), want)
     assert _kept(out) == []
+
+
+def _both(out: Path, name: str) -> tuple[pl.DataFrame | None, pl.DataFrame]:
+    """The counts `name` as polars counts them from the files, and as DuckDB's query does."""
+    store = open_store(out)
+    part = _step_counts.PARTS[name]
+    sql, params = _step_counts._query(store, part)
+    polars = _scan_counts.count_steps(store, part.keys, part.name, part.where, part.only)
+    return polars, run_query(store, sql, params)
+
+
+@pytest.mark.parametrize("chunk", [1, 3, _scan_counts.CHUNK_FILES])
+@pytest.mark.parametrize("name", sorted(_step_counts.PARTS))
+def test_the_files_counted_by_polars_are_the_tables_query(
+    sample_out: Path, monkeypatch, name: str, chunk: int
+):
+    monkeypatch.setattr(_scan_counts, "CHUNK_FILES", chunk)  # one run a chunk, some, all
+    polars, duckdb = _both(sample_out, name)
+    assert polars is not None and polars.height > 0
+    assert polars.equals(duckdb) and polars.schema == duckdb.schema
+
+
+@pytest.mark.parametrize("chunk", [1, _scan_counts.CHUNK_FILES])
+def test_a_files_run_is_its_folders_as_in_duckdb(
+    pair_out: Path, tmp_path: Path, monkeypatch, chunk: int
+):
+    monkeypatch.setattr(_scan_counts, "CHUNK_FILES", chunk)
+    out = _copy(pair_out, tmp_path / "out")
+    (part,) = sorted((out / "steps" / "run_id=A").glob("*.parquet"))
+    pl.read_parquet(part).with_columns(pl.lit("B").alias("run_id")).write_parquet(part)
+    (part,) = sorted((out / "steps" / "run_id=B").glob("*.parquet"))
+    pl.read_parquet(part).drop("run_id").write_parquet(part)
+    va.clear_cache()
+    for name in _step_counts.PARTS:
+        polars, duckdb = _both(out, name)
+        assert set(duckdb["run_id"]) == {"A", "B"}  # the runs of their folders, not the files'
+        assert polars is not None and polars.equals(duckdb)
+
+
+def test_files_polars_cannot_read_as_duckdb_does_are_counted_by_duckdb(
+    pair_out: Path, tmp_path: Path, monkeypatch
+):
+    out = _copy(pair_out, tmp_path / "out=1")  # polars would read `out` as a column
+    want = _direct(out, monkeypatch, ("run_id",), None)
+    assert _both(out, "views")[0] is None
+    assert _same(_three(out, ("run_id",), None), want)
+    out = _copy(pair_out, tmp_path / "out")
+    (part,) = sorted((out / "steps" / "run_id=B").glob("*.parquet"))
+    pl.read_parquet(part).with_columns(pl.lit(None).alias("is_switch")).write_parquet(part)
+    va.clear_cache()  # a column of nulls, as DuckDB unifies it: null booleans
+    polars, duckdb = _both(out, "switches")
+    assert polars is None or polars.equals(duckdb)
+    assert _same(_three(out, ("run_id",), None), _direct(out, monkeypatch, ("run_id",), None))
+
+
+def test_the_count_stops_past_the_time_limit_between_chunks(
+    pair_out: Path, tmp_path: Path, monkeypatch
+):
+    out = _copy(pair_out, tmp_path / "out")
+    monkeypatch.setattr(_scan_counts, "CHUNK_FILES", 1)
+    clock = iter(range(0, 10**6, 100))  # 100 s pass between two looks at the clock
+    monkeypatch.setattr(_scan_counts, "monotonic", lambda: next(clock))
+    chunks = []
+    real = _scan_counts._counter
+
+    def counter(*args):
+        counted = real(*args)
+        return lambda paths: chunks.append(paths) or counted(paths)
+
+    monkeypatch.setattr(_scan_counts, "_counter", counter)
+    with (
+        va.query_limits(timeout=150),
+        pytest.raises(va.QueryLimitError, match="time limit of 150 s"),
+    ):
+        va.error_distribution(out, by="run_id")
+    assert len(chunks) == 1 and _kept(out) == []  # A counted, B not begun, nothing kept
