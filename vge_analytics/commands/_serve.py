@@ -5,7 +5,9 @@ the server listens it imports the heavy libraries and opens the replay output (i
 Parquet footers) and runs the leaderboard's default query, and hashes the manifest and the
 code (the keys of the pages' cached results), all in the server process, so the first page a
 person opens does not pay for them (they are most of a cold first load). It
-also starts the forkserver the SQL page's query processes come from.
+also starts the forkserver the SQL page's query processes come from, and the first of them:
+the SQL page's standby, which opens OUT and waits for the page's first query
+(`vge_analytics.store._standby`).
 """
 
 from __future__ import annotations
@@ -19,8 +21,9 @@ from vge_analytics.dashboard import OUT_ENV
 
 def _warm(out: str) -> None:
     import vge_analytics as va
+    from app import _settings
     from vge_analytics.dashboard import out_version
-    from vge_analytics.store import code_key, warm_query_processes
+    from vge_analytics.store import code_key, keep_standby, warm_query_processes
 
     app.warm()  # the dashboard's modules: the page scripts import the same module objects
     try:
@@ -34,6 +37,7 @@ def _warm(out: str) -> None:
     code_key()
     # The SQL page's query processes fork from a server that has the libraries loaded.
     warm_query_processes()
+    keep_standby(out, _settings.sql_settings()[0])
 
 
 def main() -> int:
