@@ -31,6 +31,7 @@ process is, which opens OUT within the page's limits, reads the footers of `epis
 from __future__ import annotations
 
 import atexit
+import functools
 import threading
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
@@ -119,14 +120,19 @@ def keep_standby(out: str | Path, limits: SqlLimits) -> None:
     with _LOCK:
         if _KEPT.get(where) == limits and where in _STANDBY:
             return
-        if not _KEPT:
-            atexit.register(stop_standbys)
         others = [w for w in _KEPT if w != where]
     for other in others:  # a server keeps one: for the OUT it opened last
         stop_standbys(other)
+    _stop_at_exit()
     with _LOCK:
         _KEPT[where] = limits
     renew(where)
+
+
+@functools.cache
+def _stop_at_exit() -> None:
+    """End the standbys when this process exits (once registered)."""
+    atexit.register(stop_standbys)
 
 
 def current_key(out: str | Path) -> str | None:
