@@ -51,9 +51,9 @@ from ._store import Store, open_store
 
 FOOTER_TABLES = (EPISODES_TABLE,)
 """The tables whose files' footers a standby reads ahead. At 100 times the full benchmark
-those of `episodes` take 0.7 s and 300 MB, and halve the first query over it (the SQL page's
-example: 2.1 s of CPU, 1.0 s once they are read, as a second query); those of `steps` take
-1.2 s and 450 MB, a few percent of any scan of it (docs/PERFORMANCE.md, SQL)."""
+those of `episodes` take 0.7 to 0.8 s of CPU and 300 MB, and the first query over it then
+costs what a second does (the SQL page's example: 1.2 s of CPU instead of 2.5 s); those of
+`steps` take 1.2 s and 470 MB, a few percent of any scan of it (docs/PERFORMANCE.md, SQL)."""
 
 FOOTER_SHARE = 4
 """The footers read ahead take at most this share (1/4) of the memory a query may add to
