@@ -21,17 +21,16 @@ from vge_analytics.dashboard import OUT_ENV
 
 def _warm(out: str) -> None:
     import vge_analytics as va
-    from app import _settings
     from vge_analytics.dashboard import out_version
-    from vge_analytics.store import code_key, keep_standby, warm_query_processes
+    from vge_analytics.store import code_key, warm_query_processes
 
-    app.warm()  # the dashboard's modules: the page scripts import the same module objects
     # The SQL page's query processes fork from a forkserver that has the libraries loaded;
-    # the first, the standby, opens OUT while this process warms up, not while the first
-    # page loads (on two cores it slowed the Leaderboard's first visit by seconds at 100x).
+    # the first, the standby (forked by `app.warm`), opens OUT while this process warms up,
+    # not while the first page loads (on two cores that slowed the Leaderboard's first
+    # visit by seconds at 100x).
     warm_query_processes()
+    app.warm()  # the dashboard's modules: the page scripts import the same module objects
     try:
-        keep_standby(out, _settings.sql_settings()[0])
         va.runs(out)
         va.metrics(out)
     except va.AnalyticsError:
