@@ -21,6 +21,10 @@ sweep's `memory_store`), runs the query through `run_query`, and sends back the 
 At most `max_queries` children run at once across all the sessions of the server (each may
 take its memory limit and half again), SQL page and metric queries together: a query beyond
 them waits up to `SLOT_WAIT` seconds for one to end, then is refused in one line.
+
+A server that keeps a standby for OUT (`_standby`: `vge app`) runs the SQL page's query in
+it, a child forked ahead of need with OUT already open, when it is fresh; otherwise in a new
+child, as above.
 """
 
 from __future__ import annotations
