@@ -9,10 +9,16 @@ from typing import NamedTuple
 
 import streamlit as st
 
-from app._data import script_option
+from app._data import out_dir, script_option
 from vge_analytics import dashboard as dash
 from vge_analytics import play
-from vge_analytics.store import APP_MAX_ROWS, APP_TIMEOUT, SqlLimits, default_max_queries
+from vge_analytics.store import (
+    APP_MAX_ROWS,
+    APP_TIMEOUT,
+    SqlLimits,
+    default_max_queries,
+    keep_standby,
+)
 
 
 class PlayTarget(NamedTuple):
@@ -59,6 +65,13 @@ def sql_settings(argv: Sequence[str] | None = None) -> tuple[SqlLimits, int]:
     return limits, APP_MAX_ROWS if rows is None else int(rows)
 
 
+def keep_sql_standby() -> None:
+    """A standby query process for the SQL page of this server's OUT, within the page's
+    limits (`vge_analytics.store.keep_standby`): `vge app` starts it when it opens OUT; a
+    server started otherwise, with its first session. Nothing when one is kept already."""
+    keep_standby(out_dir(), sql_settings()[0])
+
+
 def sql_max_queries(argv: Sequence[str] | None = None) -> int:
     """How many SQL page queries run at once across all sessions: `vge app
     --sql-max-queries` (passed on as a script argument), else as many as fit in memory at the
@@ -72,4 +85,12 @@ def sweep_workers(size: int) -> int:
     return 1 if size <= dash.SWEEP_AUTO_LIMIT else max(1, min(2, os.cpu_count() or 1))
 
 
-__all__ = ["PlayTarget", "human_run", "play_target", "sql_max_queries", "sql_settings", "sweep_workers"]
+__all__ = [
+    "PlayTarget",
+    "human_run",
+    "keep_sql_standby",
+    "play_target",
+    "sql_max_queries",
+    "sql_settings",
+    "sweep_workers",
+]

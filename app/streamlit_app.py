@@ -28,6 +28,7 @@ def run() -> None:
         return
     chosen = pages.navigation(pages.PAGES)
     if sidebar.sidebar():
+        settings.keep_sql_standby()  # (once per server: `vge app` did it, or the first session)
         try:
             chosen.run()
         except page.PageStopped:  # a page said all it could (page.stop)

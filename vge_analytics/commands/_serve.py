@@ -5,7 +5,9 @@ the server listens it imports the heavy libraries and opens the replay output (i
 Parquet footers) and runs the leaderboard's default query, and hashes the manifest and the
 code (the keys of the pages' cached results), all in the server process, so the first page a
 person opens does not pay for them (they are most of a cold first load). It
-also starts the forkserver the SQL page's query processes come from.
+also starts the forkserver the SQL page's query processes come from, and the first of them:
+the SQL page's standby, which opens OUT and waits for the page's first query
+(`vge_analytics.store._standby`).
 """
 
 from __future__ import annotations
@@ -22,6 +24,11 @@ def _warm(out: str) -> None:
     from vge_analytics.dashboard import out_version
     from vge_analytics.store import code_key, warm_query_processes
 
+    # The SQL page's query processes fork from a forkserver that has the libraries loaded;
+    # the first, the standby (forked by `app.warm`), opens OUT while this process warms up,
+    # not while the first page loads (on two cores that slowed the Leaderboard's first
+    # visit by seconds at 100x).
+    warm_query_processes()
     app.warm()  # the dashboard's modules: the page scripts import the same module objects
     try:
         va.runs(out)
@@ -32,8 +39,6 @@ def _warm(out: str) -> None:
     # 0.3-0.5 s for a large manifest) and the code's (the key of the results kept on disk).
     out_version(out)
     code_key()
-    # The SQL page's query processes fork from a server that has the libraries loaded.
-    warm_query_processes()
 
 
 def main() -> int:

@@ -81,6 +81,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         sql_head,
         stream,
     )
+    from ._standby import keep_standby, standby_pid, stop_standbys
     from ._step_counts import COUNTS_TABLE, counted_steps
     from ._store import (
         NUMERIC_TYPES,
@@ -166,6 +167,9 @@ __all__ = [
     "Ratio",
     "ratio_query",
     "kept_result",
+    "keep_standby",
+    "standby_pid",
+    "stop_standbys",
     "code_key",
     "counted_steps",
     "kept_episode_terms",

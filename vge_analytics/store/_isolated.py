@@ -21,6 +21,10 @@ sweep's `memory_store`), runs the query through `run_query`, and sends back the 
 At most `max_queries` children run at once across all the sessions of the server (each may
 take its memory limit and half again), SQL page and metric queries together: a query beyond
 them waits up to `SLOT_WAIT` seconds for one to end, then is refused in one line.
+
+A server that keeps a standby for OUT (`_standby`: `vge app`) runs the SQL page's query in
+it, a child forked ahead of need with OUT already open, when it is fresh; otherwise in a new
+child, as above.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
 from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -60,6 +65,10 @@ GRACE = 5.0
 timer normally ends the query first, with a clearer message)."""
 
 _CONTEXT = multiprocessing.get_context("forkserver")
+_PRELOAD = [__name__, "pyarrow.dataset"]
+"""What the forkserver imports once for all its children: this module (polars, pyarrow,
+DuckDB) and pyarrow's dataset module, which a child needs to scan OUT's tables and which
+imports pandas (0.5 s idle, 1.4 s under load, in every child before)."""
 _ERRORS = {cls.__name__: cls for cls in (QueryError, QueryRefused, QueryLimitError, OutputDirError)}
 
 
@@ -76,11 +85,15 @@ class IsolatedResult:
     """Peak resident memory of the query's process (bytes)."""
     cut: ResultCut = ResultCut()
     """What the query process cut from those rows to fit a page (`bound_result`)."""
+    pid: int = 0
+    """The id of the query's process."""
+    standby: bool = False
+    """The query ran in the standby process of OUT (`_standby`), not in one started for it."""
 
 
 def warm_query_processes() -> None:
     """Start the forkserver now (it imports the libraries once), not on the first query."""
-    _CONTEXT.set_forkserver_preload([__name__])
+    _CONTEXT.set_forkserver_preload(_PRELOAD)
     from multiprocessing import forkserver
 
     forkserver.ensure_running()
@@ -116,15 +129,21 @@ def _answer_failure(conn: Connection, exc: BaseException, limits: SqlLimits, sub
     conn.send(("error", kind, message, limit, _peak_memory()))
 
 
+def answer_query(conn: Connection, out: str, query: str, rows: int, limits: SqlLimits) -> None:
+    """Run the SQL page's query over OUT within `limits` and answer once (in a query process,
+    capped already: a fresh one, `_child`, or the standby, `_standby`)."""
+    try:
+        head = sql_head(out, query, rows, limits=limits)
+        frame, cut = bound_result(head.frame)
+        _send_frame(conn, frame, head.truncated, cut)
+    except (AnalyticsError, MemoryError) as exc:
+        _answer_failure(conn, exc, limits, "the query")
+
+
 def _child(conn: Connection, out: str, query: str, rows: int, limits: SqlLimits) -> None:
     """The SQL page's query process: run the query within its limits, answer once, exit."""
     with conn, process_memory_cap(limits):
-        try:
-            head = sql_head(out, query, rows, limits=limits)
-            frame, cut = bound_result(head.frame)
-            _send_frame(conn, frame, head.truncated, cut)
-        except (AnalyticsError, MemoryError) as exc:
-            _answer_failure(conn, exc, limits, "the query")
+        answer_query(conn, out, query, rows, limits)
 
 
 @dataclass(frozen=True)
@@ -193,22 +212,35 @@ def run_isolated(
 ) -> IsolatedResult:
     """The first `rows` rows of a read-only query over OUT, computed in a child process
     within `limits`, while at most `max_queries` such processes run in this server (default:
-    `default_max_queries(limits)`). Raises `QueryRefused`, `QueryLimitError` or `QueryError`
-    (one line)."""
+    `default_max_queries(limits)`): the standby of OUT when this server keeps one and it is
+    fresh (`_standby`; a new one is started after), else a new child. Raises `QueryRefused`,
+    `QueryLimitError` or `QueryError` (one line)."""
+    from . import _standby
+
     check_size(query)  # too large: refused without a process; parsing is the child's job
     slots = _slot(max_queries or default_max_queries(limits))
     started = time.monotonic()
     try:
-        args = (str(out), query, rows, limits)
-        (_, truncated, cut, peak), data = _run_child(_child, args, limits, "the query")
+        standby = _standby.take(out, limits)
+        answer = None if standby is None else standby.ask(query, rows)
+        if answer is None:  # no standby, a stale or dead one: a new child, as without one
+            child, conn = _start(_child, (str(out), query, rows, limits))
+            header, data = _answer(child, conn, limits, "the query")
+            pid = child.pid
+        else:
+            (header, data), pid = answer, standby.pid  # type: ignore[union-attr]
     finally:
         slots.release()
+        _standby.renew(out)  # (after the query: it does not take the query's CPU)
+    _, truncated, cut, peak = header
     return IsolatedResult(
         frame=_frame(data),
         truncated=truncated,
         seconds=time.monotonic() - started,
         peak_memory=peak,
         cut=cut,
+        pid=pid or 0,
+        standby=answer is not None,
     )
 
 
@@ -239,18 +271,37 @@ def _frame(data: bytes) -> pl.DataFrame:
     return pl.from_arrow(pa.ipc.open_stream(data).read_all())
 
 
-def _run_child(
-    target: Callable[..., None], args: tuple, limits: SqlLimits, subject: str
-) -> tuple[tuple, bytes]:
-    """Run `target(conn, *args)` in a forked child; its answer: the header `("ok", ...)`
-    and the result's bytes. An error it answers is raised; past the time limit and a grace
-    period it is killed, and a child that ends without an answer is reported (`subject`
-    names the query)."""
-    _CONTEXT.set_forkserver_preload([__name__])
-    receiver, sender = _CONTEXT.Pipe(duplex=False)
+def _start(
+    target: Callable[..., None], args: tuple, *, duplex: bool = False
+) -> tuple[BaseProcess, Connection]:
+    """A child forked from the forkserver running `target(conn, *args)`, and the parent's end
+    of its pipe (`duplex`: both ways, for a standby that waits for its query)."""
+    _CONTEXT.set_forkserver_preload(_PRELOAD)
+    receiver, sender = _CONTEXT.Pipe(duplex=duplex)
     child = _CONTEXT.Process(target=target, args=(sender, *args), daemon=True)
     child.start()
     sender.close()
+    return child, receiver
+
+
+def _run_child(
+    target: Callable[..., None], args: tuple, limits: SqlLimits, subject: str
+) -> tuple[tuple, bytes]:
+    """Run `target(conn, *args)` in a forked child; its answer (`_answer`)."""
+    child, receiver = _start(target, args)
+    return _answer(child, receiver, limits, subject)
+
+
+def _answer(
+    child: BaseProcess,
+    receiver: Connection,
+    limits: SqlLimits,
+    subject: str,
+) -> tuple[tuple, bytes]:
+    """A query child's answer: the header `("ok", ...)` and the result's bytes. An error it
+    answers is raised; past the time limit and a grace period it is killed, and a child that
+    ends without an answer is reported (`subject` names the query). The child has ended when
+    this returns."""
     wait = None if limits.timeout is None else limits.timeout + GRACE
     try:
         if not receiver.poll(wait):

@@ -131,7 +131,7 @@ def text_too_large(size: int, cap: int = MAX_SQL_TEXT) -> str | None:
     return f"{format_size(size)} of text, more than the {format_size(cap)} accepted"
 
 
-def _data_segment() -> int:
+def data_segment() -> int:
     """Bytes of the process's data segment now (VmData: what RLIMIT_DATA counts)."""
     for line in Path("/proc/self/status").read_text().splitlines():
         if line.startswith("VmData:"):
@@ -161,7 +161,7 @@ def process_memory_cap(limits: SqlLimits) -> Iterator[None]:
     error, Python raises MemoryError; neither grows the process further."""
     try:
         soft, hard = resource.getrlimit(resource.RLIMIT_DATA)
-        cap = _data_segment() + memory_headroom(limits)
+        cap = data_segment() + memory_headroom(limits)
     except (OSError, ValueError):  # pragma: no cover - not Linux
         yield
         return
@@ -185,6 +185,7 @@ __all__ = [
     "MAX_SQL_TEXT",
     "SLOT_WAIT",
     "SqlLimits",
+    "data_segment",
     "default_max_queries",
     "default_memory_limit",
     "format_size",
