@@ -35,7 +35,11 @@ with st.expander("Columns of the tables"):
     st.dataframe(data.table_columns(), hide_index=True)
 if query.strip():
     try:
-        result = data.sql_preview(query, max_rows, limits, max_queries=max_queries)
+        example = next((name for name, text in examples.items() if text == query), None)
+        if example is not None:  # kept beside OUT for the next server
+            result = data.example_preview(example, max_rows, limits, max_queries=max_queries)
+        else:
+            result = data.sql_preview(query, max_rows, limits, max_queries=max_queries)
     except AnalyticsError as exc:
         page.show_error(exc)
         page.stop()

@@ -15,6 +15,7 @@ from vge_analytics import ERROR_LABELS, compare, error_distribution, play, sweep
 from vge_analytics import dashboard as dash
 
 from ..vge_analytics.metrics.metric_files import RUNAWAY, metric_text, write_folder
+from ..vge_analytics.store.kept import copy_out, kept_files
 from .conftest import APP
 
 
@@ -377,6 +378,29 @@ def test_sql_page_runs_queries_and_refuses_writes(app_env):
     rerun(at)
     assert at.text_area(key="sql_query").value == dash.EXAMPLE_QUERIES[name]
     assert len(at.dataframe[1].value) == 9
+
+
+def test_sql_page_keeps_an_examples_result_not_a_users_query(tiny_out, tmp_path, monkeypatch):
+    from vge_analytics.store import IsolatedResult
+    from vge_analytics.store._results import _read
+
+    out = copy_out(tiny_out, tmp_path / "out")
+    monkeypatch.setenv("VGE_APP_OUT", str(out))
+
+    def kept_queries() -> list[IsolatedResult]:
+        values = [_read(path) for path in kept_files(out, "result-*.arrow")]
+        return [value for found, value in values if found and isinstance(value, IsolatedResult)]
+
+    at = open_page("sql")  # the first example, as the page opens
+    (kept,) = kept_queries()
+    shown = at.dataframe[1].value
+    assert kept.frame.columns == list(shown.columns)
+    assert kept.frame.to_pandas().equals(shown.reset_index(drop=True))
+
+    at.text_area(key="sql_query").input("SELECT 42 AS answer")
+    rerun(at)
+    assert list(at.dataframe[1].value["answer"]) == [42]
+    assert [k.frame.columns for k in kept_queries()] == [kept.frame.columns]  # not kept
 
 
 # ------------------------------------------------------------------- metrics folder

@@ -140,6 +140,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._sql_page import (
         EXAMPLE_QUERIES,
         csv_bytes,
+        example_preview,
         sql_caption,
         sql_limits_note,
         sql_preview,
@@ -182,6 +183,7 @@ __all__ = [
     "error_share_wide",
     "error_step_sample",
     "EXAMPLE_QUERIES",
+    "example_preview",
     "flip_rows",
     "group_labels",
     "incomplete_groups",

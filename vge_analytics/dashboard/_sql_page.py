@@ -74,6 +74,16 @@ def sql_preview(
     return run_isolated(out, query, rows, limits, max_queries=max_queries)
 
 
+def example_preview(
+    out: str | Path, name: str, rows: int, limits: SqlLimits, *, max_queries: int | None = None
+) -> IsolatedResult:
+    """The SQL page's example `name` (`EXAMPLE_QUERIES`) as `sql_preview` runs it. An example
+    reads OUT's tables alone (no `random()`, no `now()`), so the dashboard keeps its result
+    beside OUT for the next server, as it keeps the other pages' defaults; a query a person
+    wrote is never kept."""
+    return sql_preview(out, EXAMPLE_QUERIES[name], rows, limits, max_queries=max_queries)
+
+
 def sql_limits_note(limits: SqlLimits, rows: int, max_queries: int | None = None) -> str:
     """What the SQL page says about its limits (and, given, the number of queries at once)."""
     time = f"after {limits.timeout:g} s or " if limits.timeout is not None else ""
