@@ -9,7 +9,7 @@ twice; each step's wall and CPU seconds and the process's resident memory after 
 
 - `none`: nothing ahead (a new child before the standby);
 - a table name (`episodes`, `goals`, `steps`): the footers of its files read ahead, as the
-  standby does for `store._standby.FOOTER_TABLES` (`_read_footers`);
+  standby does for `store._standby.FOOTER_TABLES` (`read_footers`);
 - `count`: `SELECT count(*) FROM episodes` ahead (a scan that reads the footers, and counts).
 
 Results go to stdout as markdown (docs/PERFORMANCE.md, section "SQL").
@@ -55,8 +55,7 @@ def one_way(out: str, way: str, query: str) -> dict:
     import pyarrow.dataset  # noqa: F401  (the forkserver has it imported)
 
     from vge_analytics.dashboard import EXAMPLE_QUERIES
-    from vge_analytics.store import APP_TIMEOUT, SqlLimits, open_store, sql_head
-    from vge_analytics.store._standby import _read_footers
+    from vge_analytics.store import APP_TIMEOUT, SqlLimits, open_store, read_footers, sql_head
 
     limits = SqlLimits.make(timeout=APP_TIMEOUT)
     text = EXAMPLE_QUERIES[query]
@@ -65,7 +64,7 @@ def one_way(out: str, way: str, query: str) -> dict:
     if way == "count":
         steps["ahead"] = _step(lambda: sql_head(out, "SELECT count(*) FROM episodes", 1, limits=limits))
     elif way != "none":
-        steps["ahead"] = _step(lambda: _read_footers(store, (way,), _NoQuery(), limits))
+        steps["ahead"] = _step(lambda: read_footers(store, (way,), _NoQuery(), limits))
     steps["query 1"] = _step(lambda: sql_head(out, text, 10_000, limits=limits))
     steps["query 2"] = _step(lambda: sql_head(out, text, 10_000, limits=limits))
     return steps

@@ -81,7 +81,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         sql_head,
         stream,
     )
-    from ._standby import keep_standby, standby_pid, stop_standbys
+    from ._standby import keep_standby, read_footers, standby_pid, stop_standbys
     from ._step_counts import COUNTS_TABLE, counted_steps
     from ._store import (
         NUMERIC_TYPES,
@@ -168,6 +168,7 @@ __all__ = [
     "ratio_query",
     "kept_result",
     "keep_standby",
+    "read_footers",
     "standby_pid",
     "stop_standbys",
     "code_key",

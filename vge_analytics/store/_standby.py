@@ -7,7 +7,7 @@ page's first query that was most of its 3.9 s. A server that keeps a standby for
 (`keep_standby`: `vge app` when it opens OUT, and each session of the dashboard) has one
 forked from the forkserver, capped (`process_memory_cap`) for its whole life as any query
 process is, which opens OUT within the page's limits, reads the footers of `episodes` ahead
-(`_read_footers`, stopping as soon as its query comes) and waits. The rules:
+(`read_footers`, stopping as soon as its query comes) and waits. The rules:
 
 - **Fresh only.** The standby is told the key of OUT's contents (`_kept.contents_key`: the
   manifest's digest, the size and modification time of every table file) as the server's
@@ -222,7 +222,7 @@ def _standby_child(
             return
         if store.contents != key:
             return
-        _read_footers(store, footers, conn, limits)
+        read_footers(store, footers, conn, limits)
         try:
             query, rows = conn.recv()
         except (EOFError, OSError):
@@ -231,7 +231,7 @@ def _standby_child(
         answer_query(conn, out, query, rows, limits)
 
 
-def _read_footers(
+def read_footers(
     store: Store, tables: tuple[str, ...], conn: Connection, limits: SqlLimits
 ) -> None:
     """Read the footers of the files of `tables` now, as a first scan would (each file of a
@@ -257,6 +257,7 @@ __all__ = [
     "FOOTER_TABLES",
     "Standby",
     "keep_standby",
+    "read_footers",
     "renew",
     "standby_pid",
     "stop_standbys",

@@ -307,6 +307,6 @@ def test_footers_are_read_until_the_query_or_the_budget(monkeypatch, query_after
     start = 10**9
     quarter = _standby.memory_headroom(LIMITS) // _standby.FOOTER_SHARE
     monkeypatch.setattr(_standby, "data_segment", lambda: start + grows * len(done) * quarter)
-    _standby._read_footers(store, ("episodes", "steps"), _Pipe(query_after, done), LIMITS)
+    _standby.read_footers(store, ("episodes", "steps"), _Pipe(query_after, done), LIMITS)
     assert len(done) == read
     store.close()
