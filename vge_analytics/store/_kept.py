@@ -133,11 +133,8 @@ def kept_frame(
     if kept is not None:
         return kept
     frame = compute()
-    with contextlib.suppress(OSError, pl.exceptions.PolarsError):
-        path.parent.mkdir(exist_ok=True)
-        with atomic_file(path, sync=False) as fh:
-            frame.write_parquet(fh, compression="zstd")
-        prune_kept(path, pattern, limit)
+    with contextlib.suppress(pl.exceptions.PolarsError):
+        keep_parts(path, [frame], pattern, limit)
     return frame
 
 
