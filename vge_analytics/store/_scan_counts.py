@@ -38,7 +38,7 @@ from .._errors import QueryLimitError
 from ._bounds import query_bounds
 from ._datasets import Deferred
 from ._limits import SqlLimits
-from ._sql import subject_of, time_message
+from ._sql import query_limits_of, subject_of, time_message
 from ._store import Store
 
 CHUNK_FILES = 128
@@ -101,7 +101,7 @@ def _schema(store: Store, keys: Sequence[str], flags: Sequence[str]) -> dict | N
 def _deadline(store: Store) -> tuple[float | None, SqlLimits]:
     """When the count must end (`monotonic`; None: never), and the limits saying so."""
     bounds = query_bounds()
-    limits = bounds.limits if bounds is not None else store.limits or SqlLimits.make(timeout=None)
+    limits = query_limits_of(store, bounds.limits if bounds is not None else None)
     return (None if limits.timeout is None else monotonic() + limits.timeout), limits
 
 

@@ -200,10 +200,16 @@ def run_query(
         return _run_here(store, sql, params, limits, subject_of(store.out, sources))
 
 
+def query_limits_of(store: Store, limits: SqlLimits | None = None) -> SqlLimits:
+    """The limits an analytics query over `store` runs within: `limits` (the block's, from
+    `query_bounds`), else the store's, else none but DuckDB's defaults."""
+    return limits or store.limits or SqlLimits.make(timeout=None)
+
+
 def _run_here(
     store: Store, sql: str, params: Sequence[object], limits: SqlLimits | None, subject: str
 ) -> pl.DataFrame:
-    limits = limits or store.limits or SqlLimits.make(timeout=None)
+    limits = query_limits_of(store, limits)
     with guarded_cursor(store, sql, limits.timeout, ours=True) as (cursor, deadline):
         try:
             return cursor.sql(sql, params=list(params)).pl()
@@ -404,6 +410,7 @@ __all__ = [
     "check_size",
     "guarded_cursor",
     "memory_message",
+    "query_limits_of",
     "run_query",
     "sql",
     "sql_head",
