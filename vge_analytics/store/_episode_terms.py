@@ -118,8 +118,9 @@ def _compute(
 
 
 def _run_parts(store: Store) -> list[list[str]]:
-    """OUT's runs (the manifest's, sorted: the parts' rows follow each other in order) in parts of about `EPISODES_PER_QUERY` episodes
-    (the manifest's count over its runs), at least one part."""
+    """OUT's runs (the manifest's, sorted: the parts' rows follow each other in order) in
+    parts of about `EPISODES_PER_QUERY` episodes (the manifest's count over its runs), at
+    least one part."""
     listed = store.manifest.get("runs", [])
     runs = sorted({r["run_id"] for r in listed if isinstance(r.get("run_id"), str)})
     totals = store.manifest.get("totals")

@@ -212,9 +212,9 @@ def _standby_child(
     conn: Connection, out: str, key: str, limits: SqlLimits, footers: tuple[str, ...] = ()
 ) -> None:
     """The standby's process: open OUT within `limits` (capped for its life), read the
-    footers of the tables `footers` ahead, wait for its one query and answer it. It exits without a word when OUT
-    cannot be opened or is not what `key` says (the query then runs in a new child, which
-    reports what is wrong), or when the server closes the pipe."""
+    footers of the tables `footers` ahead, wait for its one query and answer it. It exits
+    without a word when OUT cannot be opened or is not what `key` says (the query then runs
+    in a new child, which reports what is wrong), or when the server closes the pipe."""
     with conn, process_memory_cap(limits):
         try:
             store = open_store(out, limits)
