@@ -117,16 +117,37 @@ def read_kept_frame(
         return None
 
 
+def read_kept_footed(path: Path, limit: int, name: str) -> tuple[pl.DataFrame, str] | None:
+    """The Parquet frame kept at `path`, read as `read_kept_frame` reads it, and the value
+    its footer holds under `name` (`keep_parts`' `footer`), or None: no such frame, or none
+    kept under `name`."""
+    import io
+
+    import polars as pl
+
+    data = read_kept(path, limit)
+    if data is None:
+        return None
+    try:
+        footer = pl.read_parquet_metadata(io.BytesIO(data)).get(name)
+        frame = pl.read_parquet(io.BytesIO(data)) if footer is not None else None
+    except (OSError, pl.exceptions.PolarsError, ValueError):
+        return None
+    return None if frame is None else (frame, footer)
+
+
 def kept_frame(
     path: Path,
     read: Callable[[Path], pl.DataFrame | None],
     compute: Callable[[], pl.DataFrame],
     pattern: str,
     limit: int,
+    footer: Callable[[], Mapping[str, str]] | None = None,
 ) -> pl.DataFrame:
     """The polars frame `read(path)` gives (None: no valid frame kept there), else
     `compute()`, kept at `path` as Parquet, written whole or not at all (not when OUT cannot be
-    written), and the files of `pattern` pruned (`prune_kept`, at most `limit`)."""
+    written), and the files of `pattern` pruned (`prune_kept`, at most `limit`); `footer()`,
+    asked once `compute()` returned: what the file's footer holds besides (`keep_parts`)."""
     import polars as pl
 
     kept = read(path)
@@ -134,16 +155,23 @@ def kept_frame(
         return kept
     frame = compute()
     with contextlib.suppress(pl.exceptions.PolarsError):
-        keep_parts(path, [frame], pattern, limit)
+        keep_parts(path, [frame], pattern, limit, footer() if footer is not None else None)
     return frame
 
 
-def keep_parts(path: Path, parts: Iterable[pl.DataFrame], pattern: str, limit: int) -> bool:
+def keep_parts(
+    path: Path,
+    parts: Iterable[pl.DataFrame],
+    pattern: str,
+    limit: int,
+    footer: Mapping[str, str] | None = None,
+) -> bool:
     """Write the frames `parts` (one schema), each as it comes, to `path` as one Parquet file,
     whole or not at all, and prune the files of `pattern` (`prune_kept`, at most `limit`):
-    a large result is written without holding all of it. False when OUT cannot be written
-    (read-only, full: nothing kept); a failure of a part's query is raised (the file is not
-    left behind)."""
+    a large result is written without holding all of it. `footer`: names and values kept in
+    the file's footer (its key-value metadata; `read_kept_footed`). False when OUT cannot be
+    written (read-only, full: nothing kept); a failure of a part's query is raised (the file
+    is not left behind)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -157,7 +185,8 @@ def keep_parts(path: Path, parts: Iterable[pl.DataFrame], pattern: str, limit: i
                 for part in parts:
                     table = part.to_arrow()
                     if writer is None:
-                        writer = pq.ParquetWriter(fh, table.schema, compression="zstd")
+                        schema = table.schema.with_metadata(footer) if footer else table.schema
+                        writer = pq.ParquetWriter(fh, schema, compression="zstd")
                     writer.write_table(table.cast(writer.schema))
             finally:
                 if writer is not None:
@@ -227,6 +256,7 @@ __all__ = [
     "own_folder",
     "prune_kept",
     "read_kept",
+    "read_kept_footed",
     "read_kept_frame",
     "unless_failed",
 ]

@@ -26,7 +26,7 @@ limit (peak RSS at 100x: 1.1 GB, as 6285fcc's query of the page; DuckDB's count,
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from time import monotonic
 
 import polars as pl
@@ -138,7 +138,12 @@ def _counter(
 
 
 def count_steps(
-    store: Store, keys: Sequence[str], name: str, where: str | None, only: str | None
+    store: Store,
+    keys: Sequence[str],
+    name: str,
+    where: str | None,
+    only: str | None,
+    of_runs: Collection[str] | None = None,
 ) -> pl.DataFrame | None:
     """The scored steps of OUT (`truncated` false) where the boolean column `where` is true
     (None: all), per `keys` (run_id first), their number as `name` (of those where `only` is
@@ -148,8 +153,13 @@ def count_steps(
     Counted a chunk of whole runs at a time, in the runs' order, each file's run_id its run
     (the dataset's partition, whatever the file holds), read from its folder's name: each
     chunk's rows are its runs' (checked), so the chunks, each sorted, are the sorted whole.
-    Past the block's time limit, between chunks, the count stops with `QueryLimitError`."""
+    Past the block's time limit, between chunks, the count stops with `QueryLimitError`.
+    `of_runs`: only these runs' files are read (None: all; the rows of the query `WHERE
+    run_id IN of_runs`), the others not opened."""
     runs = _runs(store)
+    if runs is not None and of_runs is not None:
+        wanted = set(of_runs)
+        runs = [(run, paths) for run, paths in runs if run in wanted] or None
     flags = ["truncated", *(c for c in (where, only) if c is not None)]
     schema = _schema(store, keys, flags)
     if runs is None or schema is None:

@@ -33,12 +33,14 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
 
+import msgspec
 import polars as pl
 
-from replay.io import STEPS_TABLE, step_counts_path
+from replay.io import PARTITION_KEY, STEPS_TABLE, step_counts_path
 
 from ._cache import _where, with_tables
 from ._kept import kept_frame, read_kept_frame, unless_failed
+from ._run_keys import RUN_KEYS, earlier, run_keys
 from ._scan_counts import count_steps
 from ._scope import build_scope, quote_ident, run_level
 from ._sql import run_query
@@ -81,9 +83,10 @@ MAX_COUNTS_FILES = 2
 """Files of a part kept for one content of OUT (one per version of the counting query)."""
 
 
-def _query(store: Store, part: Part) -> tuple[str, list]:
-    """The scored steps (and `part.where`) counted per run, category and `part.columns`."""
-    scope = build_scope(store, STEPS_TABLE, [], None)
+def _query(store: Store, part: Part, runs: Sequence[str] | None = None) -> tuple[str, list]:
+    """The scored steps (and `part.where`) counted per run, category and `part.columns` (of
+    `runs` only; None: all)."""
+    scope = build_scope(store, STEPS_TABLE, [], None if runs is None else {"run_id": list(runs)})
     keys = ", ".join(f"g.{quote_ident(c)}" for c in part.keys)
     count = "count(*)" if part.only is None else f"count(*) FILTER (WHERE g.{part.only})"
     where = "TRUE" if part.where is None else f"g.{part.where}"
@@ -112,29 +115,57 @@ def _read(path: Path, part: Part) -> pl.DataFrame | None:
     return frame if frame is not None and _valid(frame, part) else None
 
 
-def _counted(store: Store, part: Part, sql: str, params: list) -> pl.DataFrame:
-    """The counts `part` of the steps: read from the steps files by polars where it can
-    (`count_steps`: faster than DuckDB over the Arrow dataset), else by `sql`; the same rows."""
-    counted = count_steps(store, part.keys, part.name, part.where, part.only)
-    return counted if counted is not None else run_query(store, sql, params)
+def _counted(store: Store, part: Part, runs: Sequence[str] | None = None) -> pl.DataFrame:
+    """The counts `part` of the steps (of `runs` only; None: all): read from the steps files
+    by polars where it can (`count_steps`: faster than DuckDB over the Arrow dataset), else
+    by `_query`; the same rows."""
+    counted = count_steps(store, part.keys, part.name, part.where, part.only, runs)
+    return counted if counted is not None else run_query(store, *_query(store, part, runs))
+
+
+def _recounted(store: Store, part: Part, path: Path, keys: dict[str, str]) -> pl.DataFrame:
+    """The counts `part` of the steps, the rows of each run whose files are those of the
+    counts kept for an earlier content of OUT (`_run_keys.earlier`) taken from them, the
+    other runs' counted (`_counted`); `keys` is given the runs' keys now (`run_keys`,
+    looked at before any file is read). The same rows, in the same order, as counting all:
+    each run's rows are its files' alone, so a run's kept rows are its count, and the
+    rows are sorted by run first (`merge_sorted` keeps each run's own order)."""
+    now = run_keys(store, [*part.keys, "truncated", *filter(None, (part.where, part.only))])
+    keys.update(now or {})
+    found = earlier(path, MAX_COUNTS_BYTES) if now else None
+    if found is None or not _valid(found[0], part):
+        return _counted(store, part)
+    frame, before = found
+    same = {run for run, key in now.items() if before.get(run) == key}
+    if not same:
+        return _counted(store, part)
+    kept = frame.select(*part.keys, part.name).filter(pl.col(PARTITION_KEY).is_in(sorted(same)))
+    fresh = [run for run in now if run not in same]
+    if not fresh:
+        return kept
+    counted = _counted(store, part, fresh)
+    return kept.cast(counted.schema).merge_sorted(counted, PARTITION_KEY)
 
 
 def _counts(store: Store, name: str) -> pl.DataFrame | None:
-    """The kept counts `name` of OUT (counted and kept first when missing), or None when OUT
-    keeps nothing."""
+    """The kept counts `name` of OUT (counted and kept first when missing, each run's
+    rows reused from those of an earlier content where its files are the same:
+    `_recounted`), or None when OUT keeps nothing."""
     out = _where(store)
     if out is None:
         return None
     part = PARTS[name]
-    sql, params = _query(store, part)
+    sql, _ = _query(store, part)
     key = hashlib.sha256(sql.encode()).hexdigest()[:16]
     path = step_counts_path(out, name, store.contents, key)
+    keys: dict[str, str] = {}
     return kept_frame(
         path,
         lambda at: _read(at, part),
-        lambda: _counted(store, part, sql, params),
+        lambda: _recounted(store, part, path, keys),
         f"counts_{name}-*.parquet",
         MAX_COUNTS_FILES,
+        lambda: {RUN_KEYS: msgspec.json.encode(keys).decode()} if keys else {},
     )
 
 
