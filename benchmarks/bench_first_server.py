@@ -1,6 +1,7 @@
 """A first dashboard server's data calls, in one process: each page's first choice, then others.
 
     python benchmarks/bench_first_server.py OUT [--cold | --after-metrics] [--counts]
+        [--counts-of EARLIER]
 
 Calls, in order and timed once each, what the Leaderboard, Errors, Navigation and Grounding
 pages ask for on a first server (`va.metric_intervals`, `va.error_distribution`,
@@ -16,8 +17,12 @@ first visit first (the run list, the filters' values, completeness, the metrics,
 as a first server after `vge metrics` makes them. The CPU seconds are this process's, all its
 threads (on a shared machine they vary less than the wall time). `--counts` times only the
 Errors, Navigation and Grounding calls (the step counts: their first count, then another
-choice each). Run it for BASE with `PYTHONPATH=BASE`
-beside this tree, alternating (docs/PERFORMANCE.md, *The first server at 100x*).
+choice each). `--counts-of EARLIER` first puts the step counts kept in the cache folder of
+EARLIER (`counts_*`: another OUT, say OUT with one run fewer, counted once) in OUT's, in
+place of its own, as an earlier content of OUT would have left them: the first counts are
+then those of a first server after a run was replayed into OUT (or removed from it). Run it
+for BASE with `PYTHONPATH=BASE` beside this tree, alternating (docs/PERFORMANCE.md, *The
+first server at 100x*).
 """
 
 from __future__ import annotations
@@ -37,10 +42,15 @@ def main() -> None:
         "--after-metrics", action="store_true", help="--cold, then the first `vge metrics OUT`"
     )
     parser.add_argument("--counts", action="store_true", help="only the step counts' calls")
+    parser.add_argument(
+        "--counts-of", type=Path, help="the step counts kept of this OUT put in OUT's first"
+    )
     args = parser.parse_args()
     out: Path = args.out
     if args.cold or args.after_metrics:
         forget(out, args.after_metrics)
+    if args.counts_of is not None:
+        counts_of(args.counts_of, out)
     if args.after_metrics:
         started = time.perf_counter()
         command = [sys.executable, "-m", "vge_analytics.cli", "metrics", str(out), "-f", "json"]
@@ -97,6 +107,19 @@ def forget(out: Path, answers: bool) -> None:
     for pattern in patterns:
         for kept in (out / METRIC_CACHE_DIR).glob(pattern):
             kept.unlink()
+
+
+def counts_of(earlier: Path, out: Path) -> None:
+    """Put the step counts kept in EARLIER's cache folder in OUT's, in place of its own."""
+    import shutil
+
+    from replay.io import METRIC_CACHE_DIR
+
+    for kept in (out / METRIC_CACHE_DIR).glob("counts_*.parquet"):
+        kept.unlink()
+    (out / METRIC_CACHE_DIR).mkdir(exist_ok=True)
+    for kept in sorted((earlier / METRIC_CACHE_DIR).glob("counts_*.parquet")):
+        shutil.copy2(kept, out / METRIC_CACHE_DIR / kept.name)
 
 
 def leaderboard_calls(out: Path) -> list:

@@ -18,6 +18,17 @@ with less work than DuckDB over the Arrow dataset, which made a first visit 1.2 
 than the page's own query had been), else, where polars cannot give the dataset's rows, by
 DuckDB's query (`_query`, whose text names the kept file).
 
+A new content of OUT (a run replayed into it, replayed again, changed by hand or removed)
+counts only the runs whose steps files changed (`_recounted`): the file keeps each run's key
+(`_run_keys`: its files' paths, sizes and modification times, in the footer), and the rows
+of every run whose key is the same are taken from the file kept for the earlier content (a
+run's rows are its own files' alone); the others are counted from their files only (polars
+over those runs' files, or DuckDB's query of those runs), a removed run's rows dropped. The
+same rows in the same order as counting all (at 100x, one run added: 0.1 to 0.9 s instead
+of 4.5 to 7.4 s a part, docs/PERFORMANCE.md). An earlier file that is not one of ours (no
+keys, keys or columns not ours, a run's rows without a key, a link, over the bound) is not
+used: all is counted.
+
 They answer a grouping or a filter on run_id, category or a column fixed per run (model,
 agent kind, a facet), the pages' choices; any other column is counted on the tables as
 before. Keyed, bounded and checked as the other files of the folder: another content of OUT
@@ -129,7 +140,7 @@ def _recounted(store: Store, part: Part, path: Path, keys: dict[str, str]) -> pl
     other runs' counted (`_counted`); `keys` is given the runs' keys now (`run_keys`,
     looked at before any file is read). The same rows, in the same order, as counting all:
     each run's rows are its files' alone, so a run's kept rows are its count, and the
-    rows are sorted by run first (`merge_sorted` keeps each run's own order)."""
+    rows are sorted by run first (`_merged`)."""
     now = run_keys(store, [*part.keys, "truncated", *filter(None, (part.where, part.only))])
     keys.update(now or {})
     found = earlier(path, MAX_COUNTS_BYTES) if now else None
@@ -143,8 +154,21 @@ def _recounted(store: Store, part: Part, path: Path, keys: dict[str, str]) -> pl
     fresh = [run for run in now if run not in same]
     if not fresh:
         return kept
-    counted = _counted(store, part, fresh)
-    return kept.cast(counted.schema).merge_sorted(counted, PARTITION_KEY)
+    return _merged(kept, _counted(store, part, fresh))
+
+
+def _merged(kept: pl.DataFrame, counted: pl.DataFrame) -> pl.DataFrame:
+    """The rows of `kept` and `counted` (each sorted by run first, of different runs) sorted
+    by run, each run's rows in their order: each counted run's rows put where it falls
+    among the kept runs' (slices: 2 million kept rows merged in 0.2 s, sliced in 1 ms)."""
+    kept = kept.cast(counted.schema)
+    runs = kept.get_column(PARTITION_KEY)
+    pieces, done = [], 0
+    for (run,), rows in counted.group_by(PARTITION_KEY, maintain_order=True):
+        at = runs.search_sorted(run, side="left")
+        pieces += [kept.slice(done, at - done), rows]
+        done = at
+    return pl.concat([*pieces, kept.slice(done)], rechunk=len(pieces) > 64)
 
 
 def _counts(store: Store, name: str) -> pl.DataFrame | None:

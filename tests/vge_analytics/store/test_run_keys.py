@@ -257,3 +257,28 @@ def test_a_kept_file_over_the_bound_is_not_read(
     after = _counts(out)
     assert counted["runs"] == [None] * 3
     _same(after, _everything(out))
+
+
+def test_runs_added_among_the_kept_ones_fall_in_their_places(tmp_path: Path, counted):
+    runs = LOGS / "runs"
+    out = replay_to(tmp_path / "out", [runs / "sim-human", runs / "sim-vlm-b"], LOGS / "bench")
+    _counts(out)
+    _replay(out, runs / "sim-vlm-a", runs / "sim-vlm-f")  # one between the two, one after
+    counted["runs"].clear()
+    after = _counts(out)
+    assert counted["runs"] == [["sim-vlm-a", "sim-vlm-f"]] * 3
+    _same(after, _everything(out))
+
+
+@pytest.mark.parametrize(
+    "fresh", [[], ["r00"], ["r03", "r50", "r99"], [f"r{i:02}" for i in range(0, 100, 2)]]
+)
+def test_the_merged_rows_are_sorted_as_a_count_of_all(fresh: list[str]):
+    rows = [(f"r{i:02}", c, (i * 7 + ord(c)) % 5) for i in range(100) for c in "zab"]
+    whole = pl.DataFrame(
+        rows, schema={"run_id": pl.String, "category": pl.String, "n": pl.Int64}, orient="row"
+    )
+    kept = whole.filter(~pl.col("run_id").is_in(fresh))
+    counted = whole.filter(pl.col("run_id").is_in(fresh))
+    merged = _step_counts._merged(kept, counted)
+    assert merged.equals(whole)  # each run's rows in their own (unsorted) order
