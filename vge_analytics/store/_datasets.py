@@ -36,7 +36,7 @@ import pyarrow.fs as pafs
 import pyarrow.parquet as pq
 
 import replay
-from replay.io import RUNS_TABLE, TABLES
+from replay.io import PARTITION_KEY, RUNS_TABLE, TABLES
 
 from ._contents import table_files
 from ._kept import contents_key, keep_schema, kept_schema
@@ -93,6 +93,25 @@ class Deferred:
             if self._make is not None:
                 self._source, self._make = self._make(), None
             return self._source
+
+
+def local_files(source: object) -> list[tuple[object, str]] | None:
+    """(run, path) of each file of a table's `source` (of `Store.sources`; a `Deferred` one
+    built) when it is a dataset over files on the local disk, the run its fragment's
+    partition (the manifest's run that lists the file; None where none); else None (in
+    memory, in object storage)."""
+    import pyarrow.dataset as pads
+
+    if isinstance(source, Deferred):
+        source = source.source()
+    if not isinstance(source, pads.FileSystemDataset) or not isinstance(
+        source.filesystem, pafs.LocalFileSystem
+    ):
+        return None
+    return [
+        (pads.get_partition_keys(f.partition_expression).get(PARTITION_KEY), f.path)
+        for f in source.get_fragments()
+    ]
 
 
 def empty_table(table: str) -> pa.Table:
@@ -239,6 +258,7 @@ __all__ = [
     "SCAN_OPTIONS",
     "Deferred",
     "empty_table",
+    "local_files",
     "table_files",
     "table_sources",
 ]

@@ -27,11 +27,10 @@ from pathlib import Path
 
 import msgspec
 import polars as pl
-import pyarrow.fs as pafs
 
 from replay.io import PARTITION_KEY, STEPS_TABLE
 
-from ._datasets import Deferred
+from ._datasets import local_files
 from ._kept import read_kept_footed
 from ._store import Store
 
@@ -43,29 +42,21 @@ def run_keys(store: Store, columns: Sequence[str]) -> dict[str, str] | None:
     """run -> the key of its steps files and of the types of `columns` (sorted by run), or
     None where they cannot be had: the steps table not files on the local disk, a file that
     cannot be looked at or outside OUT's folder, or one of no run."""
-    import pyarrow.dataset as pads  # (built already: the steps are a dataset)
-
-    source = store.sources.get(STEPS_TABLE)
-    if isinstance(source, Deferred):
-        source = source.source()
-    if not isinstance(source, pads.FileSystemDataset) or not isinstance(
-        source.filesystem, pafs.LocalFileSystem
-    ):
+    listed = local_files(store.sources.get(STEPS_TABLE))
+    if listed is None:
         return None
     types = store.columns[STEPS_TABLE]
     salt = msgspec.json.encode([[c, types.get(c)] for c in columns])
     base = f"{str(store.out).rstrip('/')}/"
     files: dict[str, list[str]] = {}
-    for fragment in source.get_fragments():
-        run = pads.get_partition_keys(fragment.partition_expression).get(PARTITION_KEY)
-        if not isinstance(run, str) or not fragment.path.startswith(base):
+    for run, path in listed:
+        if not isinstance(run, str) or not path.startswith(base):
             return None
         try:
-            st = os.stat(fragment.path)
+            st = os.stat(path)
         except OSError:
             return None
-        name = fragment.path[len(base) :]
-        files.setdefault(run, []).append(f"{name}\0{st.st_size}\0{st.st_mtime_ns}")
+        files.setdefault(run, []).append(f"{path[len(base) :]}\0{st.st_size}\0{st.st_mtime_ns}")
     return {run: _key(salt, entries) for run, entries in sorted(files.items())}
 
 

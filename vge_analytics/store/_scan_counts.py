@@ -30,13 +30,12 @@ from collections.abc import Callable, Collection, Sequence
 from time import monotonic
 
 import polars as pl
-import pyarrow.fs as pafs
 
 from replay.io import PARTITION_KEY, STEPS_TABLE, partition
 
 from .._errors import QueryLimitError
 from ._bounds import query_bounds
-from ._datasets import Deferred
+from ._datasets import local_files
 from ._limits import SqlLimits
 from ._sql import query_limits_of, subject_of, time_message
 from ._store import Store
@@ -49,21 +48,14 @@ def _runs(store: Store) -> list[tuple[str, list[str]]] | None:
     """(run, paths of its files) of the steps table's files on the local disk, sorted by
     run, or None (in memory, in object storage, no file, or a file whose run polars would
     not read from its path as the dataset has it, `_in_its_folder`)."""
-    import pyarrow.dataset as pads  # (built already: the steps are a dataset)
-
-    source = store.sources.get(STEPS_TABLE)
-    if isinstance(source, Deferred):
-        source = source.source()
-    if not isinstance(source, pads.FileSystemDataset) or not isinstance(
-        source.filesystem, pafs.LocalFileSystem
-    ):
+    files = local_files(store.sources.get(STEPS_TABLE))
+    if files is None:
         return None
     runs: dict[str, list[str]] = {}
-    for fragment in source.get_fragments():
-        run = pads.get_partition_keys(fragment.partition_expression).get(PARTITION_KEY)
-        if not isinstance(run, str) or not _in_its_folder(fragment.path, run):
+    for run, path in files:
+        if not isinstance(run, str) or not _in_its_folder(path, run):
             return None
-        runs.setdefault(run, []).append(fragment.path)
+        runs.setdefault(run, []).append(path)
     return sorted(runs.items()) or None
 
 
