@@ -24,10 +24,10 @@ counts only the runs whose steps files changed (`_recounted`): the file keeps ea
 of every run whose key is the same are taken from the file kept for the earlier content (a
 run's rows are its own files' alone); the others are counted from their files only (polars
 over those runs' files, or DuckDB's query of those runs), a removed run's rows dropped. The
-same rows in the same order as counting all (at 100x, one run added: 0.1 to 0.9 s instead
-of 4.5 to 7.4 s a part, docs/PERFORMANCE.md). An earlier file that is not one of ours (no
-keys, keys or columns not ours, a run's rows without a key, a link, over the bound) is not
-used: all is counted.
+same rows in the same order as counting all (at 100x, one run added or removed: 0.06 to
+0.74 s instead of 4 to 6.6 s a part, docs/PERFORMANCE.md). An earlier file that is not one
+of ours (no keys, keys or columns not ours, a run's rows without a key, a link, over the
+bound) is not used: all is counted.
 
 They answer a grouping or a filter on run_id, category or a column fixed per run (model,
 agent kind, a facet), the pages' choices; any other column is counted on the tables as
