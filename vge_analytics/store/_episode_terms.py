@@ -40,6 +40,7 @@ from replay.io import EPISODES_TABLE, RUNS_TABLE, episode_terms_path
 from .._errors import QueryError
 from ._bounds import query_bounds
 from ._cache import _where, definitions_key
+from ._episode_rows import projected_terms
 from ._kept import keep_parts, read_kept_frame, unless_failed
 from ._ratios import Ratio, ratio_terms, term_name
 from ._scope import (
@@ -84,6 +85,21 @@ def _answers(store: Store, columns: Sequence[str], held: Sequence[str]) -> bool:
 
 
 def _compute(
+    store: Store,
+    ratio: Ratio,
+    held: Sequence[str],
+    sources,
+    runs: Sequence[str] | None = None,
+) -> pl.DataFrame:
+    """The rows of `_grouped`: as a projection of the episodes table when the terms are
+    counts over it (`_episode_rows`, the same rows without grouping or join), else grouped."""
+    projected = projected_terms(store, ratio, held, sources, runs)
+    if projected is not None:
+        return projected
+    return _grouped(store, ratio, held, sources, runs)
+
+
+def _grouped(
     store: Store,
     ratio: Ratio,
     held: Sequence[str],
