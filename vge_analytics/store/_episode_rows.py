@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import weakref
 from collections.abc import Sequence
 
 import duckdb
@@ -185,6 +186,26 @@ def _expected(schema: pa.Schema, columns: Sequence[str]) -> pl.Schema:
     return pl.from_arrow(pa.schema(plain).empty_table()).schema
 
 
+_FILES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _run_files(dataset) -> dict[str, list[str]] | None:
+    """{run: its files} of a dataset of the store (each file's partition, `_datasets`: a run
+    each), read once per dataset (not for each part); None when a file has no run."""
+    if dataset not in _FILES:
+        import pyarrow.dataset as pads
+
+        files: dict[str, list[str]] = {}
+        for fragment in dataset.get_fragments():
+            run = pads.get_partition_keys(fragment.partition_expression).get("run_id")
+            if not isinstance(run, str):
+                _FILES[dataset] = None
+                return None
+            files.setdefault(run, []).append(fragment.path)
+        _FILES[dataset] = files
+    return _FILES[dataset]
+
+
 def _part_rows(
     store: Store, columns: Sequence[str], runs: Sequence[str] | None
 ) -> pl.DataFrame | None:
@@ -192,7 +213,6 @@ def _part_rows(
     those runs in the table's dataset (the one DuckDB scans), typed as DuckDB reads them
     there; None when they are not so read here (not on the local disk, no file, a file of
     other types or of other runs' rows: the grouped query answers)."""
-    import pyarrow.compute as pc
     import pyarrow.dataset as pads
     import pyarrow.fs as pafs
 
@@ -204,8 +224,10 @@ def _part_rows(
     )
     if not local:
         return None
-    chosen = None if runs is None else pc.field("run_id").isin(list(runs))
-    paths = [f.path for f in source.get_fragments(filter=chosen)]
+    files = _run_files(source)
+    if files is None:
+        return None
+    paths = [p for run in (sorted(files) if runs is None else runs) for p in files.get(run, ())]
     if not paths:
         return None
     scan = pl.scan_parquet(paths, glob=False, hive_partitioning=False, missing_columns="insert")
