@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import vge_analytics as va
+from replay.io import METRIC_CACHE_DIR
 from tests.vge_analytics.store.kept import copy_out
 from vge_analytics.store import _episode_rows, _episode_terms
 
@@ -164,3 +165,21 @@ def test_a_condition_that_does_not_bind_is_grouped(pair_out: Path):
     assert _episode_rows.projected_terms(store, ratio, held, ()) is None
     with pytest.raises(va.QueryError):
         _episode_terms._grouped(store, ratio, held, ())
+
+
+def test_vge_metrics_keeps_srs_terms_by_the_projection(pair_out: Path, tmp_path: Path, monkeypatch):
+    """The first `vge metrics OUT` keeps SR's terms per episode without the grouped query
+    (without its group-by and join), and the file holds the grouped query's rows."""
+    out = copy_out(pair_out, tmp_path / "out")
+    grouped = _episode_terms._grouped
+
+    def refused(*args, **kwargs):
+        raise AssertionError("the grouped query ran")
+
+    monkeypatch.setattr(_episode_terms, "_grouped", refused)
+    va.metrics(out, by="run_id")
+    (path,) = (out / METRIC_CACHE_DIR).glob("terms_episodes-*.parquet")
+    store = va.open_store(out)
+    want = grouped(store, va.MetricSet.builtin().get("SR"), _episode_terms._held(store), ())
+    kept = pl.read_parquet(path)
+    assert kept.schema == want.schema and kept.equals(want) and kept.height == 21
