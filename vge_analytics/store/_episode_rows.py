@@ -10,14 +10,15 @@ row is known without grouping: `count(*)` is 1, and `count(*) FILTER (WHERE cond
 row is not always its value (a sum of integers is a HUGEINT, a compensated sum of -0.0 is
 0.0, a sum of null is null), so any other term is computed as before, grouped and joined.
 
-The rows of a part's runs are read by pyarrow from the dataset DuckDB scans (the store's:
-the same files, schema and types), with threads and only the columns needed: the keys, the
-episodes' columns kept, and those the conditions name (read from DuckDB's own parse of the
-metric's SQL). DuckDB evaluates the conditions over those columns alone; the rows are sorted
-by run and episode (the replay writes them so: then only checked). A part whose keys repeat
-or are null (a table edited by hand), or whose projection fails, is computed as before, so
-the rows are the same either way. At 100 times the full benchmark this took keeping SR's terms
-per episode from 18-19 s of CPU to 5 (docs/PERFORMANCE.md).
+The rows of a part's runs are read by polars from that run's files of the dataset DuckDB
+scans (the files the manifest lists), only the columns needed: the keys, the episodes'
+columns kept, and those the conditions name (read from DuckDB's own parse of the metric's
+SQL), each of the type DuckDB gives it there (else the grouped query answers). DuckDB
+evaluates the conditions over those columns alone; the rows are sorted by run and episode
+(the replay writes them so: then only checked). A part whose keys repeat or are null (a
+table edited by hand), or whose projection fails, is computed as before, so the rows are
+the same either way. At 100 times the full benchmark this took keeping SR's terms per
+episode from 14 s of CPU to 4 (docs/PERFORMANCE.md).
 """
 
 from __future__ import annotations
@@ -53,10 +54,6 @@ _PLAIN = frozenset(
 )
 """Classes of DuckDB's parsed expressions a condition may hold: values of the row alone (no
 subquery, star, parameter or window)."""
-
-READ_OPTIONS = {"batch_size": 131_072, "batch_readahead": 16, "fragment_readahead": 8}
-"""pyarrow's scan of a part's files: its defaults, not the store's (which reads ahead little,
-for a LIMIT's sake): a part is read whole."""
 
 
 def _nodes(node: object):
@@ -296,4 +293,4 @@ def projected_terms(
     return frame
 
 
-__all__ = ["READ_OPTIONS", "count_terms", "projected_terms"]
+__all__ = ["count_terms", "projected_terms"]

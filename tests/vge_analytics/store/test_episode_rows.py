@@ -183,3 +183,31 @@ def test_vge_metrics_keeps_srs_terms_by_the_projection(pair_out: Path, tmp_path:
     want = grouped(store, va.MetricSet.builtin().get("SR"), _episode_terms._held(store), ())
     kept = pl.read_parquet(path)
     assert kept.schema == want.schema and kept.equals(want) and kept.height == 21
+
+
+def test_over_one_row_a_count_is_its_projection_and_a_sum_is_not_always_its_value():
+    """Why only counts: over one row, DuckDB's `count(*) FILTER (WHERE c)` is the
+    projection's 1 or 0 (c true, false or null) and a BIGINT as it; a sum of that row's
+    integer is a HUGEINT, of -0.0 is 0.0, of null is null."""
+    import math
+
+    import duckdb
+
+    sr = va.MetricSet.builtin().get("SR")
+    numerator, denominator, _ = _episode_rows.count_terms(sr)
+    with duckdb.connect() as con:
+        for success in (True, False, None):
+            row = "(SELECT CAST(? AS BOOLEAN) AS success) AS g"
+            grouped = con.execute(
+                f"SELECT count(*) FILTER (WHERE success), count(*) FROM {row}", [success]
+            ).fetchall()
+            projected = con.execute(
+                f"SELECT {numerator}, {denominator}, typeof({numerator}) FROM {row}", [success]
+            ).fetchall()
+            assert projected == [(*grouped[0], "BIGINT")] == [(int(success is True), 1, "BIGINT")]
+        ((total, kind, fsum),) = con.execute(
+            "SELECT sum(x), typeof(sum(n)), fsum(x) FROM (SELECT CAST('-0.0' AS DOUBLE) AS x, "
+            "CAST(1 AS BIGINT) AS n)"
+        ).fetchall()
+        assert math.copysign(1, total) == math.copysign(1, fsum) == 1.0  # -0.0 summed: 0.0
+        assert kind == "HUGEINT"
