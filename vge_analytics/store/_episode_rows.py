@@ -10,10 +10,12 @@ row is known without grouping: `count(*)` is 1, and `count(*) FILTER (WHERE cond
 row is not always its value (a sum of integers is a HUGEINT, a compensated sum of -0.0 is
 0.0, a sum of null is null), so any other term is computed as before, grouped and joined.
 
-The rows of a part's runs are read by polars from that run's files of the dataset DuckDB
+The rows of a part's runs are read by polars from those runs' files of the dataset DuckDB
 scans (the files the manifest lists), only the columns needed: the keys, the episodes'
 columns kept, and those the conditions name (read from DuckDB's own parse of the metric's
-SQL), each of the type DuckDB gives it there (else the grouped query answers). DuckDB
+SQL), each of the type DuckDB gives it there (else the grouped query answers); a file's
+run_id is its run, read from its folder's name, as the dataset gives it whatever the file
+holds (`_scan_counts._in_its_folder`: a path polars would read otherwise is grouped). DuckDB
 evaluates the conditions over those columns alone; the rows are sorted by run and episode
 (the replay writes them so: then only checked). A part whose keys repeat or are null (a
 table edited by hand), or whose projection fails, is computed as before, so the rows are
@@ -33,12 +35,13 @@ import duckdb
 import polars as pl
 import pyarrow as pa
 
-from replay.io import EPISODES_TABLE
+from replay.io import EPISODES_TABLE, PARTITION_KEY
 
 from .._errors import QueryError, QueryLimitError
 from ._bounds import query_bounds
 from ._datasets import Deferred
 from ._ratios import Ratio, ratio_terms, term_name
+from ._scan_counts import _in_its_folder
 from ._scope import quote_ident
 from ._sql import run_query
 from ._store import Store
@@ -208,8 +211,9 @@ def _part_rows(
 ) -> pl.DataFrame | None:
     """`columns` of the episodes of `runs` (None: all), read by polars from the files of
     those runs in the table's dataset (the one DuckDB scans), typed as DuckDB reads them
-    there; None when they are not so read here (not on the local disk, no file, a file of
-    other types or of other runs' rows: the grouped query answers)."""
+    there, each file's run_id its run (the dataset's partition, whatever the file holds, as
+    DuckDB reads it); None when they are not so read here (not on the local disk, no file,
+    a file whose run is not known or of other types: the grouped query answers)."""
     import pyarrow.dataset as pads
     import pyarrow.fs as pafs
 
@@ -224,16 +228,22 @@ def _part_rows(
     files = _run_files(source)
     if files is None:
         return None
-    paths = [p for run in (sorted(files) if runs is None else runs) for p in files.get(run, ())]
-    if not paths:
+    chosen = [r for r in (sorted(files) if runs is None else runs) if r in files]
+    if not chosen:
         return None
-    scan = pl.scan_parquet(paths, glob=False, hive_partitioning=False, missing_columns="insert")
+    paths = [p for run in chosen for p in files[run]]
+    if not all(_in_its_folder(p, run) for run in chosen for p in files[run]):
+        return None
+    scan = pl.scan_parquet(
+        paths,
+        hive_partitioning=True,  # run_id: the file's run, as the dataset has it
+        hive_schema={PARTITION_KEY: pl.String},
+        try_parse_hive_dates=False,
+        glob=False,  # a path is a name, not a pattern (an OUT named `out[12]`)
+        missing_columns="insert",  # as the dataset unifies the files: null there
+    )
     frame = scan.select(columns).collect()
-    if frame.schema != _expected(source.schema, columns):
-        return None
-    if runs is not None and not frame["run_id"].is_in(list(runs)).all():
-        return None
-    return frame
+    return frame if frame.schema == _expected(source.schema, columns) else None
 
 
 def _in_order(frame: pl.DataFrame) -> bool:

@@ -211,3 +211,16 @@ def test_over_one_row_a_count_is_its_projection_and_a_sum_is_not_always_its_valu
         ).fetchall()
         assert math.copysign(1, total) == math.copysign(1, fsum) == 1.0  # -0.0 summed: 0.0
         assert kind == "HUGEINT"
+
+
+def test_a_files_run_is_its_folders(pair_out: Path, tmp_path: Path):
+    """A file of run A whose run_id column says B (edited by hand): DuckDB reads its rows
+    as A's (the dataset's partition), and so does the projection."""
+    out = copy_out(pair_out, tmp_path / "out")
+    _rewrite(out, "A", lambda frame: frame.with_columns(pl.lit("B").alias("run_id")))
+    store = va.open_store(out)
+    sr = va.MetricSet.builtin().get("SR")
+    for runs in (None, ["A"], ["A", "B"]):
+        projected, grouped = _both(store, sr, runs)
+        _same(projected, grouped)
+    assert grouped["run_id"].to_list() == ["A"] * 10 + ["B"] * 11
