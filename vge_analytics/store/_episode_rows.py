@@ -13,7 +13,8 @@ row is not always its value (a sum of integers is a HUGEINT, a compensated sum o
 The rows of a part's runs are read by polars from those runs' files of the dataset DuckDB
 scans (the files the manifest lists), only the columns needed: the keys, the episodes'
 columns kept, and those the conditions name (read from DuckDB's own parse of the metric's
-SQL), each of the type DuckDB gives it there (else the grouped query answers); a file's
+SQL; booleans and numbers only: a text or a list is left to the grouped query, which streams
+it), each of the type DuckDB gives it there (else the grouped query answers); a file's
 run_id is its run, read from its folder's name, as the dataset gives it whatever the file
 holds (`_scan_counts._in_its_folder`: a path polars would read otherwise is grouped). DuckDB
 evaluates the conditions over those columns alone; the rows are sorted by run and episode
@@ -44,12 +45,16 @@ from ._ratios import Ratio, ratio_terms, term_name
 from ._scan_counts import _in_its_folder
 from ._scope import quote_ident
 from ._sql import run_query
-from ._store import Store
+from ._store import NUMERIC_TYPES, Store
 
 _KEYS = ("run_id", "episode_id")
 
 _ROWS = "__episode_rows"
 """The name of a part's rows (the columns the conditions name) in the projection's query."""
+
+_FIXED = frozenset({"BOOLEAN", *NUMERIC_TYPES})
+"""The types of the columns a condition may read here: of a fixed width (a part's 500,000
+episodes of a boolean are half a megabyte; of a text or a list, unbounded)."""
 
 _PLAIN = frozenset(
     {"BETWEEN", "CASE", "CAST", "COLLATE", "COLUMN_REF", "COMPARISON", "CONJUNCTION"}
@@ -273,7 +278,10 @@ def projected_terms(
         return None  # (an isolated query opens OUT afresh, without this part's rows)
     numerator, denominator, names = terms
     columns = store.columns.get(EPISODES_TABLE, {})
-    read = [c for c in columns if c in names] or ["episode_id"]
+    read = [c for c in columns if c in names]
+    if any(columns[c] not in _FIXED for c in read):
+        return None  # (a text or list read whole here: DuckDB's grouped query streams it)
+    read = read or ["episode_id"]
     try:
         rows = _part_rows(store, list(dict.fromkeys([*_KEYS, *held, *read])), runs)
     except (OSError, pa.ArrowException, pl.exceptions.PolarsError):

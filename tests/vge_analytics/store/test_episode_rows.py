@@ -36,8 +36,10 @@ COUNTS = (
     Count("Rec", "count(*) FILTER (WHERE continued AND NOT source_success)", "count()"),
     Count("Nul", "count(*) FILTER (WHERE fixed IS NULL OR n_goals > 2)", "count(*) -- all\n"),
     Count("Neg", "count(*) FILTER (WHERE NOT continued)", "count(*) FILTER (WHERE g.fixed)"),
-    Count("Txt", "count(*) FILTER (WHERE category LIKE 'M%' AND len(goals) > 1)", "count(*)"),
 )
+
+WIDE = Count("Txt", "count(*) FILTER (WHERE category LIKE 'M%' AND len(goals) > 1)", "count(*)")
+"""A count whose condition reads a text and a list: grouped (DuckDB streams them)."""
 
 
 def test_counts_are_projected_and_nothing_else():
@@ -154,6 +156,13 @@ def test_a_column_of_another_type_is_grouped(pair_out: Path, tmp_path: Path):
     _rewrite(out, "B", lambda frame: frame.with_columns(pl.col("n_goals").cast(pl.Int32)))
     store = va.open_store(out)
     projected, grouped = _both(store, va.MetricSet.builtin().get("SR"))
+    assert projected is None and grouped.height == 21
+
+
+def test_a_condition_on_a_text_or_a_list_is_grouped(pair_out: Path):
+    store = va.open_store(pair_out)
+    assert _episode_rows.count_terms(WIDE) is not None
+    projected, grouped = _both(store, WIDE)
     assert projected is None and grouped.height == 21
 
 
