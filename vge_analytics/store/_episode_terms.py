@@ -9,8 +9,9 @@ The first computation keeps them, a file per metric, in
 (`replay.io.episode_terms_path`): run_id, episode_id, the episodes' columns of
 `EPISODE_COLUMNS`, and the metric's terms, the rows the direct computation joins (the terms
 of the metric's own query grouped by run_id and episode_id, unfiltered, joined to the
-episodes). Later computations read the file and keep the rows `where` selects. (A file per
-metric, not per grain: the terms of every metric of the episodes per episode in one query
+episodes; for a metric of the episodes whose terms are counts, the same rows read as a
+projection of the episodes table, `_episode_rows`). Later computations read the file and
+keep the rows `where` selects. (A file per metric, not per grain: the terms of every metric of the episodes per episode in one query
 needed more than a command's memory limit at 100x.)
 
 Filtering the kept rows gives the same rows and the same bits as filtering before: a filter
@@ -40,6 +41,7 @@ from replay.io import EPISODES_TABLE, RUNS_TABLE, episode_terms_path
 from .._errors import QueryError
 from ._bounds import query_bounds
 from ._cache import _where, definitions_key
+from ._episode_rows import projected_terms
 from ._kept import keep_parts, read_kept_frame, unless_failed
 from ._ratios import Ratio, ratio_terms, term_name
 from ._scope import (
@@ -84,6 +86,21 @@ def _answers(store: Store, columns: Sequence[str], held: Sequence[str]) -> bool:
 
 
 def _compute(
+    store: Store,
+    ratio: Ratio,
+    held: Sequence[str],
+    sources,
+    runs: Sequence[str] | None = None,
+) -> pl.DataFrame:
+    """The rows of `_grouped`: as a projection of the episodes table when the terms are
+    counts over it (`_episode_rows`, the same rows without grouping or join), else grouped."""
+    projected = projected_terms(store, ratio, held, sources, runs)
+    if projected is not None:
+        return projected
+    return _grouped(store, ratio, held, sources, runs)
+
+
+def _grouped(
     store: Store,
     ratio: Ratio,
     held: Sequence[str],
