@@ -42,6 +42,7 @@ import os
 import resource
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
 from time import monotonic
 from typing import NamedTuple
 
@@ -53,8 +54,8 @@ from replay.io import PARTITION_KEY, STEPS_TABLE, partition
 from .._errors import QueryLimitError
 from ._bounds import query_bounds
 from ._datasets import Deferred
-from ._isolated import _run_child, _slot
-from ._limits import SqlLimits, default_max_queries, process_memory_cap
+from ._isolated import GRACE, _slots, _start
+from ._limits import SqlLimits, default_max_queries, memory_headroom, process_memory_cap
 from ._sql import query_limits_of, subject_of, time_message
 from ._store import Store
 
@@ -159,22 +160,22 @@ def _count(
     counted: Callable[[list[str]], pl.DataFrame],
     end: float | None,
     stop: Callable[[], QueryLimitError],
-) -> pl.DataFrame | None:
-    """The counts of `chunks`, one after the other, concatenated; None where polars cannot
-    read them as the dataset has them. Past `end` (`monotonic`), between two chunks, raises
-    `stop()`."""
-    parts = []
+    keep: Callable[[pl.DataFrame], object],
+) -> bool:
+    """Count `chunks`, one after the other, each chunk's counts handed to `keep` as soon as
+    counted; False where polars cannot read them as the dataset has them. Past `end`
+    (`monotonic`), between two chunks, raises `stop()`."""
     for n, (held, paths) in enumerate(chunks):
         if n and end is not None and monotonic() > end:
             raise stop()
         try:
             part = counted(paths)
         except (OSError, pl.exceptions.PolarsError):
-            return None
+            return False
         if not set(part[PARTITION_KEY].unique().to_list()) <= held:  # read otherwise: DuckDB
-            return None
-        parts.append(part)
-    return pl.concat(parts, rechunk=True)
+            return False
+        keep(part)
+    return True
 
 
 class CountProcess(NamedTuple):
@@ -206,9 +207,11 @@ class _Job(NamedTuple):
 
 
 def _count_child(conn: Connection, job: _Job) -> None:
-    """The count's process: count `job` within its process cap, answer once, exit. Past the
-    cap an allocation fails: polars' aborts the process (no core file, its message not
-    printed: the parent says why in one line), Python's answers None."""
+    """The count's process: count `job` within its process cap, sending each chunk's counts
+    as soon as counted (`("part",)`, then polars' IPC stream: the parent reads one while the
+    next is counted), then `("ok", counted, CPU seconds, peak memory)` or `("error",
+    message)`, and exit. Past the cap an allocation fails: polars' aborts the process (no core
+    file, its message not printed: the parent says why), Python's answers not counted."""
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
     os.dup2(os.open(os.devnull, os.O_WRONLY), 2)
     with conn, process_memory_cap(job.limits):
@@ -217,26 +220,53 @@ def _count_child(conn: Connection, job: _Job) -> None:
         def stop() -> QueryLimitError:
             return QueryLimitError(time_message(job.subject, job.limits), limit="time")
 
+        def send(part: pl.DataFrame) -> None:
+            stream = io.BytesIO()
+            part.write_ipc_stream(stream, compat_level=pl.CompatLevel.newest())
+            conn.send(("part",))
+            conn.send_bytes(stream.getbuffer())
+
         try:
-            frame = _count(job.chunks, counted, job.end, stop)
+            whole = _count(job.chunks, counted, job.end, stop, send)
         except QueryLimitError as exc:
-            conn.send(("error", "QueryLimitError", str(exc), exc.limit, 0))
+            conn.send(("error", str(exc)))
             return
         except MemoryError:
-            frame = None
-        _send_counts(conn, frame)
+            whole = False
+        used = resource.getrusage(resource.RUSAGE_SELF)
+        conn.send(("ok", whole, used.ru_utime + used.ru_stime, used.ru_maxrss * 1024))
 
 
-def _send_counts(conn: Connection, frame: pl.DataFrame | None) -> None:
-    """Answer `("ok", counted, CPU seconds, peak memory)`, then the counts as polars' IPC
-    stream (written and read in 0.4 s for the views' 2 million rows at 100x, against 1 s
-    through pyarrow's writer, `_isolated`'s)."""
-    used = resource.getrusage(resource.RUSAGE_SELF)
-    stream = io.BytesIO()
-    if frame is not None:
-        frame.write_ipc_stream(stream, compat_level=pl.CompatLevel.newest())
-    conn.send(("ok", frame is not None, used.ru_utime + used.ru_stime, used.ru_maxrss * 1024))
-    conn.send_bytes(stream.getbuffer())
+def _receive(child: BaseProcess, receiver: Connection, job: _Job) -> list[pl.DataFrame] | None:
+    """The counts the count's process sends, chunk by chunk, or None: it found files polars
+    cannot read as the dataset has them, it ended without answering (past its cap), or its
+    counts passed the memory limit and half again (`memory_headroom`). Past the time limit
+    and a grace period it is killed; it has ended when this returns."""
+    global last_process
+    parts: list[pl.DataFrame] = []
+    room = memory_headroom(job.limits)
+    last_process = CountProcess(False, 0.0, 0)
+    try:
+        while True:
+            wait = None if job.end is None else max(job.end - monotonic(), 0.0) + GRACE
+            if not receiver.poll(wait):
+                raise QueryLimitError(time_message(job.subject, job.limits), limit="time")
+            message = receiver.recv()
+            if message[0] == "error":
+                raise QueryLimitError(message[1], limit="time")
+            if message[0] == "ok":
+                last_process = CountProcess(*message[1:])
+                return parts if message[1] else None
+            data = receiver.recv_bytes(maxlength=max(room, 1))
+            room -= len(data)
+            parts.append(pl.read_ipc_stream(io.BytesIO(data)))
+    except (EOFError, OSError):  # ended, or sent more than the room left: DuckDB's then
+        return None
+    finally:
+        receiver.close()
+        if child.is_alive():
+            child.kill()
+        child.join()
 
 
 def count_steps(
@@ -263,22 +293,14 @@ def count_steps(
     subject = subject_of(store.out, ())
     job = _Job(_chunks(runs), schema, list(keys), name, where, only, end, limits, subject)
     bounds = query_bounds()
+    slots = _slots((bounds.max_queries if bounds else None) or default_max_queries(limits))
+    if not slots.acquire(blocking=False):
+        return None  # every query process taken: DuckDB's query now, bounded by its limit
     try:
-        slots = _slot((bounds.max_queries if bounds else None) or default_max_queries(limits))
-    except QueryLimitError:
-        return None  # every query process is taken: DuckDB's query, bounded in memory
-    global last_process
-    try:
-        (_, counted, cpu, peak), data = _run_child(_count_child, (job,), limits, subject)
-    except QueryLimitError as exc:
-        if exc.limit == "time":
-            raise
-        last_process = CountProcess(False, 0.0, 0)
-        return None  # past the process's memory cap: DuckDB's query, which spills or stops
+        parts = _receive(*_start(_count_child, (job,)), job)
     finally:
         slots.release()
-    last_process = CountProcess(counted, cpu, peak)
-    return pl.read_ipc_stream(io.BytesIO(data)) if counted else None
+    return None if parts is None else pl.concat(parts, rechunk=True)
 
 
 __all__ = ["count_steps"]

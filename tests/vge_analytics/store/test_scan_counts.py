@@ -14,7 +14,7 @@ import pytest
 
 import vge_analytics as va
 from tests.vge_analytics.store.kept import copy_out
-from vge_analytics.store import _scan_counts, _step_counts, open_store, run_query
+from vge_analytics.store import _isolated, _scan_counts, _step_counts, open_store, run_query
 
 
 def _with_steps(pair_out: Path, target: Path, steps: pa.Table) -> Path:
@@ -132,9 +132,27 @@ def test_chunks_are_counted_until_the_time_limit_between_them(pair_out: Path, mo
     def stop():
         return va.QueryLimitError("stopped", limit="time")
 
-    whole = _scan_counts._count(one_each, lambda p: counted.append(p) or counter(p), 15.0, stop)
-    assert whole is not None and len(counted) == 2  # at 10 s: before its end
+    parts = []
+    count = lambda p: counted.append(p) or counter(p)  # noqa: E731
+    assert _scan_counts._count(one_each, count, 15.0, stop, parts.append)
+    assert len(counted) == 2 and len(parts) == 2  # at 10 s: before its end
     with pytest.raises(va.QueryLimitError, match="stopped"):
-        _scan_counts._count(one_each, lambda p: counted.append(p) or counter(p), 15.0, stop)
+        _scan_counts._count(one_each, count, 15.0, stop, parts.append)
     assert len(counted) == 3  # the first counted, the second not begun (at 20 s)
+    whole = pl.concat(parts[:2])
     assert whole.equals(_by_duckdb(pair_out, "errors"))
+
+
+def test_with_every_query_process_taken_duckdb_counts_at_once(pair_out: Path):
+    part = _step_counts.PARTS["views"]
+    args = (part.keys, part.name, part.where, part.only)
+    slots = _isolated._slots(1)
+    with va.query_limits(isolated=True, max_queries=1):  # a server's bounds, one process
+        store = open_store(pair_out)
+        assert slots.acquire(blocking=False)  # the SQL page's query, say
+        try:
+            assert _scan_counts.count_steps(store, *args) is None  # not waited for
+        finally:
+            slots.release()
+        counted = _scan_counts.count_steps(store, *args)
+    assert counted is not None and counted.equals(_by_duckdb(pair_out, "views"))
