@@ -30,9 +30,13 @@ error type's column is 100 KB uncompressed (its dictionary), for 0.95 GB. The ti
 (`query_limits`) is looked at between chunks of whole runs (`CHUNK_FILES` files or more: 22
 chunks at 100x); past it the count stops with `QueryLimitError`, as DuckDB's query would be
 stopped; the parent kills a process silent past it. (polars' own background query, which
-could be cancelled at any time, took 4 to 5 times the CPU.) Its process's peak at 100x:
-1.06 GB for the views' 2 million groups, 0.2 GB for the others; the counts come back as
-polars' IPC stream (0.4 s for the views').
+could be cancelled at any time, took 4 to 5 times the CPU.) Each chunk's counts are sent
+back as soon as counted, as polars' IPC stream, what the parent holds of them bounded by the
+same memory limit and half again. At 100x the count's process peaks at 0.15 to 0.3 GB; the
+views' 2 million rows cost 0.3 CPU s to send and 0.4 to read (their first count 1.04 to 1.3
+times BASE's CPU; the others' at parity: docs/PERFORMANCE.md, *The first count's memory
+bound*). A process that has not started the forkserver yet (a command's first count; the
+dashboard starts it with the server) waits for it too: 1 to 5 s.
 """
 
 from __future__ import annotations
