@@ -156,3 +156,15 @@ def test_with_every_query_process_taken_duckdb_counts_at_once(pair_out: Path):
             slots.release()
         counted = _scan_counts.count_steps(store, *args)
     assert counted is not None and counted.equals(_by_duckdb(pair_out, "views"))
+
+
+def test_counts_past_what_this_process_may_hold_of_them_are_duckdbs(
+    pair_out: Path, monkeypatch
+):
+    store = open_store(pair_out)
+    part = _step_counts.PARTS["views"]
+    args = (part.keys, part.name, part.where, part.only)
+    assert _scan_counts.count_steps(store, *args) is not None
+    monkeypatch.setattr(_scan_counts, "memory_headroom", lambda limits: 100)  # bytes here
+    assert _scan_counts.count_steps(store, *args) is None
+    assert _scan_counts.last_process == (False, 0.0, 0)  # ended, not answered
