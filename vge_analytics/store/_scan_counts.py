@@ -32,11 +32,12 @@ chunks at 100x); past it the count stops with `QueryLimitError`, as DuckDB's que
 stopped; the parent kills a process silent past it. (polars' own background query, which
 could be cancelled at any time, took 4 to 5 times the CPU.) Each chunk's counts are sent
 back as soon as counted, as polars' IPC stream, what the parent holds of them bounded by the
-same memory limit and half again. At 100x the count's process peaks at 0.15 to 0.3 GB; the
-views' 2 million rows cost 0.3 CPU s to send and 0.4 to read (their first count 1.04 to 1.3
-times BASE's CPU; the others' at parity: docs/PERFORMANCE.md, *The first count's memory
-bound*). A process that has not started the forkserver yet (a command's first count; the
-dashboard starts it with the server) waits for it too: 1 to 5 s.
+same memory limit and half again. At 100x the count's process peaks at 0.15 to 0.33 GB; the
+views' 2 million rows take 0.5 to 0.6 CPU s more to hand over (their first count 1.04 to
+1.31 times c959cdc's CPU, in this process then; the others' at parity: docs/PERFORMANCE.md,
+*The first count's memory bound*). A process that has not started the forkserver yet (a
+command's first count; the dashboard starts it with the server) waits for it too: 0.6 to
+0.8 s more on the bundled sample, 5 s under a heavy load.
 """
 
 from __future__ import annotations
