@@ -106,8 +106,10 @@ def test_a_huge_error_type_is_counted_by_duckdb_the_same_rows(
     huge = pl.lit("x" * size).cast(pl.Categorical)  # written as a dictionary: one value
     out = _with_steps(pair_out, tmp_path / "out", _steps(rows, huge))
     assert sum(f.stat().st_size for f in (out / "steps" / "run_id=B").iterdir()) < 1 << 20
+    before = _peak()
     kept, by_duckdb = _counted(out, "errors", "64MB", monkeypatch)  # may add 320 MB
     assert by_duckdb == 1 and _scan_counts.last_process == (False, 0.0, 0)
+    assert _peak() - before < 256 << 20  # polars' 0.95 GB were not this process's
     b = kept.filter(pl.col("run_id") == "B")
     assert b.rows() == [("B", "Lamp", "x" * size, rows)]
     assert kept.equals(_by_duckdb(out, "errors"))
