@@ -15,29 +15,31 @@ the conditions booleans). Anything else, or a file polars cannot read as those t
 answers None: the caller asks DuckDB, as before.
 
 Its bounds are the store's queries': it runs in a query process of its own (`_isolated`'s,
-forked from the forkserver, taking one of the process slots), its data segment capped for its
-life at its size plus the memory limit in force and half again (`process_memory_cap`,
+forked from the forkserver, taking one of the process slots), its data segment capped for
+its life at its size plus the memory limit in force and half again (`process_memory_cap`,
 `memory_headroom`; `query_limits_of`: the block's, else the store's), as DuckDB's query
 would be bounded by that memory limit. The steps a hand-made OUT may hold are what polars
-cannot bound itself: a million error types (a group each: its sort reserves 3.5 GB for them),
-one error type of 100 KB on 40,000 steps (a file of 270 KB: polars copies the key per step,
-0.95 GB). Such a count reaches the cap and its process ends there (polars aborts where an
-allocation fails: that is why it is not run in this one, which serves a dashboard's other
+cannot bound itself: a million error types (a group each: its sort reserves 3.5 GB for
+them), one error type of 100 KB on 40,000 steps (a file of 270 KB: polars copies the key per
+step, 0.95 GB). Such a count reaches the cap and its process ends there (polars aborts where
+an allocation fails: that is why it is not run in this one, which serves a dashboard's other
 visitors), this process's memory untouched: the count is DuckDB's query's then, the same
 rows, within its memory limit or stopped by it with the usual line. A bound by the Parquet
 footers (each row group's uncompressed bytes of the counted columns) was not enough: that
-error type's column is 100 KB uncompressed (its dictionary), for 0.95 GB. The time limit of the block
-(`query_limits`) is looked at between chunks of whole runs (`CHUNK_FILES` files or more: 22
-chunks at 100x); past it the count stops with `QueryLimitError`, as DuckDB's query would be
-stopped; the parent kills a process silent past it. (polars' own background query, which
-could be cancelled at any time, took 4 to 5 times the CPU.) Each chunk's counts are sent
-back as soon as counted, as polars' IPC stream, what the parent holds of them bounded by the
-same memory limit and half again. At 100x the count's process peaks at 0.15 to 0.33 GB; the
-views' 2 million rows take 0.5 to 0.6 CPU s more to hand over (their first count 1.04 to
-1.31 times c959cdc's CPU, in this process then; the others' at parity: docs/PERFORMANCE.md,
-*The first count's memory bound*). A process that has not started the forkserver yet (a
-command's first count; the dashboard starts it with the server) waits for it too: 0.6 to
-0.8 s more on the bundled sample, 5 s under a heavy load.
+error type's column is 100 KB uncompressed (its dictionary), for 0.95 GB.
+
+The time limit of the block (`query_limits`) is looked at between chunks of whole runs
+(`CHUNK_FILES` files or more: 22 chunks at 100x); past it the count stops with
+`QueryLimitError`, as DuckDB's query would be stopped, and a process silent past it (a chunk
+that does not end) is killed. (polars' own background query, which could be cancelled at any
+time, took 4 to 5 times the CPU.) Each chunk's counts are sent back as soon as counted, as
+polars' IPC stream, what this process holds of them bounded by the same memory limit and
+half again. At 100x the count's process peaks at 0.15 to 0.33 GB; the views' 2 million rows
+take 0.5 to 0.6 CPU s more to hand over (their first count 1.04 to 1.31 times c959cdc's CPU,
+in this process then; the others' at parity: docs/PERFORMANCE.md, *The first count's memory
+bound*). A process that has not started the forkserver yet (a command's first count; the
+dashboard starts it with the server) waits for it too: 0.6 to 0.8 s more on the bundled
+sample, 5 s under a heavy load.
 """
 
 from __future__ import annotations
@@ -216,7 +218,7 @@ def _count_child(conn: Connection, job: _Job) -> None:
     as soon as counted (`("part",)`, then polars' IPC stream: the parent reads one while the
     next is counted), then `("ok", counted, CPU seconds, peak memory)` or `("error",
     message)`, and exit. Past the cap an allocation fails: polars' aborts the process (no core
-    file, its message not printed: the parent says why), Python's answers not counted."""
+    file, its message not printed), Python's (MemoryError) answers `("ok", False, ...)`."""
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
     os.dup2(os.open(os.devnull, os.O_WRONLY), 2)
     with conn, process_memory_cap(job.limits):
@@ -303,6 +305,8 @@ def count_steps(
         return None  # every query process taken: DuckDB's query now, bounded by its limit
     try:
         parts = _receive(*_start(_count_child, (job,)), job)
+    except OSError:  # no process could be started (out of memory or processes): DuckDB's
+        parts = None
     finally:
         slots.release()
     return None if parts is None else pl.concat(parts, rechunk=True)

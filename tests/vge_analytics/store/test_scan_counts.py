@@ -170,3 +170,15 @@ def test_counts_past_what_this_process_may_hold_of_them_are_duckdbs(
     monkeypatch.setattr(_scan_counts, "memory_headroom", lambda limits: 100)  # bytes here
     assert _scan_counts.count_steps(store, *args) is None
     assert _scan_counts.last_process == (False, 0.0, 0)  # ended, not answered
+
+
+def test_a_count_silent_past_the_time_limit_is_ended(pair_out: Path, monkeypatch):
+    part = _step_counts.PARTS["views"]
+    clock = iter([0.0])  # the count's end set at 0 + 150 s, then looked at 10^6 s later
+    monkeypatch.setattr(_scan_counts, "monotonic", lambda: next(clock, 1e6))
+    monkeypatch.setattr(_scan_counts, "GRACE", 0.0)  # not waited for past its end
+    with va.query_limits(timeout=150):
+        store = open_store(pair_out)
+        with pytest.raises(va.QueryLimitError, match="time limit of 150 s") as info:
+            _scan_counts.count_steps(store, part.keys, part.name, part.where, part.only)
+    assert info.value.limit == "time" and _scan_counts.last_process == (False, 0.0, 0)
