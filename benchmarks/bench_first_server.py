@@ -14,7 +14,8 @@ per-run terms and kept answers removed too, the tables' schemas kept; timed, in 
 its own, with this Python and PYTHONPATH), and times the Leaderboard's other calls of a
 first visit first (the run list, the filters' values, completeness, the metrics, the costs),
 as a first server after `vge metrics` makes them. The CPU seconds are this process's, all its
-threads (on a shared machine they vary less than the wall time). `--counts` times only the
+threads (on a shared machine they vary less than the wall time), plus those of a step count's
+own process (`store._scan_counts`: its peak memory printed on stderr). `--counts` times only the
 Errors, Navigation and Grounding calls (the step counts: their first count, then another
 choice each). Run it for BASE with `PYTHONPATH=BASE`
 beside this tree, alternating (docs/PERFORMANCE.md, *The first server at 100x*).
