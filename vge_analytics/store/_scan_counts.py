@@ -16,9 +16,9 @@ answers None: the caller asks DuckDB, as before.
 
 Its bounds are the store's queries': it runs in a query process of its own (`_isolated`'s,
 forked from the forkserver, taking one of the process slots), its data segment capped for
-its life at its size plus the memory limit in force and half again (`process_memory_cap`,
-`memory_headroom`; `query_limits_of`: the block's, else the store's), as DuckDB's query
-would be bounded by that memory limit. The steps a hand-made OUT may hold are what polars
+its life at its size (polars' threads started) plus the memory limit in force and half again
+(`process_memory_cap`, `memory_headroom`; `query_limits_of`: the block's, else the store's),
+as DuckDB's query would be bounded by that memory limit. The steps a hand-made OUT may hold are what polars
 cannot bound itself: a million error types (a group each: its sort reserves 3.5 GB for
 them), one error type of 100 KB on 40,000 steps (a file of 270 KB: polars copies the key per
 step, 0.95 GB). Such a count reaches the cap and its process ends there (polars aborts where
