@@ -62,7 +62,13 @@ from .._errors import QueryLimitError
 from ._bounds import query_bounds
 from ._datasets import Deferred
 from ._isolated import GRACE, _slots, _start
-from ._limits import SqlLimits, default_max_queries, memory_headroom, process_memory_cap
+from ._limits import (
+    SqlLimits,
+    data_segment,
+    default_max_queries,
+    memory_headroom,
+    process_memory_cap,
+)
 from ._sql import query_limits_of, subject_of, time_message
 from ._store import Store
 
@@ -194,6 +200,8 @@ class CountProcess(NamedTuple):
     """CPU time of the process (0: it ended without an answer, past its cap)."""
     peak_memory: int
     """Its peak resident memory, bytes (0: as above)."""
+    room: int = 0
+    """What its cap let its data segment grow by when set, bytes (0: as above)."""
 
 
 last_process: CountProcess | None = None
@@ -216,7 +224,7 @@ class _Job(NamedTuple):
 def _count_child(conn: Connection, job: _Job) -> None:
     """The count's process: count `job` within its process cap, sending each chunk's counts
     as soon as counted (`("part",)`, then polars' IPC stream: the parent reads one while the
-    next is counted), then `("ok", counted, CPU seconds, peak memory)` or `("error",
+    next is counted), then `("ok", counted, CPU seconds, peak memory, room)` or `("error",
     message)`, and exit. Past the cap an allocation fails: polars' aborts the process (no core
     file, its message not printed), Python's (MemoryError) answers `("ok", False, ...)`."""
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
@@ -225,6 +233,7 @@ def _count_child(conn: Connection, job: _Job) -> None:
     # thread: 0.4 GB on 64 cores) are not what the count adds
     pl.LazyFrame({"k": [0]}).group_by("k").len().collect(engine="streaming")
     with conn, process_memory_cap(job.limits):
+        room = resource.getrlimit(resource.RLIMIT_DATA)[0] - data_segment()
         counted = _counter(job.schema, job.keys, job.name, job.where, job.only)
 
         def stop() -> QueryLimitError:
@@ -244,7 +253,7 @@ def _count_child(conn: Connection, job: _Job) -> None:
         except MemoryError:
             whole = False
         used = resource.getrusage(resource.RUSAGE_SELF)
-        conn.send(("ok", whole, used.ru_utime + used.ru_stime, used.ru_maxrss * 1024))
+        conn.send(("ok", whole, used.ru_utime + used.ru_stime, used.ru_maxrss * 1024, room))
 
 
 def _receive(child: BaseProcess, receiver: Connection, job: _Job) -> list[pl.DataFrame] | None:

@@ -88,7 +88,7 @@ def test_a_million_error_types_are_counted_by_duckdb_the_same_rows(
     out = _with_steps(pair_out, tmp_path / "out", _steps(rows, pl.format("e{}", "n")))
     before = _peak()
     kept, by_duckdb = _counted(out, "errors", "128MB", monkeypatch)
-    assert by_duckdb == 1 and _scan_counts.last_process == (False, 0.0, 0)
+    assert by_duckdb == 1 and _scan_counts.last_process == (False, 0.0, 0, 0)
     assert _peak() - before < 512 << 20  # DuckDB's 128 MB, its million rows, the kept file
     b = kept.filter(pl.col("run_id") == "B")
     assert (b.height, b["scored"].min(), b["scored"].max()) == (rows, 1, 1)
@@ -108,7 +108,7 @@ def test_a_huge_error_type_is_counted_by_duckdb_the_same_rows(
     assert sum(f.stat().st_size for f in (out / "steps" / "run_id=B").iterdir()) < 1 << 20
     before = _peak()
     kept, by_duckdb = _counted(out, "errors", "64MB", monkeypatch)  # may add 320 MB
-    assert by_duckdb == 1 and _scan_counts.last_process == (False, 0.0, 0)
+    assert by_duckdb == 1 and _scan_counts.last_process == (False, 0.0, 0, 0)
     assert _peak() - before < 256 << 20  # polars' 0.95 GB were not this process's
     b = kept.filter(pl.col("run_id") == "B")
     assert b.rows() == [("B", "Lamp", "x" * size, rows)]
@@ -169,7 +169,7 @@ def test_counts_past_what_this_process_may_hold_of_them_are_duckdbs(
     assert _scan_counts.count_steps(store, *args) is not None
     monkeypatch.setattr(_scan_counts, "memory_headroom", lambda limits: 100)  # bytes here
     assert _scan_counts.count_steps(store, *args) is None
-    assert _scan_counts.last_process == (False, 0.0, 0)  # ended, not answered
+    assert _scan_counts.last_process == (False, 0.0, 0, 0)  # ended, not answered
 
 
 def test_a_count_silent_past_the_time_limit_is_ended(pair_out: Path, monkeypatch):
@@ -181,4 +181,24 @@ def test_a_count_silent_past_the_time_limit_is_ended(pair_out: Path, monkeypatch
         store = open_store(pair_out)
         with pytest.raises(va.QueryLimitError, match="time limit of 150 s") as info:
             _scan_counts.count_steps(store, part.keys, part.name, part.where, part.only)
-    assert info.value.limit == "time" and _scan_counts.last_process == (False, 0.0, 0)
+    assert info.value.limit == "time" and _scan_counts.last_process == (False, 0.0, 0, 0)
+
+
+@pytest.mark.parametrize(
+    ("memory", "room"),
+    [
+        ("64MB", (64 + 256) << 20),  # the limit and half again, at least 256 MB more
+        ("1GB", (1024 + 512) << 20),  # the limit and half again
+    ],
+)
+def test_the_count_may_add_the_memory_limit_and_half_again(
+    pair_out: Path, memory: str, room: int
+):
+    part = _step_counts.PARTS["errors"]
+    with va.query_limits(memory=memory):
+        store = open_store(pair_out)
+        counted = _scan_counts.count_steps(store, part.keys, part.name, part.where, part.only)
+    assert counted is not None
+    ran = _scan_counts.last_process
+    assert ran is not None and ran.counted
+    assert abs(ran.room - room) < 1 << 20  # (its data segment read twice, a page apart)
