@@ -15,7 +15,8 @@ per-run terms and kept answers removed too, the tables' schemas kept; timed, in 
 its own, with this Python and PYTHONPATH), and times the Leaderboard's other calls of a
 first visit first (the run list, the filters' values, completeness, the metrics, the costs),
 as a first server after `vge metrics` makes them. The CPU seconds are this process's, all its
-threads (on a shared machine they vary less than the wall time). `--counts` times only the
+threads (on a shared machine they vary less than the wall time), plus those of a step count's
+own process (`store._scan_counts`: its peak memory printed on stderr). `--counts` times only the
 Errors, Navigation and Grounding calls (the step counts: their first count, then another
 choice each). `--counts-of EARLIER` first puts the step counts kept in the cache folder of
 EARLIER (`counts_*`: another OUT, say OUT with one run fewer, counted once) in OUT's, in
@@ -93,7 +94,20 @@ def main() -> None:
         started, cpu = time.perf_counter(), time.process_time()
         call()
         wall, cpu = time.perf_counter() - started, time.process_time() - cpu
-        print(f"| {name} | {wall:.2f} | {cpu:.2f} |", flush=True)
+        print(f"| {name} | {wall:.2f} | {cpu + count_process():.2f} |", flush=True)
+
+
+def count_process() -> float:
+    """The CPU seconds of the step count's own process in the last call (0: none), forgotten
+    (a tree where the first count runs in a process of its own: `store._scan_counts`); its
+    peak resident memory printed."""
+    from vge_analytics.store import _scan_counts
+
+    ran, _scan_counts.last_process = getattr(_scan_counts, "last_process", None), None
+    if ran is None:
+        return 0.0
+    print(f"  (the count's process: {ran.peak_memory / 1e9:.2f} GB peak)", file=sys.stderr)
+    return ran.cpu_seconds
 
 
 def forget(out: Path, answers: bool) -> None:
