@@ -31,9 +31,11 @@ from __future__ import annotations
 
 import multiprocessing
 import resource
+import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cache
 from multiprocessing.connection import Connection
@@ -279,9 +281,33 @@ def _start(
     _CONTEXT.set_forkserver_preload(_PRELOAD)
     receiver, sender = _CONTEXT.Pipe(duplex=duplex)
     child = _CONTEXT.Process(target=target, args=(sender, *args), daemon=True)
-    child.start()
+    with _main_left_out():
+        child.start()
     sender.close()
     return child, receiver
+
+
+_MAIN = threading.Lock()
+
+
+@contextmanager
+def _main_left_out() -> Iterator[None]:
+    """The main module left out of what a child is told while it starts: multiprocessing
+    would have the child run the parent's script again first (as `__mp_main__`), and a
+    user's script that calls the library without `if __name__ == "__main__":` (a count of
+    `va.error_distribution`) would run twice and fail there. A child runs this package's
+    functions only, found by their modules' names."""
+    main = sys.modules["__main__"]
+    with _MAIN:
+        spec, names = getattr(main, "__spec__", None), vars(main)
+        path = names.pop("__file__", None)
+        main.__spec__ = None
+        try:
+            yield
+        finally:
+            main.__spec__ = spec
+            if path is not None:
+                main.__file__ = path
 
 
 def _run_child(

@@ -44,6 +44,7 @@ sample, 5 s under a heavy load.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import resource
@@ -74,6 +75,14 @@ from ._store import Store
 CHUNK_FILES = 128
 """Files counted at a time (whole runs, in order): the time limit is looked at between them."""
 
+POLARS_FROM_BYTES = 1 << 30
+"""Steps files (their bytes on disk, of the runs counted) from which polars counts them, in
+its process; below, DuckDB's query, as quick or quicker without a process to start (first
+error shares, wall: the bundled sample 0.30 s against 1.26, the full benchmark's 52 MB 0.37
+against 1.28, 10 times it, 0.8 GB, 0.53 to 0.60 against 1.02 to 1.11; at 100 times, 7.7 GB,
+polars takes a fifth to a third less CPU for the same wall time: docs/PERFORMANCE.md, *The
+first count's memory bound*)."""
+
 
 def _runs(store: Store) -> list[tuple[str, list[str]]] | None:
     """(run, paths of its files) of the steps table's files on the local disk, sorted by
@@ -97,6 +106,16 @@ def _in_its_folder(path: str, run: str) -> bool:
     folder, name = os.path.split(path)
     above, folder = os.path.split(folder)
     return folder == partition(run) and "%" not in run and "=" not in above + name
+
+
+def _size(runs: list[tuple[str, list[str]]]) -> int:
+    """The bytes of the files of `runs` (a file that cannot be looked at: none)."""
+    size = 0
+    for _, paths in runs:
+        for path in paths:
+            with contextlib.suppress(OSError):
+                size += os.stat(path).st_size
+    return size
 
 
 def _chunks(runs: list[tuple[str, list[str]]]) -> list[tuple[set[str], list[str]]]:
@@ -292,7 +311,8 @@ def count_steps(
     (None: all), per `keys` (run_id first), their number as `name` (of those where `only` is
     true, None: all), sorted by `keys`, nulls last: the rows of `_step_counts._query`. None
     where polars cannot give them (the caller counts in DuckDB): files it cannot read as the
-    dataset has them, or a count past its process's memory cap, or no query process free.
+    dataset has them, a count past its process's memory cap, no query process free, or
+    files under `POLARS_FROM_BYTES` in all (DuckDB's query is quicker there).
 
     Counted in a query process of its own (`_count_child`), capped for its life as the
     store's queries are (`process_memory_cap`), a chunk of whole runs at a time, in the
@@ -307,7 +327,7 @@ def count_steps(
         runs = [(run, paths) for run, paths in runs if run in wanted] or None
     flags = ["truncated", *(c for c in (where, only) if c is not None)]
     schema = _schema(store, keys, flags)
-    if runs is None or schema is None:
+    if runs is None or schema is None or _size(runs) < POLARS_FROM_BYTES:
         return None
     end, limits = _deadline(store)
     subject = subject_of(store.out, ())

@@ -55,22 +55,23 @@ def _same(got: dict[str, pl.DataFrame], want: dict[str, pl.DataFrame]) -> None:
 
 @pytest.fixture
 def counted(monkeypatch) -> dict[str, list]:
-    """What was counted: the runs asked of `count_steps` (None: all), the files polars read,
-    the queries DuckDB ran."""
+    """What was counted: the runs asked of `count_steps` (None: all), the files polars'
+    process was given to read, the queries DuckDB ran."""
     seen: dict[str, list] = {"runs": [], "files": [], "queries": []}
-    real_count, real_counter = _step_counts.count_steps, _scan_counts._counter
+    real_count, real_chunks = _step_counts.count_steps, _scan_counts._chunks
     real_query = _step_counts.run_query
 
     def count(*args):
         seen["runs"].append(None if args[5] is None else sorted(args[5]))
         return real_count(*args)
 
-    def counter(*args):
-        counting = real_counter(*args)
-        return lambda paths: seen["files"].extend(paths) or counting(paths)
+    def chunks(runs):  # what the count's process is handed to read (it reads there)
+        cut = real_chunks(runs)
+        seen["files"].extend(path for _, paths in cut for path in paths)
+        return cut
 
     monkeypatch.setattr(_step_counts, "count_steps", count)
-    monkeypatch.setattr(_scan_counts, "_counter", counter)
+    monkeypatch.setattr(_scan_counts, "_chunks", chunks)
     monkeypatch.setattr(
         _step_counts, "run_query", lambda *a: seen["queries"].append(a[2]) or real_query(*a)
     )

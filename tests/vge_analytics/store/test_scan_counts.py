@@ -4,7 +4,10 @@ counted by DuckDB's query instead, the same rows, and this process's memory stay
 
 from __future__ import annotations
 
+import os
 import resource
+import subprocess
+import sys
 from pathlib import Path
 
 import polars as pl
@@ -13,6 +16,7 @@ import pyarrow.parquet as pq
 import pytest
 
 import vge_analytics as va
+from tests.vge_analytics.store.conftest import POLARS_FROM_BYTES
 from tests.vge_analytics.store.kept import copy_out
 from vge_analytics.store import _isolated, _scan_counts, _step_counts, open_store, run_query
 
@@ -202,3 +206,55 @@ def test_the_count_may_add_the_memory_limit_and_half_again(
     ran = _scan_counts.last_process
     assert ran is not None and ran.counted
     assert abs(ran.room - room) < 1 << 20  # (its data segment read twice, a page apart)
+
+
+def test_steps_under_the_threshold_are_counted_by_duckdb(
+    sample_out: Path, tmp_path: Path, monkeypatch
+):
+    """The sample's steps files (1.8 MB) are under the module's `POLARS_FROM_BYTES`:
+    DuckDB's query counts them, no count process is started, and the rows are polars' to
+    the unit."""
+    out = copy_out(sample_out, tmp_path / "out")
+    by_polars, _ = _counted(out, "errors", "256MB", monkeypatch)
+    size = sum(p.stat().st_size for p in (out / "steps").rglob("*.parquet"))
+    assert 0 < size < POLARS_FROM_BYTES
+    monkeypatch.setattr(_scan_counts, "POLARS_FROM_BYTES", POLARS_FROM_BYTES)
+    _scan_counts.last_process = None
+    for kept in (out / ".metric-cache").glob("counts_*"):
+        kept.unlink()
+    by_duckdb, calls = _counted(out, "errors", "256MB", monkeypatch)
+    assert calls == 1 and _scan_counts.last_process is None
+    assert by_duckdb.equals(by_polars)
+    monkeypatch.setattr(_scan_counts, "POLARS_FROM_BYTES", size)  # at the threshold: polars
+    for kept in (out / ".metric-cache").glob("counts_*"):
+        kept.unlink()
+    again, calls = _counted(out, "errors", "256MB", monkeypatch)
+    assert calls == 0 and _scan_counts.last_process is not None and again.equals(by_polars)
+
+
+def test_a_script_without_a_main_guard_counts_once(sample_out: Path, tmp_path: Path):
+    """A user's script that counts at its top level, with no `if __name__ == "__main__":`,
+    runs once: the count's process is not told to run the parent's script first (as
+    multiprocessing would, where it would start another count and fail)."""
+    out = copy_out(sample_out, tmp_path / "out")
+    script = tmp_path / "count.py"
+    script.write_text(
+        "import vge_analytics as va\n"
+        "from vge_analytics.store import _scan_counts\n"
+        "_scan_counts.POLARS_FROM_BYTES = 0\n"
+        "print('script ran', flush=True)\n"
+        "with va.query_limits(memory='256MB'):\n"
+        f"    shares = va.error_distribution({str(out)!r})\n"
+        "print('counted', _scan_counts.last_process.counted, len(shares) > 0)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": str(Path(va.__file__).parents[1])},
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == ["script ran", "counted True True"]
+    assert "Traceback" not in done.stderr
