@@ -40,7 +40,7 @@ from replay.io import EPISODES_TABLE, PARTITION_KEY
 
 from .._errors import QueryError, QueryLimitError
 from ._bounds import query_bounds
-from ._datasets import Deferred
+from ._datasets import Deferred, local_files
 from ._ratios import Ratio, ratio_terms, term_name
 from ._scan_counts import _in_its_folder
 from ._scope import quote_ident
@@ -194,21 +194,25 @@ def _expected(schema: pa.Schema, columns: Sequence[str]) -> pl.Schema:
 _FILES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _run_files(dataset) -> dict[str, list[str]] | None:
-    """{run: its files} of a dataset of the store (each file's partition, `_datasets`: a run
-    each), read once per dataset (not for each part); None when a file has no run."""
-    if dataset not in _FILES:
-        import pyarrow.dataset as pads
-
-        files: dict[str, list[str]] = {}
-        for fragment in dataset.get_fragments():
-            run = pads.get_partition_keys(fragment.partition_expression).get("run_id")
-            if not isinstance(run, str):
-                _FILES[dataset] = None
-                return None
-            files.setdefault(run, []).append(fragment.path)
-        _FILES[dataset] = files
-    return _FILES[dataset]
+def _run_files(source: object) -> dict[str, list[str]] | None:
+    """{run: its files} of a table's source of the store, when it is a dataset of files on
+    the local disk (`_datasets.local_files`: each file's partition, a run each), listed once
+    per dataset (not for each part); None otherwise, or when a file has no run."""
+    if isinstance(source, Deferred):
+        source = source.source()
+    if source in _FILES:  # (a source that is not a dataset is never kept: not weakly held)
+        return _FILES[source]
+    listed = local_files(source)
+    if listed is None:
+        return None
+    files: dict[str, list[str]] | None = {}
+    for run, path in listed:
+        if not isinstance(run, str):
+            files = None
+            break
+        files.setdefault(run, []).append(path)
+    _FILES[source] = files
+    return files
 
 
 def _part_rows(
@@ -219,17 +223,9 @@ def _part_rows(
     there, each file's run_id its run (the dataset's partition, whatever the file holds, as
     DuckDB reads it); None when they are not so read here (not on the local disk, no file,
     a file whose run is not known or of other types: the grouped query answers)."""
-    import pyarrow.dataset as pads
-    import pyarrow.fs as pafs
-
     source = store.sources[EPISODES_TABLE]
     if isinstance(source, Deferred):
         source = source.source()
-    local = isinstance(source, pads.FileSystemDataset) and isinstance(
-        source.filesystem, pafs.LocalFileSystem
-    )
-    if not local:
-        return None
     files = _run_files(source)
     if files is None:
         return None

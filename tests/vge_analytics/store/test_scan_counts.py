@@ -205,7 +205,7 @@ def test_the_count_may_add_the_memory_limit_and_half_again(
     assert counted is not None
     ran = _scan_counts.last_process
     assert ran is not None and ran.counted
-    assert abs(ran.room - room) < 1 << 20  # (its data segment read twice, a page apart)
+    assert abs(ran.room - room) < 16 << 20  # (its data segment read twice: a thread may grow it)
 
 
 def test_steps_under_the_threshold_are_counted_by_duckdb(
