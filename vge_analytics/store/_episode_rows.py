@@ -1,27 +1,35 @@
-"""A count's terms per (run, episode) over the episodes grain, as a projection of that table.
+"""A count's or a sum's terms per (run, episode) over the episodes grain, as a projection of
+that table.
 
 `_episode_terms` keeps a metric's terms per (run, episode): its grain's rows grouped by run
 and episode, joined to the episodes' columns. Over the episodes grain each (run, episode) is
 one row of the table (PROTOCOL §7.6: an episode id seen again in a run is quarantined as
-`duplicate_episode`), so each group is that row alone. For a count the aggregate over one
-row is known without grouping: `count(*)` is 1, and `count(*) FILTER (WHERE condition)` is
-1 when the condition is true and 0 when it is false or null, the row's
-`CASE WHEN (condition) THEN 1 ELSE 0 END` (a BIGINT, as count's). Only counts: a sum of one
-row is not always its value (a sum of integers is a HUGEINT, a compensated sum of -0.0 is
-0.0, a sum of null is null), so any other term is computed as before, grouped and joined.
+`duplicate_episode`), so each group is that row alone, and its aggregate is known without
+grouping. For a count: `count(*)` is 1, and `count(*) FILTER (WHERE condition)` is 1 when
+the condition is true and 0 when it is false or null, the row's
+`CASE WHEN (condition) THEN 1 ELSE 0 END` (a BIGINT, as count's). For a sum (`sum`, `fsum`,
+`kahan_sum`, `sumkahan` of one value of the row): the same aggregate over a list of that one
+value, `list_aggregate([value], 'fsum')`, which DuckDB computes with the aggregate's own
+function, so its type and bits are the grouped query's (a sum of a row's value is not
+always that value: of an integer a HUGEINT, of a DECIMAL(p, s) a DECIMAL(38, s), of -0.0 a
+0.0, of null a null); with a `FILTER (WHERE condition)`, null unless the condition is true
+(no row: the sum's null), each term wrapped in `coalesce(..., 0)` as `ratio_terms` wraps it.
+Any other term (another aggregate, DISTINCT, ORDER BY, an aggregate, subquery or window in
+the value or the condition) is computed as before, grouped and joined.
 
 The rows of a part's runs are read by polars from those runs' files of the dataset DuckDB
 scans (the files the manifest lists), only the columns needed: the keys, the episodes'
-columns kept, and those the conditions name (read from DuckDB's own parse of the metric's
-SQL; booleans and numbers only: a text or a list is left to the grouped query, which streams
-it), each of the type DuckDB gives it there (else the grouped query answers); a file's
-run_id is its run, read from its folder's name, as the dataset gives it whatever the file
-holds (`_scan_counts._in_its_folder`: a path polars would read otherwise is grouped). DuckDB
-evaluates the conditions over those columns alone; the rows are sorted by run and episode
-(the replay writes them so: then only checked). A part whose keys repeat or are null (a
-table edited by hand), or whose projection fails, is computed as before, so the rows are
-the same either way. At 100 times the full benchmark this took keeping SR's terms per
-episode from 14 s of CPU to 4 (docs/PERFORMANCE.md).
+columns kept, and those the conditions and the sums' values name (read from DuckDB's own
+parse of the metric's SQL; booleans and numbers only: a text or a list is left to the
+grouped query, which streams it), each of the type DuckDB gives it there (else the grouped
+query answers); a file's run_id is its run, read from its folder's name, as the dataset
+gives it whatever the file holds (`_scan_counts._in_its_folder`: a path polars would read
+otherwise is grouped). DuckDB evaluates the conditions and values over those columns alone;
+the rows are sorted by run and episode (the replay writes them so: then only checked). A
+part whose keys repeat or are null (a table edited by hand), or whose projection fails, is
+computed as before, so the rows are the same either way. At 100 times the full benchmark
+this took keeping SR's terms per episode from 14 s of CPU to 4, and SPL's first interval
+from 22 s of CPU to 9 (docs/PERFORMANCE.md).
 """
 
 from __future__ import annotations
@@ -58,10 +66,10 @@ episodes of a boolean are half a megabyte; of a text or a list, unbounded)."""
 
 _PLAIN = frozenset(
     {"BETWEEN", "CASE", "CAST", "COLLATE", "COLUMN_REF", "COMPARISON", "CONJUNCTION"}
-    | {"CONSTANT", "FUNCTION", "LAMBDA", "OPERATOR"}
+    | {"CONSTANT", "FUNCTION", "LAMBDA", "OPERATOR", "TYPE"}
 )
-"""Classes of DuckDB's parsed expressions a condition may hold: values of the row alone (no
-subquery, star, parameter or window)."""
+"""Classes of DuckDB's parsed expressions a condition or a sum's value may hold: values of
+the row alone (no subquery, star, parameter or window; a TYPE is a cast's)."""
 
 
 def _nodes(node: object):
@@ -76,17 +84,32 @@ def _nodes(node: object):
             yield from _nodes(value)
 
 
-def _condition(
+@functools.lru_cache(maxsize=1)
+def _aggregates() -> frozenset[str]:
+    """The names of DuckDB's aggregate functions (none may be read within a term's
+    argument or condition here: over the projection's rows it would aggregate them)."""
+    with duckdb.connect() as con:
+        rows = con.execute(
+            "SELECT DISTINCT function_name FROM duckdb_functions() "
+            "WHERE function_type = 'aggregate'"
+        ).fetchall()
+    return frozenset(name.lower() for (name,) in rows)
+
+
+def _of_the_row(
     parsed: dict, statement: dict, con: duckdb.DuckDBPyConnection
 ) -> tuple[str, set[str]] | None:
-    """The SQL of a parsed condition (DuckDB's own text of it: `statement`, the parsed
-    `SELECT` that holds it, with the condition alone selected) and the names its column
-    references hold, or None when it holds anything but values of the row."""
+    """The SQL of a parsed expression (DuckDB's own text of it: `statement`, the parsed
+    `SELECT` that holds it, with the expression alone selected) and the names its column
+    references hold, or None when it holds anything but values of the row (an aggregate,
+    a subquery, a star, a parameter, a window)."""
     names: set[str] = set()
     for node in _nodes(parsed):
         if node["class"] not in _PLAIN:
             return None
-        if node["class"] == "FUNCTION" and (node.get("filter") or node.get("distinct")):
+        if node["class"] == "FUNCTION" and (
+            node.get("filter") or node.get("distinct") or node.get("function_name") in _aggregates()
+        ):
             return None  # an aggregate's
         if node["class"] == "COLUMN_REF":
             names.update(n for n in node.get("column_names", []) if isinstance(n, str))
@@ -115,53 +138,80 @@ def _only(statement: dict) -> dict | None:
     return node["select_list"][0] if bare else None
 
 
-def _count(term: dict | None) -> bool:
-    """Whether a parsed term is `coalesce(count(*) [FILTER (WHERE ...)], 0)`: the built-in
-    count of rows (no schema, DISTINCT, argument or ORDER BY), as `ratio_terms` wraps it."""
+_SUMS = frozenset({"sum", "fsum", "kahan_sum", "sumkahan"})
+"""DuckDB's sums a term may be projected from: over one row, `list_aggregate([value], name)`
+(the same aggregate over a list of that row's value: its type and bits, -0.0 made 0.0, a
+null kept null, as the grouped query gives them; tests/vge_analytics/store)."""
+
+
+def _aggregate(term: dict | None) -> dict | None:
+    """The aggregate of a parsed term `coalesce(aggregate [FILTER (WHERE ...)], 0)`, as
+    `ratio_terms` wraps it, when it is a built-in call (no schema, DISTINCT, ORDER BY or
+    exported state); else None."""
     if term is None or term.get("type") != "OPERATOR_COALESCE":
-        return False
+        return None
     children = term.get("children", [])
     if len(children) != 2 or children[1].get("class") != "CONSTANT":
-        return False
-    count, zero = children
-    return (
+        return None
+    call, zero = children
+    plain = (
         zero.get("literal") == {"kind": "INTEGER", "text": "0"}
-        and count.get("class") == "FUNCTION"
-        and count.get("function_name") == "count_star"
-        and not count.get("schema")
-        and not count.get("catalog")
-        and not count.get("distinct")
-        and not count.get("arguments")
-        and not (count.get("order_bys") or {}).get("orders")
+        and call.get("class") == "FUNCTION"
+        and not call.get("schema")
+        and not call.get("catalog")
+        and not call.get("distinct")
+        and not call.get("export_state")
+        and not (call.get("order_bys") or {}).get("orders")
     )
+    return call if plain else None
+
+
+def _one_row(call: dict, statement: dict, con: duckdb.DuckDBPyConnection):
+    """The value over one row of an aggregate `call` without its filter (SQL of the row's
+    columns; a count's 1 as a BIGINT, a sum's `list_aggregate` of the row's value) and the
+    names it reads, or None when it is neither `count(*)` nor a sum of `_SUMS` of one
+    value of the row."""
+    name, arguments = call.get("function_name"), call.get("arguments") or []
+    if name == "count_star" and not arguments:
+        return "CAST(1 AS BIGINT)", set()
+    if name not in _SUMS or len(arguments) != 1 or arguments[0].get("name"):
+        return None
+    value = _of_the_row(arguments[0]["expression"], statement, con)
+    if value is None:
+        return None
+    return f"list_aggregate([{value[0]}], '{name}')", value[1]
 
 
 def _row_term(expression: str, con: duckdb.DuckDBPyConnection) -> tuple[str, set[str]] | None:
-    """The projection over one row of a term of `ratio_terms` that is a count (`count(*)`,
-    or with a `FILTER (WHERE condition)` of values of the row) and the names it reads; None
-    for any other term."""
+    """The projection over one row of a term of `ratio_terms` that is a count (`count(*)`)
+    or a sum (`_SUMS`, of a value of the row), either with a `FILTER (WHERE condition)` of
+    values of the row, and the names it reads; None for any other term."""
     (text,) = con.execute("SELECT json_serialize_sql(?)", [f"SELECT {expression}"]).fetchone()
     document = json.loads(text)
     if document.get("error") or len(document.get("statements", [])) != 1:
         return None
     statement = document["statements"][0]
-    term = _only(statement)
-    if not _count(term):
+    call = _aggregate(_only(statement))
+    value = None if call is None else _one_row(call, statement, con)
+    if value is None:
         return None
-    count = term["children"][0]
-    if count.get("filter") is None:
-        return "CAST(1 AS BIGINT)", set()
-    condition = _condition(count["filter"], statement, con)
-    if condition is None:
-        return None
-    text, names = condition
-    return f"CAST(CASE WHEN ({text}) THEN 1 ELSE 0 END AS BIGINT)", names
+    sql, names = value
+    count = call["function_name"] == "count_star"
+    if call.get("filter") is not None:
+        condition = _of_the_row(call["filter"], statement, con)
+        if condition is None:
+            return None
+        names |= condition[1]
+        if count:  # 1 when the condition is true, else 0 (false or null)
+            return f"CAST(CASE WHEN ({condition[0]}) THEN 1 ELSE 0 END AS BIGINT)", names
+        sql = f"CASE WHEN ({condition[0]}) THEN {sql} END"  # no row: null, as the sum's
+    return (sql, names) if count else (f"coalesce({sql}, 0)", names)
 
 
 @functools.lru_cache(maxsize=64)
-def _count_terms(numerator: str, denominator: str) -> tuple[str, str, frozenset[str]] | None:
+def _row_terms(numerator: str, denominator: str) -> tuple[str, str, frozenset[str]] | None:
     """The projections of the terms `numerator` and `denominator` (as `ratio_terms` writes
-    them) when both are counts, and the names they read (`_row_term`), else None."""
+    them) when both are counts or sums, and the names they read (`_row_term`), else None."""
     with duckdb.connect() as con:  # parses only: no table, no file
         try:
             terms = [_row_term(e, con) for e in (numerator, denominator)]
@@ -172,13 +222,14 @@ def _count_terms(numerator: str, denominator: str) -> tuple[str, str, frozenset[
     return terms[0][0], terms[1][0], frozenset(terms[0][1] | terms[1][1])
 
 
-def count_terms(ratio: Ratio) -> tuple[str, str, frozenset[str]] | None:
+def row_terms(ratio: Ratio) -> tuple[str, str, frozenset[str]] | None:
     """The projections over one row of the terms of `ratio`, a ratio of the episodes grain
-    whose numerator and denominator are counts, and the names they read; else None."""
+    whose numerator and denominator are counts or sums (`_row_term`), and the names they
+    read; else None."""
     if ratio.grain != EPISODES_TABLE:
         return None
     (numerator, _), (denominator, _) = ratio_terms([ratio])
-    return _count_terms(numerator, denominator)
+    return _row_terms(numerator, denominator)
 
 
 def _expected(schema: pa.Schema, columns: Sequence[str]) -> pl.Schema:
@@ -266,9 +317,10 @@ def projected_terms(
 ) -> pl.DataFrame | None:
     """The rows `_episode_terms._compute` gives for `ratio` and `runs` (run_id, episode_id,
     `held`, the terms; sorted by run and episode), as a projection of the episodes table, or
-    None when it cannot give them so: a term that is not a count (`count_terms`), keys that
-    repeat or are null, a projection that fails (the caller computes them as before)."""
-    terms = count_terms(ratio)
+    None when it cannot give them so: a term that is neither a count nor a sum
+    (`row_terms`), keys that repeat or are null, a projection that fails (the caller
+    computes them as before)."""
+    terms = row_terms(ratio)
     bounds = query_bounds()
     if terms is None or (bounds is not None and bounds.isolated and sources):
         return None  # (an isolated query opens OUT afresh, without this part's rows)
@@ -307,4 +359,4 @@ def projected_terms(
     return frame
 
 
-__all__ = ["count_terms", "projected_terms"]
+__all__ = ["projected_terms", "row_terms"]

@@ -9,7 +9,7 @@ The first computation keeps them, a file per metric, in
 (`replay.io.episode_terms_path`): run_id, episode_id, the episodes' columns of
 `EPISODE_COLUMNS`, and the metric's terms, the rows the direct computation joins (the terms
 of the metric's own query grouped by run_id and episode_id, unfiltered, joined to the
-episodes; for a metric of the episodes whose terms are counts, the same rows read as a
+episodes; for a metric of the episodes whose terms are counts or sums, the same rows read as a
 projection of the episodes table, `_episode_rows`). Later computations read the file and
 keep the rows `where` selects. (A file per metric, not per grain: the terms of every metric of the episodes per episode in one query
 needed more than a command's memory limit at 100x.)
@@ -93,7 +93,8 @@ def _compute(
     runs: Sequence[str] | None = None,
 ) -> pl.DataFrame:
     """The rows of `_grouped`: as a projection of the episodes table when the terms are
-    counts over it (`_episode_rows`, the same rows without grouping or join), else grouped."""
+    counts or sums over it (`_episode_rows`, the same rows without grouping or join), else
+    grouped."""
     projected = projected_terms(store, ratio, held, sources, runs)
     if projected is not None:
         return projected
