@@ -29,7 +29,7 @@ the rows are sorted by run and episode (the replay writes them so: then only che
 part whose keys repeat or are null (a table edited by hand), or whose projection fails, is
 computed as before, so the rows are the same either way. At 100 times the full benchmark
 this took keeping SR's terms per episode from 14 s of CPU to 4, and SPL's first interval
-from 22 s of CPU to 9 (docs/PERFORMANCE.md).
+from 22 s of CPU to 10 (docs/PERFORMANCE.md).
 """
 
 from __future__ import annotations
