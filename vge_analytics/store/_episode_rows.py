@@ -12,8 +12,10 @@ the condition is true and 0 when it is false or null, the row's
 value, `list_aggregate([value], 'fsum')`, which DuckDB computes with the aggregate's own
 function, so its type and bits are the grouped query's (a sum of a row's value is not
 always that value: of an integer a HUGEINT, of a DECIMAL(p, s) a DECIMAL(38, s), of -0.0 a
-0.0, of null a null); with a `FILTER (WHERE condition)`, null unless the condition is true
-(no row: the sum's null), each term wrapped in `coalesce(..., 0)` as `ratio_terms` wraps it.
+0.0, of null a null); with a `FILTER (WHERE condition)`, the list sliced to nothing unless
+the condition is true (no row: the sum's null; the value evaluated on every row, as the
+grouped query evaluates it, so that it fails where that fails), each term wrapped in
+`coalesce(..., 0)` as `ratio_terms` wraps it.
 Any other term (another aggregate, DISTINCT, ORDER BY, an aggregate, subquery or window in
 the value or the condition) is computed as before, grouped and joined.
 
@@ -166,20 +168,13 @@ def _aggregate(term: dict | None) -> dict | None:
     return call if plain else None
 
 
-def _one_row(call: dict, statement: dict, con: duckdb.DuckDBPyConnection):
-    """The value over one row of an aggregate `call` without its filter (SQL of the row's
-    columns; a count's 1 as a BIGINT, a sum's `list_aggregate` of the row's value) and the
-    names it reads, or None when it is neither `count(*)` nor a sum of `_SUMS` of one
-    value of the row."""
-    name, arguments = call.get("function_name"), call.get("arguments") or []
-    if name == "count_star" and not arguments:
-        return "CAST(1 AS BIGINT)", set()
-    if name not in _SUMS or len(arguments) != 1 or arguments[0].get("name"):
+def _summed(call: dict, statement: dict, con: duckdb.DuckDBPyConnection):
+    """The SQL of the value a sum of `_SUMS` adds up (a value of the row) and the names it
+    reads, or None when `call` is not such a sum."""
+    arguments = call.get("arguments") or []
+    if call.get("function_name") not in _SUMS or len(arguments) != 1 or arguments[0].get("name"):
         return None
-    value = _of_the_row(arguments[0]["expression"], statement, con)
-    if value is None:
-        return None
-    return f"list_aggregate([{value[0]}], '{name}')", value[1]
+    return _of_the_row(arguments[0]["expression"], statement, con)
 
 
 def _row_term(expression: str, con: duckdb.DuckDBPyConnection) -> tuple[str, set[str]] | None:
@@ -192,20 +187,24 @@ def _row_term(expression: str, con: duckdb.DuckDBPyConnection) -> tuple[str, set
         return None
     statement = document["statements"][0]
     call = _aggregate(_only(statement))
-    value = None if call is None else _one_row(call, statement, con)
-    if value is None:
+    if call is None:
         return None
-    sql, names = value
-    count = call["function_name"] == "count_star"
+    count = call.get("function_name") == "count_star" and not call.get("arguments")
+    value = ("", set()) if count else _summed(call, statement, con)
+    condition = ("TRUE", set())
     if call.get("filter") is not None:
         condition = _of_the_row(call["filter"], statement, con)
-        if condition is None:
-            return None
-        names |= condition[1]
-        if count:  # 1 when the condition is true, else 0 (false or null)
-            return f"CAST(CASE WHEN ({condition[0]}) THEN 1 ELSE 0 END AS BIGINT)", names
-        sql = f"CASE WHEN ({condition[0]}) THEN {sql} END"  # no row: null, as the sum's
-    return (sql, names) if count else (f"coalesce({sql}, 0)", names)
+    if value is None or condition is None:
+        return None
+    names = value[1] | condition[1]
+    if count and call.get("filter") is None:
+        return "CAST(1 AS BIGINT)", names
+    if count:  # 1 when the condition is true, else 0 (false or null)
+        return f"CAST(CASE WHEN ({condition[0]}) THEN 1 ELSE 0 END AS BIGINT)", names
+    # The sum over the row's value alone, or over none (null) unless the condition is true;
+    # the value evaluated on every row, as the grouped query evaluates it (failing there).
+    one = "" if call.get("filter") is None else f"[1:CASE WHEN ({condition[0]}) THEN 1 ELSE 0 END]"
+    return f"coalesce(list_aggregate([{value[0]}]{one}, '{call['function_name']}'), 0)", names
 
 
 @functools.lru_cache(maxsize=64)

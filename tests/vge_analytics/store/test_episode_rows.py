@@ -235,6 +235,20 @@ def test_a_condition_that_does_not_bind_is_grouped(pair_out: Path):
         _episode_terms._grouped(store, ratio, held, ())
 
 
+def test_a_sums_value_that_fails_on_a_row_filtered_out_fails_as_grouped(pair_out: Path):
+    """The grouped query evaluates a sum's value on every row, the filter's false ones too
+    (a cast out of range fails there): so does the projection, which then gives way."""
+    store = va.open_store(pair_out)
+    ratio = Count(
+        "X", "sum(CAST(100 * n_goals AS UTINYINT)) FILTER (WHERE n_goals < 3)", "count(*)"
+    )
+    assert _episode_rows.row_terms(ratio) is not None
+    held = _episode_terms._held(store)
+    assert _episode_rows.projected_terms(store, ratio, held, ()) is None
+    with pytest.raises(va.QueryError):
+        _episode_terms._grouped(store, ratio, held, ())
+
+
 def test_vge_metrics_keeps_srs_terms_by_the_projection(pair_out: Path, tmp_path: Path, monkeypatch):
     """The first `vge metrics OUT` keeps SR's terms per episode without the grouped query
     (without its group-by and join), and the file holds the grouped query's rows."""
