@@ -181,7 +181,7 @@ def drawn_out(pair_out: Path, tmp_path_factory) -> Path:
 
 
 @settings(
-    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=10, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(data=st.data())
 def test_the_projection_is_the_grouped_query_on_drawn_tables(drawn_out: Path, data):
