@@ -117,3 +117,25 @@ def test_run_query_gives_what_duckdb_gives_polars(pair_out: Path, query: str):
     assert [s.n_chunks() for s in ours.iter_columns()] == [
         s.n_chunks() for s in theirs.iter_columns()
     ]
+
+
+def test_vge_sqls_rows_need_room_for_their_text(pair_out: Path, monkeypatch):
+    """`vge sql`'s first rows (and each streamed batch) are made a frame only when there is
+    room for six copies of them (`WRITE_COPIES`: the frame and its text as written)."""
+    query = "SELECT repeat('x', 1000000) AS s FROM range(4)"  # 4 MB of text, 4 views
+    limits = SqlLimits.make(memory="64MB")
+    asked = []
+    real = _sql.polars_room
+    monkeypatch.setattr(_sql, "polars_room", lambda t, c: asked.append((t, c)) or real(t, c))
+    monkeypatch.setattr(_sql, "memory_room", lambda: 1 << 40)
+    _sql.sql_head(pair_out, query, 10, limits=limits)
+    (table, copies), = asked
+    assert copies == 6 and 4_000_000 < table.nbytes < 4_001_000
+    need = 6 * (table.nbytes + 4 * 16) + _sql.POLARS_SLACK
+    monkeypatch.setattr(_sql, "memory_room", lambda: need - 1)
+    with pytest.raises(va.QueryLimitError, match="^the query needed more memory") as info:
+        _sql.sql_head(pair_out, query, 10, limits=limits)
+    assert info.value.limit == "memory"
+    monkeypatch.setattr(_sql, "memory_room", lambda: need)
+    head = _sql.sql_head(pair_out, query, 10, limits=limits)
+    assert head.frame["s"].str.len_bytes().to_list() == [1_000_000] * 4
