@@ -10,7 +10,9 @@ of millions of rows). Every place its memory can go is bounded:
   (`vge_analytics.sql`);
 - what DuckDB does not account for (one value larger than memory, `repeat('x', 10^10)`): a
   cap on the process's data segment (`process_memory_cap`), taken by `vge sql` for the
-  duration of the query and by the dashboard's query process for its whole life;
+  duration of the query and by the dashboard's query process for its whole life; under it
+  a result is made a polars frame only when there is room left for it (`memory_room`,
+  `_sql.polars_frame`: polars aborts where an allocation fails);
 - time: the query is interrupted after `SqlLimits.timeout` seconds.
 """
 
@@ -139,6 +141,35 @@ def data_segment() -> int:
     return 0  # pragma: no cover - every Linux kernel since 2.6 reports VmData
 
 
+def memory_room() -> int | None:
+    """Bytes the data segment may still grow by under its cap (`process_memory_cap`), at
+    least 0; None when it is not capped."""
+    soft, _ = resource.getrlimit(resource.RLIMIT_DATA)
+    if soft == resource.RLIM_INFINITY:
+        return None
+    return max(0, soft - data_segment())
+
+
+_POLARS_STARTED: set[int] = set()
+"""The processes (ids) whose polars runtime `_start_polars` started (a forked child's is not)."""
+
+
+def _start_polars() -> None:
+    """Start polars' runtime (its thread pool, its allocator's first arena, the engine that
+    writes CSV) and pyarrow's memory pool before a cap is set (some 1.1 GB of data segment
+    where nothing started them, once per process: pyarrow's pool reserves 1 GB): the cap
+    is for what a query takes, and under it polars aborts the process where an allocation
+    fails, or waits for ever for a thread it could not start."""
+    if os.getpid() in _POLARS_STARTED:
+        return
+    import polars as pl
+
+    pl.thread_pool_size()  # starts the pool
+    # (not `pa.array` of Python values: that imports pandas)
+    pl.from_arrow(pl.DataFrame({"s": ["started"]}).to_arrow()).write_csv()
+    _POLARS_STARTED.add(os.getpid())
+
+
 def memory_headroom(limits: SqlLimits) -> int:
     """What a query may add to the process beyond DuckDB's accounted memory: its result
     batches and DuckDB's unaccounted allocations (half the limit, at least 256 MB)."""
@@ -158,7 +189,10 @@ def process_memory_cap(limits: SqlLimits) -> Iterator[None]:
     while the block runs (Linux; the soft limit only, restored afterwards).
 
     An allocation past the cap fails where it happens: DuckDB raises its out-of-memory
-    error, Python raises MemoryError; neither grows the process further."""
+    error, Python raises MemoryError; neither grows the process further. Polars instead
+    aborts the process: its runtime is started before the cap (`_start_polars`), and a query's
+    result is made a polars frame only when there is room for it (`_sql.polars_frame`)."""
+    _start_polars()
     try:
         soft, hard = resource.getrlimit(resource.RLIMIT_DATA)
         cap = data_segment() + memory_headroom(limits)
@@ -191,6 +225,7 @@ __all__ = [
     "format_size",
     "machine_memory",
     "memory_headroom",
+    "memory_room",
     "parse_size",
     "process_memory_cap",
     "text_too_large",

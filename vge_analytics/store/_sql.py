@@ -29,7 +29,9 @@ metric file's expressions and the `--where` filters among them, over an OUT or o
 tables a sweep holds in memory (`memory_store`). `run_query` runs within the bounds the code
 around it set (`_bounds.query_limits`): DuckDB's memory limit, the time limit, and the process
 cap, around the query in a command's process or, in a server's, by running a query that holds
-a metric file's SQL in a query process of its own (`_isolated`).
+a metric file's SQL in a query process of its own (`_isolated`). Under the cap a result is
+made a polars frame only when what is left holds it (`polars_frame`): polars aborts the
+process where an allocation fails, where DuckDB, pyarrow and Python raise.
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ from ._limits import (
     MAX_SQL_TEXT,
     SqlLimits,
     format_size,
+    memory_room,
     process_memory_cap,
     text_too_large,
 )
@@ -61,6 +64,18 @@ _ALLOWED = {duckdb.StatementType.SELECT}
 _EXPLAIN = re.compile(r"^\s*explain(\s+analy[sz]e)?\s+", re.IGNORECASE)
 BATCH_ROWS = 2048
 """Rows per result batch read from DuckDB."""
+RESULT_BATCH_ROWS = 131_072
+"""Rows per batch of an analytics query's result (`run_query`): as DuckDB's `.pl()` reads
+them, so its frame has the same chunks."""
+VIEW_BYTES = 16
+"""Bytes polars takes per string (or binary) value on top of its bytes: its view."""
+WRITE_COPIES = 6
+"""Copies of a `vge sql` result's frame there must be room for under the cap: the frame,
+rechunked, and its text as the commands write it (polars' buffer, Python's string as it is
+built and as it is written)."""
+POLARS_SLACK = 32 * 1024**2
+"""Room kept free when a result is made a polars frame under the cap: its allocator maps
+memory in blocks, and its threads may take theirs."""
 
 
 def _kind(statement) -> str:
@@ -210,14 +225,75 @@ def _run_here(
     store: Store, sql: str, params: Sequence[object], limits: SqlLimits | None, subject: str
 ) -> pl.DataFrame:
     limits = query_limits_of(store, limits)
+    failure = None
     with guarded_cursor(store, sql, limits.timeout, ours=True) as (cursor, deadline):
         try:
-            return cursor.sql(sql, params=list(params)).pl()
+            table = _fetched(cursor.sql(sql, params=list(params)))
         except _FAILURES as exc:
             failure = _limit_error(exc, limits, deadline, subject)
+    if failure is None:  # DuckDB's result is let go first: the frame may take its room
+        return polars_frame(table, limits, subject)
     if isinstance(failure, QueryLimitError):
         raise failure from None
     raise type(failure)(f"{subject} failed: {failure}") from None
+
+
+def _fetched(relation: duckdb.DuckDBPyRelation) -> pa.Table:
+    """A query's whole result as Arrow, its columns named as `.pl()` names them."""
+    reader = relation.to_arrow_reader(RESULT_BATCH_ROWS)
+    try:
+        table = reader.read_all()
+    finally:
+        reader.close()
+    names = unique_names(table.schema.names)
+    return table if names == table.schema.names else table.rename_columns(names)
+
+
+def _views(data: pa.Array | pa.ChunkedArray) -> int:
+    """How many string and binary values `data` holds, nested ones too."""
+    if isinstance(data, pa.ChunkedArray):
+        return sum(_views(chunk) for chunk in data.chunks)
+    kind = data.type
+    if pa.types.is_dictionary(kind):
+        return _views(data.dictionary)
+    if pa.types.is_struct(kind):
+        return sum(_views(data.field(i)) for i in range(kind.num_fields))
+    if pa.types.is_map(kind):
+        return _views(data.keys) + _views(data.items)
+    if pa.types.is_list(kind) or pa.types.is_large_list(kind) or pa.types.is_fixed_size_list(kind):
+        return _views(data.values)
+    return len(data) if any(test(kind) for test in _STRING_TYPES) else 0
+
+
+_STRING_TYPES = (
+    pa.types.is_string,
+    pa.types.is_large_string,
+    pa.types.is_string_view,
+    pa.types.is_binary,
+    pa.types.is_large_binary,
+    pa.types.is_binary_view,
+)
+
+
+def polars_room(table: pa.Table, copies: int) -> int:
+    """Bytes polars may take to make `table` a frame and use it: `copies` copies of its
+    buffers with a view per string (polars turns strings into views, may convert other
+    types, copies them again to rechunk or to write them out), and `POLARS_SLACK`."""
+    copy = table.nbytes + VIEW_BYTES * sum(_views(column) for column in table.columns)
+    return copies * copy + POLARS_SLACK
+
+
+def polars_frame(
+    table: pa.Table, limits: SqlLimits, subject: str = "the query", *, copies: int = 1
+) -> pl.DataFrame:
+    """`table` as a polars frame (its chunks kept), or, when the process is capped
+    (`process_memory_cap`) and there may not be room under the cap for `copies` copies of
+    it (`polars_room`), the one-line memory error naming `subject`: polars aborts the
+    process where an allocation fails instead of raising."""
+    room = memory_room()
+    if room is not None and polars_room(table, copies) > room:
+        raise QueryLimitError(memory_message(subject, limits), limit="memory")
+    return pl.from_arrow(table, rechunk=False)
 
 
 def _limit_error(
@@ -280,7 +356,7 @@ class Batches:
     """The result of a running query: its `schema`, and its record batches when iterated
     (each read from DuckDB when it is asked for; a failure raises the one-line error)."""
 
-    def __init__(self, reader: pa.RecordBatchReader, fail) -> None:
+    def __init__(self, reader: pa.RecordBatchReader, fail, limits: SqlLimits) -> None:
         names = unique_names(reader.schema.names)
         self.schema: pa.Schema = pa.schema(
             [field.with_name(name) for field, name in zip(reader.schema, names, strict=True)]
@@ -288,6 +364,7 @@ class Batches:
         self._renamed = names != reader.schema.names
         self._reader = reader
         self._fail = fail
+        self._limits = limits
 
     def __iter__(self) -> Iterator[pa.RecordBatch]:
         while True:
@@ -300,8 +377,11 @@ class Batches:
             yield batch.rename_columns(self.schema.names) if self._renamed else batch
 
     def frame(self, batches: list[pa.RecordBatch]) -> pl.DataFrame:
-        """Batches of this result as one polars DataFrame (the columns even with no rows)."""
-        return pl.from_arrow(pa.Table.from_batches(batches, schema=self.schema))
+        """Batches of this result as one polars DataFrame (the columns even with no rows,
+        one chunk); the one-line memory error where there may not be room under the cap
+        for it and its text (`WRITE_COPIES`, `polars_frame`)."""
+        table = pa.Table.from_batches(batches, schema=self.schema)
+        return polars_frame(table, self._limits, copies=WRITE_COPIES).rechunk()
 
 
 @contextlib.contextmanager
@@ -332,7 +412,7 @@ def stream(
                 reader = cursor.sql(query).to_arrow_reader(batch_size=batch_rows)
             except _FAILURES as exc:
                 raise fail(exc) from None
-            yield Batches(reader, fail)
+            yield Batches(reader, fail, limits)
         finally:
             if reader is not None:
                 reader.close()
@@ -410,6 +490,7 @@ __all__ = [
     "check_size",
     "guarded_cursor",
     "memory_message",
+    "polars_frame",
     "query_limits_of",
     "run_query",
     "sql",

@@ -1,0 +1,141 @@
+"""A query's result is made a polars frame under the command's cap only when there is room
+for it (`_sql.polars_frame`): polars aborts the process where an allocation fails, so a
+result too large for what is left ends with the one-line memory error instead."""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import sys
+from pathlib import Path
+
+import duckdb
+import polars as pl
+import pyarrow as pa
+import pytest
+
+import vge_analytics as va
+from tests.vge_analytics.store.test_scan_counts import _steps, _with_steps
+from vge_analytics.store import SqlLimits, _limits, _sql, open_store, run_query
+
+
+def _vge(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """`vge ARGS` in a fresh process (the module's own `POLARS_FROM_BYTES`: DuckDB's query
+    counts a small OUT)."""
+    return subprocess.run(
+        [sys.executable, "-m", "vge_analytics.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=cwd,
+        env={**os.environ, "PYTHONPATH": str(Path(va.__file__).parents[1])},
+    )
+
+
+def test_a_result_past_the_cap_ends_in_one_line_not_an_abort(pair_out: Path, tmp_path: Path):
+    # A million error types in run B: DuckDB's count fits in 128 MB and its Arrow result is
+    # 31 MB, but the query leaves some 14 MB under the process's cap, and polars' frame of
+    # it takes 70 MB more (a view per string): at BASE polars aborted the process (SIGABRT).
+    out = _with_steps(pair_out, tmp_path / "out", _steps(1_000_000, pl.format("e{}", "n")))
+    stopped = _vge("errors", str(out), "--memory-limit", "128MB", cwd=tmp_path)
+    assert stopped.returncode == 1, stopped.stderr[-2000:]
+    assert stopped.stdout == ""
+    assert stopped.stderr.splitlines() == [
+        f"error: {out}: a query needed more memory than its limit (128 MB in memory, 256 MB "
+        "on disk) and was stopped (--memory-limit sets the limit)"
+    ]
+    answered = _vge("errors", str(out), "-f", "csv", cwd=tmp_path)  # the default limit
+    assert answered.returncode == 0, answered.stderr[-2000:]
+    assert "Traceback" not in answered.stderr
+    lines = answered.stdout.splitlines()
+    assert lines[:2] == ["# error_types", "run_id,error_group,error_type,count,share"]
+    # run A's 16 errors, 2 of them invalid coordinates; B's million types are none of ours
+    assert {"A,grounding,invalid_coord,2,12.5", "A,execution,action_error,14,87.5"} <= set(lines)
+    assert "B,grounding,invalid_coord,0," in lines
+
+
+def _capped(room: int):
+    """Cap this process's data segment at its size now plus `room` bytes (restored after)."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_DATA)
+    resource.setrlimit(resource.RLIMIT_DATA, (_limits.data_segment() + room, hard))
+    return soft, hard
+
+
+def test_a_frame_without_room_under_the_cap_is_refused_before_polars(monkeypatch):
+    table = pa.table({"s": pa.array([f"e{i}" for i in range(1000)]), "n": pa.array(range(1000))})
+    need = _sql.polars_room(table, 1)
+    # 1000 strings of 2 to 4 bytes, their offsets, 1000 int64, a view per string, the slack
+    assert need == table.nbytes + 16 * 1000 + _sql.POLARS_SLACK
+    assert _sql.polars_room(table, 6) == 6 * (need - _sql.POLARS_SLACK) + _sql.POLARS_SLACK
+    limits = SqlLimits.make(memory="64MB")
+    monkeypatch.setattr(_sql, "memory_room", lambda: need - 1)
+    with pytest.raises(va.QueryLimitError, match="^OUT: a query needed more memory") as info:
+        _sql.polars_frame(table, limits, "OUT: a query")
+    assert info.value.limit == "memory"
+    monkeypatch.setattr(_sql, "memory_room", lambda: need)
+    assert _sql.polars_frame(table, limits).equals(pl.from_arrow(table))
+
+
+def test_memory_room_is_what_is_left_under_the_cap():
+    assert _limits.memory_room() is None  # not capped
+    soft, hard = _capped(512 << 20)
+    try:
+        room = _limits.memory_room()
+    finally:
+        resource.setrlimit(resource.RLIMIT_DATA, (soft, hard))
+    assert room is not None and abs(room - (512 << 20)) < 16 << 20  # a thread may grow it
+
+
+def test_nested_strings_are_counted_as_views():
+    table = pa.table(
+        {
+            "l": pa.array([["a", "b"], ["c"]]),
+            "st": pa.array([{"x": "a", "y": 1}, {"x": "b", "y": 2}]),
+            "d": pa.array(["a", "a"]).dictionary_encode(),
+            "b": pa.array([b"x", b"y"], pa.large_binary()),
+            "n": pa.array([1, 2]),
+        }
+    )
+    assert [_sql._views(c) for c in table.columns] == [3, 2, 1, 2, 0]
+
+
+@pytest.mark.parametrize(
+    "query",
+    [
+        "SELECT 1 AS a, 2 AS a, 3 AS A",
+        "SELECT 'e' || range AS s, range % 7 AS n FROM range(300000)",  # three chunks
+        "SELECT * FROM range(0) t(x)",
+        "SELECT [1, 2] AS l, {'a': 'x'} AS st, DATE '2024-01-02' AS d, 1.5::DECIMAL(9, 2) AS m",
+    ],
+)
+def test_run_query_gives_what_duckdb_gives_polars(pair_out: Path, query: str):
+    """The frame, its names, types and chunks, are those DuckDB's `.pl()` makes."""
+    ours = run_query(open_store(pair_out), query, [])
+    theirs = duckdb.connect().sql(query).pl()
+    assert ours.schema == theirs.schema and ours.equals(theirs)
+    assert [s.n_chunks() for s in ours.iter_columns()] == [
+        s.n_chunks() for s in theirs.iter_columns()
+    ]
+
+
+def test_vge_sqls_rows_need_room_for_their_text(pair_out: Path, monkeypatch):
+    """`vge sql`'s first rows (and each streamed batch) are made a frame only when there is
+    room for six copies of them (`WRITE_COPIES`: the frame and its text as written)."""
+    query = "SELECT repeat('x', 1000000) AS s FROM range(4)"  # 4 MB of text, 4 views
+    limits = SqlLimits.make(memory="64MB")
+    asked = []
+    real = _sql.polars_room
+    monkeypatch.setattr(_sql, "polars_room", lambda t, c: asked.append((t, c)) or real(t, c))
+    monkeypatch.setattr(_sql, "memory_room", lambda: 1 << 40)
+    _sql.sql_head(pair_out, query, 10, limits=limits)
+    (table, copies), = asked
+    assert copies == 6 and 4_000_000 < table.nbytes < 4_001_000
+    need = 6 * (table.nbytes + 4 * 16) + _sql.POLARS_SLACK
+    monkeypatch.setattr(_sql, "memory_room", lambda: need - 1)
+    with pytest.raises(va.QueryLimitError, match="^the query needed more memory") as info:
+        _sql.sql_head(pair_out, query, 10, limits=limits)
+    assert info.value.limit == "memory"
+    monkeypatch.setattr(_sql, "memory_room", lambda: need)
+    head = _sql.sql_head(pair_out, query, 10, limits=limits)
+    assert head.frame["s"].str.len_bytes().to_list() == [1_000_000] * 4
