@@ -95,11 +95,11 @@ class Deferred:
             return self._source
 
 
-def local_files(source: object) -> list[tuple[object, str]] | None:
-    """(run, path) of each file of a table's `source` (of `Store.sources`; a `Deferred` one
-    built) when it is a dataset over files on the local disk, the run its fragment's
-    partition (the manifest's run that lists the file; None where none); else None (in
-    memory, in object storage)."""
+def run_files(source: object) -> dict[str, list[str]] | None:
+    """{run: the paths of its files} of a table's `source` (of `Store.sources`; a `Deferred`
+    one built) when it is a dataset over files on the local disk, each file's run its
+    fragment's partition (the manifest's run that lists the file), in the dataset's order;
+    else None (in memory, in object storage, or a file of no run)."""
     import pyarrow.dataset as pads
 
     if isinstance(source, Deferred):
@@ -108,10 +108,13 @@ def local_files(source: object) -> list[tuple[object, str]] | None:
         source.filesystem, pafs.LocalFileSystem
     ):
         return None
-    return [
-        (pads.get_partition_keys(f.partition_expression).get(PARTITION_KEY), f.path)
-        for f in source.get_fragments()
-    ]
+    files: dict[str, list[str]] = {}
+    for fragment in source.get_fragments():
+        run = pads.get_partition_keys(fragment.partition_expression).get(PARTITION_KEY)
+        if not isinstance(run, str):
+            return None
+        files.setdefault(run, []).append(fragment.path)
+    return files
 
 
 def empty_table(table: str) -> pa.Table:
@@ -258,7 +261,7 @@ __all__ = [
     "SCAN_OPTIONS",
     "Deferred",
     "empty_table",
-    "local_files",
+    "run_files",
     "table_files",
     "table_sources",
 ]

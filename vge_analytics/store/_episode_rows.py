@@ -50,7 +50,7 @@ from replay.io import EPISODES_TABLE, PARTITION_KEY
 
 from .._errors import QueryError, QueryLimitError
 from ._bounds import query_bounds
-from ._datasets import Deferred, local_files
+from ._datasets import Deferred, run_files
 from ._ratios import Ratio, ratio_terms, term_name
 from ._scan_counts import _in_its_folder
 from ._scope import quote_ident
@@ -245,23 +245,13 @@ _FILES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _run_files(source: object) -> dict[str, list[str]] | None:
-    """{run: its files} of a table's source of the store, when it is a dataset of files on
-    the local disk (`_datasets.local_files`: each file's partition, a run each), listed once
-    per dataset (not for each part); None otherwise, or when a file has no run."""
-    if isinstance(source, Deferred):
-        source = source.source()
+    """`_datasets.run_files` of a table's source of the store (built), listed once per
+    dataset of files (not for each part)."""
     if source in _FILES:  # (a source that is not a dataset is never kept: not weakly held)
         return _FILES[source]
-    listed = local_files(source)
-    if listed is None:
-        return None
-    files: dict[str, list[str]] | None = {}
-    for run, path in listed:
-        if not isinstance(run, str):
-            files = None
-            break
-        files.setdefault(run, []).append(path)
-    _FILES[source] = files
+    files = run_files(source)
+    if files is not None:  # a dataset of files (weakly held)
+        _FILES[source] = files
     return files
 
 

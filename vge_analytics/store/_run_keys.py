@@ -30,7 +30,7 @@ import polars as pl
 
 from replay.io import PARTITION_KEY, STEPS_TABLE
 
-from ._datasets import local_files
+from ._datasets import run_files
 from ._kept import read_kept_footed
 from ._store import Store
 
@@ -42,21 +42,23 @@ def run_keys(store: Store, columns: Sequence[str]) -> dict[str, str] | None:
     """run -> the key of its steps files and of the types of `columns` (sorted by run), or
     None where they cannot be had: the steps table not files on the local disk, a file that
     cannot be looked at or outside OUT's folder, or one of no run."""
-    listed = local_files(store.sources.get(STEPS_TABLE))
+    listed = run_files(store.sources.get(STEPS_TABLE))
     if listed is None:
         return None
     types = store.columns[STEPS_TABLE]
     salt = msgspec.json.encode([[c, types.get(c)] for c in columns])
     base = f"{str(store.out).rstrip('/')}/"
     files: dict[str, list[str]] = {}
-    for run, path in listed:
-        if not isinstance(run, str) or not path.startswith(base):
-            return None
-        try:
-            st = os.stat(path)
-        except OSError:
-            return None
-        files.setdefault(run, []).append(f"{path[len(base) :]}\0{st.st_size}\0{st.st_mtime_ns}")
+    for run, paths in listed.items():
+        for path in paths:
+            if not path.startswith(base):
+                return None
+            try:
+                st = os.stat(path)
+            except OSError:
+                return None
+            entry = f"{path[len(base) :]}\0{st.st_size}\0{st.st_mtime_ns}"
+            files.setdefault(run, []).append(entry)
     return {run: _key(salt, entries) for run, entries in sorted(files.items())}
 
 

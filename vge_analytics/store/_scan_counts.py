@@ -60,7 +60,7 @@ from replay.io import PARTITION_KEY, STEPS_TABLE, partition
 
 from .._errors import QueryLimitError
 from ._bounds import query_bounds
-from ._datasets import local_files
+from ._datasets import run_files
 from ._isolated import GRACE, _slots, _start
 from ._limits import (
     SqlLimits,
@@ -88,15 +88,10 @@ def _runs(store: Store) -> list[tuple[str, list[str]]] | None:
     """(run, paths of its files) of the steps table's files on the local disk, sorted by
     run, or None (in memory, in object storage, no file, or a file whose run polars would
     not read from its path as the dataset has it, `_in_its_folder`)."""
-    files = local_files(store.sources.get(STEPS_TABLE))
-    if files is None:
+    files = run_files(store.sources.get(STEPS_TABLE))
+    if files is None or not all(_in_its_folder(p, run) for run, ps in files.items() for p in ps):
         return None
-    runs: dict[str, list[str]] = {}
-    for run, path in files:
-        if not isinstance(run, str) or not _in_its_folder(path, run):
-            return None
-        runs.setdefault(run, []).append(path)
-    return sorted(runs.items()) or None
+    return sorted(files.items()) or None
 
 
 def _in_its_folder(path: str, run: str) -> bool:
