@@ -235,10 +235,7 @@ def _count_child(conn: Connection, job: _Job) -> None:
     file, its message not printed), Python's (MemoryError) answers `("ok", False, ...)`."""
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
     os.dup2(os.open(os.devnull, os.O_WRONLY), 2)
-    # polars' threads started before the cap is measured: their stacks and arenas (6 MB a
-    # thread: 0.4 GB on 64 cores) are not what the count adds
-    pl.LazyFrame({"k": [0]}).group_by("k").len().collect(engine="streaming")
-    with conn, process_memory_cap(job.limits):
+    with conn, process_memory_cap(job.limits):  # (polars' threads started before the cap)
         room = resource.getrlimit(resource.RLIMIT_DATA)[0] - data_segment()
         counted = _counter(job.schema, job.keys, job.name, job.where, job.only)
 
