@@ -9,10 +9,11 @@ The first computation keeps them, a file per metric, in
 (`replay.io.episode_terms_path`): run_id, episode_id, the episodes' columns of
 `EPISODE_COLUMNS`, and the metric's terms, the rows the direct computation joins (the terms
 of the metric's own query grouped by run_id and episode_id, unfiltered, joined to the
-episodes; for a metric of the episodes whose terms are counts or sums, the same rows read as a
-projection of the episodes table, `_episode_rows`). Later computations read the file and
-keep the rows `where` selects. (A file per metric, not per grain: the terms of every metric of the episodes per episode in one query
-needed more than a command's memory limit at 100x.)
+episodes; for a metric of the episodes whose terms are counts or sums, the same rows read
+as a projection of the episodes table, `_episode_rows`). Later computations read the file
+and keep the rows `where` selects. (A file per metric, not per grain: the terms of every
+metric of the episodes per episode in one query needed more than a command's memory limit
+at 100x.)
 
 Filtering the kept rows gives the same rows and the same bits as filtering before: a filter
 on a column fixed per episode (its device, category, goal count) or per run (run_id, model,

@@ -18,15 +18,15 @@ Its bounds are the store's queries': it runs in a query process of its own (`_is
 forked from the forkserver, taking one of the process slots), its data segment capped for
 its life at its size (polars' threads started) plus the memory limit in force and half again
 (`process_memory_cap`, `memory_headroom`; `query_limits_of`: the block's, else the store's),
-as DuckDB's query would be bounded by that memory limit. The steps a hand-made OUT may hold are what polars
-cannot bound itself: a million error types (a group each: its sort reserves 3.5 GB for
-them), one error type of 100 KB on 40,000 steps (a file of 270 KB: polars copies the key per
-step, 0.95 GB). Such a count reaches the cap and its process ends there (polars aborts where
-an allocation fails: that is why it is not run in this one, which serves a dashboard's other
-visitors), this process's memory untouched: the count is DuckDB's query's then, the same
-rows, within its memory limit or stopped by it with the usual line. A bound by the Parquet
-footers (each row group's uncompressed bytes of the counted columns) was not enough: that
-error type's column is 100 KB uncompressed (its dictionary), for 0.95 GB.
+as DuckDB's query would be bounded by that memory limit. The steps a hand-made OUT may hold
+are what polars cannot bound itself: a million error types (a group each: its sort reserves
+3.5 GB for them), one error type of 100 KB on 40,000 steps (a file of 270 KB: polars copies
+the key per step, 0.95 GB). Such a count reaches the cap and its process ends there (polars
+aborts where an allocation fails: that is why it is not run in this one, which serves a
+dashboard's other visitors), this process's memory untouched: the count is DuckDB's query's
+then, the same rows, within its memory limit or stopped by it with the usual line. A bound
+by the Parquet footers (each row group's uncompressed bytes of the counted columns) was not
+enough: that error type's column is 100 KB uncompressed (its dictionary), for 0.95 GB.
 
 The time limit of the block (`query_limits`) is looked at between chunks of whole runs
 (`CHUNK_FILES` files or more: 22 chunks at 100x); past it the count stops with
