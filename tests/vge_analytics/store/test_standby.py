@@ -240,6 +240,7 @@ if __name__ == "__main__":
     print(" ".join(map(str, pids)), flush=True)
     if sys.argv[2] == "wait":
         time.sleep(600)
+    sys.stdin.readline()  # exits when the test has looked at its processes
 """
 
 
@@ -251,6 +252,7 @@ def test_nothing_runs_after_the_server_ends(hand_out, tmp_path, end):
     script.write_text(SERVER)
     server = subprocess.Popen(
         [sys.executable, str(script), str(hand_out), "wait" if end == "killed" else "exit"],
+        stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
     )
@@ -259,6 +261,8 @@ def test_nothing_runs_after_the_server_ends(hand_out, tmp_path, end):
         assert running(waiting) and waiting != used
         if end == "killed":
             server.send_signal(signal.SIGKILL)
+        else:  # (not before: a server that exited at once raced the look at its standby)
+            server.stdin.close()
         assert server.wait(timeout=PATIENCE) == (-signal.SIGKILL if end == "killed" else 0)
     finally:
         server.kill()
