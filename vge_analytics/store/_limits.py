@@ -206,10 +206,16 @@ def process_memory_cap(limits: SqlLimits) -> Iterator[None]:
     if soft != resource.RLIM_INFINITY:
         cap = min(cap, soft)
     resource.setrlimit(resource.RLIMIT_DATA, (cap, hard))
+    # A panic in polars' threads under the cap (a Python object it could not make) would,
+    # with RUST_BACKTRACE set, load the library's symbols to print a backtrace, fail to
+    # allocate, and wait for ever on the lock the printer holds: without it, it raises.
+    backtrace = os.environ.pop("RUST_BACKTRACE", None)
     try:
         yield
     finally:
         resource.setrlimit(resource.RLIMIT_DATA, (soft, hard))
+        if backtrace is not None:
+            os.environ["RUST_BACKTRACE"] = backtrace
 
 
 __all__ = [

@@ -76,6 +76,11 @@ built and as it is written)."""
 POLARS_SLACK = 32 * 1024**2
 """Room kept free when a result is made a polars frame under the cap: its allocator maps
 memory in blocks, and its threads may take theirs."""
+ROW_TEXT_COPIES = 16
+"""Bytes polars' CSV writer may take per byte of the longest row it writes: it formats
+rows in chunks, and a chunk's buffers grow with its rows (measured: 13 to 14 times the text
+of one row of a 15 to 60 MB value, whatever the frame's size; about 2 times for short rows,
+which `WRITE_COPIES` covers)."""
 
 
 def _kind(statement) -> str:
@@ -283,16 +288,48 @@ def polars_room(table: pa.Table, copies: int) -> int:
     return copies * copy + POLARS_SLACK
 
 
+def longest_row(table: pa.Table) -> int:
+    """Bytes of text in `table`'s longest row: the string and binary values of its columns,
+    lists of them included (a list is written as its values joined)."""
+    import numpy as np
+    import pyarrow.compute as pc
+
+    total = np.zeros(table.num_rows, dtype=np.int64)
+    for column in table.columns:
+        data, rows = column.combine_chunks(), None
+        while pa.types.is_list(data.type) or pa.types.is_large_list(data.type):
+            parents = pc.list_parent_indices(data).to_numpy()
+            rows = parents if rows is None else rows[parents]
+            data = pc.list_flatten(data)
+        if not any(test(data.type) for test in _STRING_TYPES) or len(data) == 0:
+            continue
+        lengths = pc.fill_null(pc.binary_length(data), 0).to_numpy().astype(np.int64)
+        if rows is not None:  # a list's values summed into its row
+            lengths = np.bincount(rows, lengths, table.num_rows).astype(np.int64)
+        total += lengths
+    return int(total.max()) if table.num_rows else 0
+
+
 def polars_frame(
-    table: pa.Table, limits: SqlLimits, subject: str = "the query", *, copies: int = 1
+    table: pa.Table,
+    limits: SqlLimits,
+    subject: str = "the query",
+    *,
+    copies: int = 1,
+    text: bool = False,
 ) -> pl.DataFrame:
     """`table` as a polars frame (its chunks kept), or, when the process is capped
     (`process_memory_cap`) and there may not be room under the cap for `copies` copies of
-    it (`polars_room`), the one-line memory error naming `subject`: polars aborts the
-    process where an allocation fails instead of raising."""
+    it (`polars_room`), and with `text` for its CSV text too (`ROW_TEXT_COPIES` times its
+    longest row), the one-line memory error naming `subject`: polars aborts the process
+    where an allocation fails instead of raising."""
     room = memory_room()
-    if room is not None and polars_room(table, copies) > room:
-        raise QueryLimitError(memory_message(subject, limits), limit="memory")
+    if room is not None:
+        need = polars_room(table, copies)
+        if text and need <= room:
+            need += ROW_TEXT_COPIES * longest_row(table)
+        if need > room:
+            raise QueryLimitError(memory_message(subject, limits), limit="memory")
     return pl.from_arrow(table, rechunk=False)
 
 
@@ -379,9 +416,9 @@ class Batches:
     def frame(self, batches: list[pa.RecordBatch]) -> pl.DataFrame:
         """Batches of this result as one polars DataFrame (the columns even with no rows,
         one chunk); the one-line memory error where there may not be room under the cap
-        for it and its text (`WRITE_COPIES`, `polars_frame`)."""
+        for it and its text (`WRITE_COPIES`, `ROW_TEXT_COPIES`, `polars_frame`)."""
         table = pa.Table.from_batches(batches, schema=self.schema)
-        return polars_frame(table, self._limits, copies=WRITE_COPIES).rechunk()
+        return polars_frame(table, self._limits, copies=WRITE_COPIES, text=True).rechunk()
 
 
 @contextlib.contextmanager

@@ -121,7 +121,8 @@ def test_run_query_gives_what_duckdb_gives_polars(pair_out: Path, query: str):
 
 def test_vge_sqls_rows_need_room_for_their_text(pair_out: Path, monkeypatch):
     """`vge sql`'s first rows (and each streamed batch) are made a frame only when there is
-    room for six copies of them (`WRITE_COPIES`: the frame and its text as written)."""
+    room for six copies of them (`WRITE_COPIES`: the frame and its text as written) and for
+    what the CSV writer takes for its longest row (`ROW_TEXT_COPIES`)."""
     query = "SELECT repeat('x', 1000000) AS s FROM range(4)"  # 4 MB of text, 4 views
     limits = SqlLimits.make(memory="64MB")
     asked = []
@@ -131,7 +132,8 @@ def test_vge_sqls_rows_need_room_for_their_text(pair_out: Path, monkeypatch):
     _sql.sql_head(pair_out, query, 10, limits=limits)
     (table, copies), = asked
     assert copies == 6 and 4_000_000 < table.nbytes < 4_001_000
-    need = 6 * (table.nbytes + 4 * 16) + _sql.POLARS_SLACK
+    # and its CSV text: 16 times its longest row (`ROW_TEXT_COPIES`), 1 MB
+    need = 6 * (table.nbytes + 4 * 16) + _sql.POLARS_SLACK + 16 * 1_000_000
     monkeypatch.setattr(_sql, "memory_room", lambda: need - 1)
     with pytest.raises(va.QueryLimitError, match="^the query needed more memory") as info:
         _sql.sql_head(pair_out, query, 10, limits=limits)
@@ -139,3 +141,77 @@ def test_vge_sqls_rows_need_room_for_their_text(pair_out: Path, monkeypatch):
     monkeypatch.setattr(_sql, "memory_room", lambda: need)
     head = _sql.sql_head(pair_out, query, 10, limits=limits)
     assert head.frame["s"].str.len_bytes().to_list() == [1_000_000] * 4
+
+
+def test_longest_row_counts_the_text_of_strings_binaries_and_lists():
+    table = pa.table(
+        {
+            "n": pa.array([1, 2, 3]),
+            "s": pa.array(["ab", None, "é"]),  # é is 2 bytes
+            "b": pa.array([b"", b"xyz", b"q"], pa.binary()),
+            "l": pa.array([["a", "bcd"], [], None], pa.list_(pa.string())),
+            "ll": pa.array(
+                [[["12345"]], [["1"], ["2", None]], [[]]], pa.list_(pa.list_(pa.large_string()))
+            ),
+        }
+    )
+    # rows: 2 + 0 + 4 + 5 = 11; 0 + 3 + 0 + 2 = 5; 2 + 1 = 3
+    assert _sql.longest_row(table) == 11
+    assert _sql.longest_row(table.slice(1)) == 5
+    assert _sql.longest_row(table.slice(0, 0)) == 0
+    assert _sql.longest_row(pa.table({"n": [1, 2]})) == 0
+
+
+def test_a_row_too_long_to_write_under_the_cap_ends_in_one_line(pair_out: Path, tmp_path: Path):
+    # One 15 MB value: its frame fits the room left under a 128 MB limit, but polars' CSV
+    # writer takes about 14 times a row's text. At BASE the process aborted, hung for ever
+    # (RUST_BACKTRACE=1) or printed a MemoryError with a panic from polars' threads.
+    query = "SELECT repeat('x', 15000000) AS s"
+    stopped = _vge(
+        "sql", str(pair_out), query, "-f", "csv", "--memory-limit", "128MB", cwd=tmp_path
+    )
+    assert stopped.returncode == 1, stopped.stderr[-2000:]
+    assert stopped.stderr.splitlines() == [
+        "error: the query needed more memory than its limit (128 MB in memory, 256 MB on "
+        "disk) and was stopped (--memory-limit sets the limit)"
+    ]
+    written = _vge("sql", str(pair_out), query.replace("15", "2"), "-f", "csv", cwd=tmp_path)
+    assert written.returncode == 0, written.stderr[-2000:]
+    assert written.stdout == "s\n" + "x" * 2_000_000 + "\n"
+
+
+PANIC = """
+import io
+import polars as pl
+from vge_analytics.store import SqlLimits, process_memory_cap
+frame = pl.DataFrame({"s": ["x" * 100_000_000]})
+with process_memory_cap(SqlLimits.make(memory="128MB")):
+    try:
+        frame.write_csv(io.StringIO())
+        print("written")
+    except BaseException as exc:  # polars' PanicException is a BaseException
+        print("raised")
+"""
+
+
+def test_a_panic_in_polars_under_the_cap_raises_instead_of_hanging(tmp_path: Path):
+    """With RUST_BACKTRACE=1, a panic in polars' threads under the cap (the CSV writer's
+    Python string could not be made) loaded the library's symbols to print a backtrace,
+    failed to allocate, and waited for ever on the printer's own lock; the cap now runs
+    without RUST_BACKTRACE (and puts it back after)."""
+    done = subprocess.run(
+        [sys.executable, "-c", PANIC],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+        env={**os.environ, "RUST_BACKTRACE": "1", "PYTHONPATH": str(Path(va.__file__).parents[1])},
+    )
+    assert done.stdout == "raised\n", done.stderr[-2000:]
+
+
+def test_the_cap_puts_rust_backtrace_back(monkeypatch):
+    monkeypatch.setenv("RUST_BACKTRACE", "full")
+    with _limits.process_memory_cap(SqlLimits.make(memory="1GB")):
+        assert "RUST_BACKTRACE" not in os.environ
+    assert os.environ["RUST_BACKTRACE"] == "full"
