@@ -27,6 +27,7 @@ from ._clusters import (
     cluster_code_column,
     cluster_sums,
     cr1_variance,
+    float_matrix,
     percentile_interval,
     pooled,
     ratio_contributions,
@@ -73,7 +74,7 @@ def _groups(
     (900 groups of 10,000 episodes at 100x: 3 s)."""
     if ordered.height == 0:
         return
-    values = np.ascontiguousarray(ordered.select(terms).to_numpy(), dtype=np.float64)
+    values = float_matrix(ordered, terms)
     codes = ordered[code].to_numpy().astype(np.int64)
     changed = pl.any_horizontal(
         [pl.col(c).ne_missing(pl.col(c).shift(1)).fill_null(True) for c in by] or [pl.lit(False)]

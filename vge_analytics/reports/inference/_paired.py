@@ -30,6 +30,7 @@ from ._clusters import (
     cluster_codes,
     cluster_sums,
     cr1_variance,
+    float_matrix,
     linearized,
     paired_difference,
     percentile_interval,
@@ -152,7 +153,7 @@ def pair_frames(
     ]
     # C order: numpy sums its rows one after another, as compare always has (a column-major
     # copy is summed pairwise, and the values would change in their last bits)
-    matrix = np.ascontiguousarray(joined.select(order).to_numpy(), dtype=np.float64)
+    matrix = float_matrix(joined, order)
     matrix = matrix.reshape(joined.height, len(order))
     codes, clusters = cluster_codes(joined[CLUSTER_COLUMNS[cluster]].to_list())
     return Paired(

@@ -7,6 +7,8 @@ import numpy as np
 import polars as pl
 import pytest
 import statsmodels.api as sm
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from vge_analytics.reports.inference import (
     bootstrap_totals,
@@ -17,6 +19,7 @@ from vge_analytics.reports.inference import (
     linearized,
     paired_difference,
 )
+from vge_analytics.reports.inference._clusters import float_matrix
 
 
 def test_cluster_codes_follow_sorted_labels() -> None:
@@ -124,3 +127,57 @@ def test_cluster_code_column_gives_the_codes_of_cluster_codes_per_group():
         whole["device_id:cluster"].to_list()
         == cluster_codes(frame["device_id"].to_list())[0].tolist()
     )
+
+
+def _by_python(frame: pl.DataFrame, columns) -> np.ndarray:
+    """What the intervals did before `float_matrix`: numpy's conversion of polars' values
+    (a decimal column as Python `Decimal`s, each made a float by `float(Decimal)`)."""
+    return np.ascontiguousarray(frame.select(columns).to_numpy(), dtype=np.float64)
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    return (
+        a.shape == b.shape
+        and a.flags.c_contiguous
+        and np.array_equal(a.view(np.int64), b.view(np.int64))
+    )
+
+
+EDGES = [0, 1, -1, 2**53, 2**53 + 1, 2**53 + 3, -(2**53 + 1), 2**63 - 1, -(2**63), 2**64 + 1]
+EDGES += [10**36 - 1, -(10**36 - 1), 2**100 + 2**47, 2**100 + 2**47 + 1, 3 * 2**70 - 1]
+"""Integers whose doubles need care (ties, just past a tie, past 64 bits), within what a
+DECIMAL(38, s) of polars holds for every scale used here."""
+
+
+@pytest.mark.parametrize("scale", [0, 2, 9, 30])
+def test_float_matrix_rounds_decimals_as_python_does(scale: int) -> None:
+    # 2**53 + 1 lies halfway between two doubles (ties to even: 2**53); 2**100 + 2**47 + 1
+    # just above a halfway point (rounds up): a conversion through another type would miss
+    import decimal
+
+    values = [decimal.Decimal(v).scaleb(-scale) for v in EDGES]
+    frame = pl.DataFrame(
+        {
+            "d": pl.Series(values, dtype=pl.Decimal(38, scale)),
+            "i": pl.Series(range(len(values)), dtype=pl.Int64),
+            "f": pl.Series([-0.0, *([1.5] * (len(values) - 1))], dtype=pl.Float64),
+        }
+    )
+    got = float_matrix(frame, ["d", "i", "f"])
+    assert _same_bits(got, _by_python(frame, ["d", "i", "f"]))
+    assert got[:, 0].tolist() == [float(v) for v in values]
+    assert got[2, 0] == -float(decimal.Decimal(1).scaleb(-scale))
+    assert np.signbit(got[0, 2])  # -0.0 kept
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(st.integers(-(10**36) + 1, 10**36 - 1), min_size=1, max_size=40),
+    st.integers(0, 12),
+)
+def test_float_matrix_matches_python_on_drawn_decimals(ints: list[int], scale: int) -> None:
+    import decimal
+
+    values = [decimal.Decimal(v).scaleb(-scale) for v in ints]
+    frame = pl.DataFrame({"d": pl.Series(values, dtype=pl.Decimal(38, scale))})
+    assert _same_bits(float_matrix(frame, ["d"]), _by_python(frame, ["d"]))
