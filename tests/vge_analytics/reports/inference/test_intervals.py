@@ -10,6 +10,8 @@ import numpy as np
 import polars as pl
 import pytest
 import statsmodels.api as sm
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import vge_analytics as va
 
@@ -52,3 +54,48 @@ def test_a_runs_se_equals_statsmodels_on_the_sample(sample_out: Path) -> None:
         fit = sm.OLS(y, np.ones((len(y), 1))).fit(cov_type="cluster", cov_kwds={"groups": groups})
         assert abs(row["se"] - fit.bse[0]) < 1e-9
         assert row["value"] == pytest.approx(y.mean(), abs=1e-9)
+
+
+def test_sorted_by_keeps_a_frame_in_order_and_sorts_one_that_is_not():
+    from vge_analytics.reports.inference._intervals import sorted_by
+
+    keys = ["model", "run_id", "episode_id"]
+    ordered = pl.DataFrame(
+        {
+            "model": ["a", "a", "b", "b", None, None],  # nulls last
+            "run_id": ["r2", "r2", "r1", "r3", "r0", "r0"],
+            "episode_id": ["e1", "e2", "e9", "e0", "e1", "e2"],
+            "x": [1, 2, 3, 4, 5, 6],
+        }
+    )
+    assert sorted_by(ordered, keys) is ordered  # in order: not sorted again
+    for moved in ([1, 0, 2, 3, 4, 5], [0, 1, 3, 2, 4, 5], [4, 0, 1, 2, 3, 5], [0, 1, 2, 3, 5, 4]):
+        shuffled = ordered[moved]
+        got = sorted_by(shuffled, keys)
+        assert got is not shuffled and got.equals(ordered)
+    floats = ordered.with_columns(pl.col("x").cast(pl.Float64))
+    assert sorted_by(floats, ["x", "episode_id"]) is not floats  # not a type checked here
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.sampled_from(["a", "b", "é", None]), st.integers(-3, 3) | st.none()),
+        min_size=2,
+        max_size=30,
+    )
+)
+def test_sorted_by_gives_the_sort_whatever_the_rows(rows):
+    from vge_analytics.reports.inference._intervals import sorted_by
+
+    frame = pl.DataFrame(
+        {
+            "g": pl.Series([r[0] for r in rows], dtype=pl.String),
+            "n": pl.Series([r[1] for r in rows], dtype=pl.Int64),
+            "episode_id": [f"e{i:03d}" for i in range(len(rows))],  # unique, as an episode
+        }
+    )
+    keys = ["g", "n", "episode_id"]
+    expected = frame.sort(keys, nulls_last=True)
+    assert sorted_by(frame, keys).equals(expected)
+    assert sorted_by(expected, keys) is expected
