@@ -130,7 +130,7 @@ class Plan:
     """The static optimal plan of an episode (PROTOCOL §4).
 
     Its responses (`steps`: click points, actions) are made on first use: a replay needs
-    only C_opt and the optimal path, and making them was a fifth of planning a task."""
+    only C_opt and the optimal path, and making them was a quarter of planning a task."""
 
     __slots__ = ("c_opt", "transitions", "switches", "states", "_machine", "_path", "_steps")
 
