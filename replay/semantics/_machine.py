@@ -7,7 +7,6 @@ simulator, planner and classifier only read these tables.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -194,40 +193,47 @@ def _check_component(
     err: _Report,
 ) -> None:
     """The transitions of one component in one state: targets, actions, boxes, and two
-    with the same trigger (only the first can fire)."""
-    where_c = f"state {sname!r}, component {comp!r}"
+    with the same trigger (only the first can fire). Where a problem is, is written out only
+    for a problem (a benchmark has some 20,000 transitions and boxes)."""
+
+    def at(k: int | None = None, b: int | None = None) -> str:
+        where = f"state {sname!r}, component {comp!r}"
+        if k is not None:
+            where += f", transition {k}"
+        return where if b is None else f"{where}, bbox {b}"
+
     if not transitions:
-        err(where_c, "empty transition list", "warning")
-    if comp in PSEUDO_COMPONENTS and len(transitions) > 1:
-        err(where_c, f"more than one {comp} transition; only the first is taken", "warning")
+        err(at(), "empty transition list", "warning")
+    pseudo = comp in PSEUDO_COMPONENTS
+    if pseudo and len(transitions) > 1:
+        err(at(), f"more than one {comp} transition; only the first is taken", "warning")
     seen_triggers: dict[tuple, int] = {}
     for k, tr in enumerate(transitions):
-        where = f"{where_c}, transition {k}"
         if tr.next_state not in ssm.states:
-            err(where, f"dangling next_state {tr.next_state!r}")
-        if comp in PSEUDO_COMPONENTS:
+            err(at(k), f"dangling next_state {tr.next_state!r}")
+        if pseudo:
             if tr.bbox:
-                err(where, f"{comp} transitions have no bbox; it is ignored", "warning")
+                err(at(k), f"{comp} transitions have no bbox; it is ignored", "warning")
             continue
         action = tr.atomic_action.lower() if tr.atomic_action else None
         if action is None:
             if require_geometry:
-                err(where, "missing atomic_action")
+                err(at(k), "missing atomic_action")
         elif action not in ATOMIC_ACTIONS:
-            err(where, f"unknown atomic action {tr.atomic_action!r}")
+            err(at(k), f"unknown atomic action {tr.atomic_action!r}")
         if require_geometry and not tr.bbox:
-            err(where, "no bbox: the component cannot be clicked in any view", "warning")
+            err(at(k), "no bbox: the component cannot be clicked in any view", "warning")
         for b, box in enumerate(tr.bbox):
-            where_b = f"{where}, bbox {b}"
             if box.view.lower() not in offered:
-                err(where_b, f"bbox on unknown view {box.view!r}")
+                err(at(k, b), f"bbox on unknown view {box.view!r}")
             for message in _coordinate_problems(box.coordinate):
-                err(where_b, message)
+                err(at(k, b), message)
         if action is not None:
-            trigger = (action, tuple(normalize_param(p) for p in (tr.parameter or ())))
+            params = tr.parameter
+            trigger = (action, tuple(normalize_param(p) for p in params) if params else ())
             if trigger in seen_triggers:
                 err(
-                    where,
+                    at(k),
                     f"same action and params as transition {seen_triggers[trigger]}; "
                     "only the first can ever fire",
                     "warning",
@@ -332,7 +338,15 @@ def _coordinate_problems(coord: list[float]) -> list[str]:
     if len(coord) != 6:
         return [f"coordinate must be [x, y, w, h, W, H], got {len(coord)} numbers"]
     x, y, w, h, width, height = coord
-    if not all(math.isfinite(v) and abs(v) <= MAX_PIXELS for v in coord):
+    m = MAX_PIXELS  # -m <= v <= m holds for no NaN and no infinity
+    if not (
+        -m <= x <= m
+        and -m <= y <= m
+        and -m <= w <= m
+        and -m <= h <= m
+        and -m <= width <= m
+        and -m <= height <= m
+    ):
         # normalising multiplies by the scale: a larger number overflows to inf, then NaN
         numbers = ", ".join(f"{v:g}" for v in coord)
         return [f"coordinate [{numbers}] holds a number past {MAX_PIXELS:,} pixels"]

@@ -126,19 +126,57 @@ class PlannedStep:
     transition: CompiledTransition | None  # None for a Switch_view
 
 
-@dataclass(frozen=True, slots=True)
 class Plan:
-    """The static optimal plan of an episode (PROTOCOL §4)."""
+    """The static optimal plan of an episode (PROTOCOL §4).
 
-    c_opt: tuple[int, ...]  # per goal: transitions + switches of its segment
-    transitions: tuple[int, ...]  # per goal
-    switches: tuple[int, ...]  # per goal
-    steps: tuple[PlannedStep, ...]
-    states: tuple[int, ...]  # optimal path: reset states, then every state entered
+    Its responses (`steps`: click points, actions) are made on first use: a replay needs
+    only C_opt and the optimal path, and making them was a quarter of planning a task."""
+
+    __slots__ = ("c_opt", "transitions", "switches", "states", "_machine", "_path", "_steps")
+
+    def __init__(
+        self,
+        c_opt: tuple[int, ...],  # per goal: transitions + switches of its segment
+        transitions: tuple[int, ...],  # per goal
+        switches: tuple[int, ...],  # per goal
+        states: tuple[int, ...],  # optimal path: every state entered
+        machine: Machine,
+        path: tuple[tuple[int, _Option], ...],  # (goal index, the option taken) in order
+    ) -> None:
+        self.c_opt = c_opt
+        self.transitions = transitions
+        self.switches = switches
+        self.states = states
+        self._machine = machine
+        self._path = path
+        self._steps: tuple[PlannedStep, ...] | None = None
+
+    @property
+    def steps(self) -> tuple[PlannedStep, ...]:
+        """The plan's responses in order: each option's view switches, then its action."""
+        if self._steps is None:
+            self._steps = _planned_steps(self._machine, self._path)
+        return self._steps
 
     @property
     def length(self) -> int:
         return sum(self.c_opt)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Plan):
+            return NotImplemented
+        return self._key() == other._key()
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def _key(self) -> tuple:
+        return (self.c_opt, self.transitions, self.switches, self.steps, self.states)
+
+    def __repr__(self) -> str:
+        return (
+            f"Plan(c_opt={self.c_opt!r}, transitions={self.transitions!r}, "
+            f"switches={self.switches!r}, steps={self.steps!r}, states={self.states!r})"
+        )
 
 
 class _Option:
@@ -216,10 +254,9 @@ class _Solver:
         (a plan may take as many transitions as the machine has states): each node is a
         generator that yields the nodes it needs and is sent their values, so nodes are
         evaluated exactly in the order, and with the pruning, of the plain recursion."""
-        goals = self.goals
         memo = self.memo
         key = (i, s, view, unlocked)
-        if i >= len(goals):
+        if i >= len(self.goals):
             return 0
         got = memo.get(key)
         if got is not None:
@@ -234,39 +271,52 @@ class _Solver:
                 memo[node] = sent = done.value
                 stack.pop()
                 continue
-            sent = 0 if child[0] >= len(goals) else memo.get(child)
-            if sent is None:
-                stack.append((child, self._node(*child)))
+            sent = None
+            stack.append((child, self._node(*child)))
         return memo[key]
 
     def _node(
         self, i: int, s: int, view: str, unlocked: bool
     ) -> Generator[tuple[int, int, str, bool], int, int]:
-        """The value of one node: the best over its options, each option's rest asked for by
-        yielding its node (an option that cannot beat the best so far is skipped unasked)."""
+        """The value of one node: the best over its options, each option's rest taken from
+        the memo or asked for by yielding its node (an option that cannot beat the best so
+        far is skipped unasked)."""
+        goals, memo, m = self.goals, self.memo, self.m
+        n = len(goals)
         best = INF
-        if s == self.goals[i]:  # goals complete when entered (PROTOCOL §3.4)
+        goal = goals[i]
+        if s == goal:  # goals complete when entered (PROTOCOL §3.4)
             return best
-        for tr in progressing(self.m, s, self.goals[i]):
-            j = _advance(self.goals, i, tr)
-            for opt in _options(self.m, tr, view, unlocked):
-                if opt.switches >= best:
+        for tr in progressing(m, s, goal):
+            j = _advance(goals, i, tr)
+            end = tr.end
+            for opt in _options(m, tr, view, unlocked):
+                switches = opt.switches
+                if switches >= best:
                     continue
-                rest = yield (j, tr.end, opt.view, opt.unlocked)
-                total = opt.switches + rest
-                if total < best:
-                    best = total
+                child = (j, end, opt.view, opt.unlocked)
+                rest = 0 if j >= n else memo.get(child)
+                if rest is None:
+                    rest = yield child
+                if switches + rest < best:
+                    best = switches + rest
         return best
 
     def choose(self, i: int, s: int, view: str, unlocked: bool) -> tuple[_Option, int]:
         """The optimal option at a node, by the tie-breaks of PROTOCOL §4.3."""
         target = self.value(i, s, view, unlocked)
+        goals, memo, m = self.goals, self.memo, self.m
+        n = len(goals)
         best: tuple | None = None
         chosen: tuple[_Option, int] | None = None
-        for tr in progressing(self.m, s, self.goals[i]):
-            j = _advance(self.goals, i, tr)
-            for opt in _options(self.m, tr, view, unlocked):
-                if opt.switches + self.value(j, tr.end, opt.view, opt.unlocked) != target:
+        for tr in progressing(m, s, goals[i]):
+            j = _advance(goals, i, tr)
+            end = tr.end
+            for opt in _options(m, tr, view, unlocked):
+                rest = 0 if j >= n else memo.get((j, end, opt.view, opt.unlocked))
+                if rest is None:  # a node the value's pruning never asked for
+                    rest = self.value(j, end, opt.view, opt.unlocked)
+                if opt.switches + rest != target:
                     continue
                 rank = -1 if tr.action is None else VIEW_RANK.get(opt.view, len(VIEW_RANK))
                 key = (tr.dangerous, opt.switches, rank, tr.component, tr.index)
@@ -350,26 +400,37 @@ def plan_goals(
         raise TaskError(f"{where}the goals need a component that no interactable view shows")
     c_trans = [0] * n
     c_switch = [0] * n
-    steps: list[PlannedStep] = []
+    path: list[tuple[int, _Option]] = []
     states: list[int] = []
     i, s, v, u = 0, start, view, unlocked
     while i < n:
         opt, j = solver.choose(i, s, v, u)
         tr = opt.tr
+        path.append((i, opt))
+        c_switch[i] += len(opt.pre)  # a Switch_view each
+        c_trans[i] += 1
+        states.extend(tr.entered)
+        i, s, v, u = j, tr.end, opt.view, opt.unlocked
+    c_opt = tuple(t + w for t, w in zip(c_trans, c_switch, strict=True))
+    return Plan(c_opt, tuple(c_trans), tuple(c_switch), tuple(states), machine, tuple(path))
+
+
+def _planned_steps(
+    machine: Machine, path: tuple[tuple[int, _Option], ...]
+) -> tuple[PlannedStep, ...]:
+    """The responses of a plan's options: each one's view switches, then its action."""
+    steps: list[PlannedStep] = []
+    for i, opt in path:
+        tr = opt.tr
         for target_view, via in opt.pre:
             coord = _region_point(machine, via) if via is not None else None
             steps.append(PlannedStep(i, Action(SWITCH_VIEW, coord, (target_view,)), None))
-            c_switch[i] += 1
         if tr.action is None:
             act = Action(TIMED_WAIT, None, ())
         else:
             act = Action(tr.action, _click_point(machine, tr, opt.view), _concrete_params(tr))
         steps.append(PlannedStep(i, act, tr))
-        c_trans[i] += 1
-        states.extend(tr.entered)
-        i, s, v, u = j, tr.end, opt.view, opt.unlocked
-    c_opt = tuple(t + w for t, w in zip(c_trans, c_switch, strict=True))
-    return Plan(c_opt, tuple(c_trans), tuple(c_switch), tuple(steps), tuple(states))
+    return tuple(steps)
 
 
 def _check_goals(machine: Machine, start: int, goals: tuple[int, ...], where: str) -> None:
