@@ -6,9 +6,6 @@ Exit codes: 0 every record replayed; 2 something was quarantined (see OUT/quaran
 
 from __future__ import annotations
 
-import os
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 import typer
@@ -92,31 +89,30 @@ def replay_command(
     from rich.console import Console
     from rich.markup import escape
 
+    from ..synth import image_source
+
     console = Console(highlight=False)
     if not console.is_terminal:  # logs and pipes: do not squeeze the table into 80 columns
         console = Console(highlight=False, width=120)
-    with _one_blas_thread():
-        from ..synth import image_source  # numpy loads here
-
-        # BENCH opened here once for both checks of MCAP's (0.75 s on the full benchmark)
-        opened = replay.Benchmark.open(bench) if mcap or mcap_episodes else None
-        chosen = checked_mcap_episodes(opened, mcap_episodes)
-        if opened is not None:
-            warn_refused_pictures(opened, chosen, "left out of the MCAP files")
-        manifest = replay.replay_runs(
-            runs,
-            bench,
-            out,
-            lam=lam,
-            workers=workers,
-            mcap=mcap,
-            mcap_episodes=chosen,
-            force=force,
-            progress=progress,
-            image_source=image_source(bench),
-            ray=ray,
-            max_record_bytes=max_record_bytes,
-        )
+    # BENCH opened here once for both checks of MCAP's (0.75 s on the full benchmark)
+    opened = replay.Benchmark.open(bench) if mcap or mcap_episodes else None
+    chosen = checked_mcap_episodes(opened, mcap_episodes)
+    if opened is not None:
+        warn_refused_pictures(opened, chosen, "left out of the MCAP files")
+    manifest = replay.replay_runs(
+        runs,
+        bench,
+        out,
+        lam=lam,
+        workers=workers,
+        mcap=mcap,
+        mcap_episodes=chosen,
+        force=force,
+        progress=progress,
+        image_source=image_source(bench),
+        ray=ray,
+        max_record_bytes=max_record_bytes,
+    )
     console.print(_summary(manifest))
     for run_id in manifest.skipped:
         console.print(f"{escape(run_id)}: up to date, skipped (--force redoes it)", soft_wrap=True)
@@ -124,22 +120,6 @@ def replay_command(
     n = manifest.quarantined
     problem = f"{n:,} record(s) quarantined[/]: see {listed}" if n else None
     finish(console, f"wrote {escape(str(out))} ({replay.io.MANIFEST})", problem)
-
-
-@contextmanager
-def _one_blas_thread() -> Iterator[None]:
-    """OpenBLAS told to use one thread while numpy loads and the workers start (they inherit
-    it), unless the variable is set. A replay does no linear algebra, and numpy's OpenBLAS,
-    left to itself, starts a thread per core that spins for some 0.05 s of CPU as numpy
-    loads, in every process (docs/PERFORMANCE.md)."""
-    name = "OPENBLAS_NUM_THREADS"
-    given = name in os.environ
-    os.environ.setdefault(name, "1")
-    try:
-        yield
-    finally:
-        if not given:
-            del os.environ[name]
 
 
 def warn_refused_pictures(opened: replay.Benchmark, episodes: list[str] | None, fate: str) -> None:

@@ -214,28 +214,3 @@ def test_a_command_run_alone_prints_what_the_whole_app_prints(capsys, monkeypatc
         with monkeypatch.context() as patched:
             patched.setattr(cli, "_app_for", lambda args: cli.app)
             assert run(capsys, *args) == alone, args
-
-
-def test_replay_loads_numpy_with_one_blas_thread(monkeypatch: pytest.MonkeyPatch) -> None:
-    """numpy's OpenBLAS starts a spinning thread per core as it loads; `vge replay`, which
-    does no linear algebra, asks for one thread in its processes (its workers inherit the
-    variable) unless the variable is set, and leaves it as it found it."""
-    import os
-    import subprocess
-    import sys
-
-    from vge_analytics.commands.replay import _one_blas_thread
-
-    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
-    with _one_blas_thread():
-        assert os.environ["OPENBLAS_NUM_THREADS"] == "1"
-    assert "OPENBLAS_NUM_THREADS" not in os.environ
-    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "4")
-    with _one_blas_thread():
-        assert os.environ["OPENBLAS_NUM_THREADS"] == "4"
-    assert os.environ["OPENBLAS_NUM_THREADS"] == "4"
-    # the command's module and what it imports before the context: numpy not yet loaded
-    code = "import sys, vge_analytics.cli, vge_analytics.commands.replay, rich.console; "
-    code += "print('numpy' in sys.modules)"
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert done.stdout.strip() == "False"
