@@ -6,6 +6,7 @@ Exit codes: 0 every record replayed; 2 something was quarantined (see OUT/quaran
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING
 
 import typer
@@ -86,6 +87,7 @@ def replay_command(
 
     Exit code 0 when every record replayed, 2 when some were quarantined, 1 on fatal errors.
     """
+    one_blas_thread()
     from rich.console import Console
     from rich.markup import escape
 
@@ -120,6 +122,14 @@ def replay_command(
     n = manifest.quarantined
     problem = f"{n:,} record(s) quarantined[/]: see {listed}" if n else None
     finish(console, f"wrote {escape(str(out))} ({replay.io.MANIFEST})", problem)
+
+
+def one_blas_thread() -> None:
+    """OpenBLAS, which numpy loads, starts a thread per core that spins for a while after
+    it starts (0.05 to 0.1 s of CPU in each process, the replay's workers included, which
+    inherit the setting); the replay does no linear algebra. Set before numpy is imported;
+    a value the user set stays."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def warn_refused_pictures(opened: replay.Benchmark, episodes: list[str] | None, fate: str) -> None:
