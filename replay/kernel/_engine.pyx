@@ -11,9 +11,9 @@ reference's. Strings become codes into per-batch vocabularies (`Vocab`) or are c
 
 cimport cython
 from cpython.unicode cimport PyUnicode_AsUTF8AndSize
-from libc.math cimport floor, pow
+from libc.math cimport floor, isfinite, pow
 from libc.stdlib cimport free, malloc, realloc
-from libc.string cimport memcpy, memset
+from libc.string cimport memcmp, memcpy, memmove, memset
 
 import math
 
@@ -279,6 +279,126 @@ cdef class TextVec:
             self.offsets.array(),
             self.valid.array().astype(np.bool_),
         )
+
+
+cdef struct RepKey:
+    # A step's repetition key (`Classifier._repeated`: goal index, state, action, where,
+    # params, view), every part a number: the action and view by code, the params by their
+    # number in the batch (`Episode._params_id`), where it acted as the sorted components
+    # hit (`where` 1, in `Repeats.hits`) or its grid cell (`where` 2; floor() as a double
+    # names the int `math.floor` gives, one to one), or nowhere (`where` 0).
+    int goal_index, s0, kind, v0, where, params, hits_at, n_hits
+    int slot            # where it sits in `Repeats.slots`
+    double gx, gy
+    unsigned long long hash
+
+
+cdef inline unsigned long long _mix(unsigned long long h, unsigned long long v) noexcept:
+    h ^= v + 0x9E3779B97F4A7C15ULL + (h << 6) + (h >> 2)
+    return h * 0xFF51AFD7ED558CCDULL
+
+
+cdef class Repeats:
+    """The repetition keys an episode has met, as a C hash set: what the reference keeps as
+    a set of tuples, without a tuple and a set entry per step. Keys are compared in full,
+    so the decisions are the set's. Kept for the batch, emptied for each episode."""
+
+    cdef RepKey* keys
+    cdef Py_ssize_t n, cap
+    cdef int* slots       # open addressing: a key's number, or -1; `mask + 1` of them
+    cdef Py_ssize_t mask
+    cdef IntVec hits
+
+    def __cinit__(self):
+        self.cap = 64
+        self.mask = 127
+        self.n = 0
+        self.keys = <RepKey*>malloc(self.cap * sizeof(RepKey))
+        self.slots = <int*>malloc((self.mask + 1) * sizeof(int))
+        if self.keys == NULL or self.slots == NULL:
+            raise MemoryError()
+        memset(self.slots, 0xFF, (self.mask + 1) * sizeof(int))
+        self.hits = IntVec(64)
+
+    def __dealloc__(self):
+        free(self.keys)
+        free(self.slots)
+
+    cdef void clear(self) noexcept:
+        cdef Py_ssize_t i
+        for i in range(self.n):
+            self.slots[self.keys[i].slot] = -1
+        self.n = 0
+        self.hits.size = 0
+
+    cdef inline Py_ssize_t _slot(self, RepKey* key) noexcept:
+        """The slot holding `key`, or the empty one where it would go."""
+        cdef Py_ssize_t at = <Py_ssize_t>(key.hash & <unsigned long long>self.mask)
+        cdef RepKey* other
+        while self.slots[at] >= 0:
+            other = &self.keys[self.slots[at]]
+            if (
+                other.hash == key.hash and other.goal_index == key.goal_index
+                and other.s0 == key.s0 and other.kind == key.kind and other.v0 == key.v0
+                and other.where == key.where and other.params == key.params
+                and other.gx == key.gx and other.gy == key.gy and other.n_hits == key.n_hits
+                and memcmp(self.hits.data + other.hits_at, self.hits.data + key.hits_at,
+                           key.n_hits * sizeof(int)) == 0
+            ):
+                return at
+            at = (at + 1) & self.mask
+        return at
+
+    cdef bint seen(self, RepKey* key, const int* hits) except -1:
+        """Whether `key` (with the `key.n_hits` components `hits`) was met before; it is
+        remembered from now on."""
+        cdef Py_ssize_t i, at
+        key.hits_at = <int>self.hits.size
+        key.hash = _mix(_mix(_mix(_mix(0, key.goal_index), key.s0), key.kind), key.v0)
+        key.hash = _mix(_mix(_mix(key.hash, key.where), key.params), key.n_hits)
+        key.hash = _mix(_mix(key.hash, _bits(key.gx)), _bits(key.gy))
+        for i in range(key.n_hits):
+            key.hash = _mix(key.hash, hits[i])
+            self.hits.push(hits[i])  # taken back below when the key is known
+        at = self._slot(key)
+        if self.slots[at] >= 0:
+            self.hits.size = key.hits_at
+            return True
+        if self.n == self.cap:
+            self._grow()
+            at = self._slot(key)
+        key.slot = <int>at
+        self.keys[self.n] = key[0]
+        self.slots[at] = <int>self.n
+        self.n += 1
+        return False
+
+    cdef int _grow(self) except -1:
+        """Twice the keys, and the slots rebuilt at four times the keys."""
+        cdef Py_ssize_t i, cap = self.cap * 2, mask = cap * 4 - 1
+        cdef RepKey* keys = <RepKey*>realloc(self.keys, cap * sizeof(RepKey))
+        if keys == NULL:
+            raise MemoryError()
+        self.keys = keys
+        self.cap = cap
+        cdef int* slots = <int*>realloc(self.slots, (mask + 1) * sizeof(int))
+        if slots == NULL:
+            raise MemoryError()
+        self.slots = slots
+        self.mask = mask
+        memset(self.slots, 0xFF, (mask + 1) * sizeof(int))
+        for i in range(self.n):
+            self.keys[i].slot = <int>self._slot(&self.keys[i])
+            self.slots[self.keys[i].slot] = <int>i
+        return 0
+
+
+cdef inline unsigned long long _bits(double value) noexcept:
+    cdef unsigned long long bits
+    if value == 0.0:
+        value = 0.0  # -0.0 and 0.0 are one cell
+    memcpy(&bits, &value, sizeof(double))
+    return bits
 
 
 # ------------------------------------------------------------------------------ machines
@@ -948,14 +1068,6 @@ cdef inline int _lower_view(object recorded) except -2:
     return -1 if code is None else <int>code
 
 
-cdef object _grid(double value):
-    """`math.floor(value / 10 + 0.5)` as a Python int (exact for any finite value)."""
-    cdef double g = floor(value / 10 + 0.5)
-    if -1e15 < g < 1e15:
-        return <long long>g
-    return math.floor(value / 10 + 0.5)
-
-
 def replay_batch(list episodes, Vocab vocab, dict param_cache):
     """Replay `episodes` (items with `machine`, `task`, `setup`, `log`, `lam`) into an `Out`.
 
@@ -967,8 +1079,10 @@ def replay_batch(list episodes, Vocab vocab, dict param_cache):
         n_goals += len(ep.setup.goals)
     cdef Out out = Out(n, len(episodes), n_goals, n * 256)
     cdef Episode run
+    cdef Repeats repeats = Repeats()
+    cdef dict param_ids = {}
     for e in range(len(episodes)):
-        run = Episode(out, episodes[e], vocab, param_cache, e)
+        run = Episode(out, episodes[e], vocab, param_cache, e, repeats, param_ids)
         row = run.steps(row)
         run.finish(goal_row)
         goal_row += run.n_goals
@@ -994,13 +1108,15 @@ cdef class Episode:
     cdef IntVec goal_ids, started, completed_at, steps_used, switches, failures, visited
     cdef IntVec c_opt, seen_state, hit_buf
     cdef list dyn
-    cdef set seen
+    cdef Repeats repeats      # the batch's, emptied for this episode
+    cdef dict param_ids       # params -> number, for the batch
     cdef tuple _params
     cdef Py_ssize_t _row
     cdef KGoal _kg            # the current goal's tables, kept while the goal stays
     cdef int _kg_goal
 
-    def __init__(self, Out out, object ep, Vocab vocab, dict param_cache, Py_ssize_t e):
+    def __init__(self, Out out, object ep, Vocab vocab, dict param_cache, Py_ssize_t e,
+                 Repeats repeats, dict param_ids):
         cdef int g
         cdef KMachine km = kmachine(ep.machine)
         self.out = out
@@ -1047,7 +1163,9 @@ cdef class Episode:
         self.started.data[0] = 0
         self.dyn = [None] * self.n_goals
         self.dyn[0] = km.c_opt_dyn(self.state, self.view, False, self.goal_ids.data[0])
-        self.seen = set()
+        self.repeats = repeats
+        repeats.clear()
+        self.param_ids = param_ids
         self._kg = None
         self._kg_goal = -1
 
@@ -1277,18 +1395,25 @@ cdef class Episode:
         return 0
 
     cdef inline int _hits(self, Parsed* pa, Scored* sc) except -1:
-        """The components whose boxes in the view hold the point, into `hit_buf`."""
+        """The components whose boxes in the view hold the point, into `hit_buf`: each once,
+        in ascending order (the order of their names), as the columns and the repetition
+        key take them."""
         cdef KMachine km = self.km
-        cdef int i, comp, last_comp = -1
+        cdef int i, j, comp
+        cdef int* buf = self.hit_buf.data
         sc.n_hits = 0
         if sc.kind >= 0 and pa.has_coord and sc.kind != A_SWITCH:
             for i in range(km.cr_off[sc.v0], km.cr_off[sc.v0 + 1]):
                 if _inside(km.cr + 4 * i, pa.x, pa.y):
                     comp = km.cr_comp[i]
-                    if comp != last_comp:
-                        self.hit_buf.data[sc.n_hits] = comp
-                        sc.n_hits += 1
-                        last_comp = comp
+                    j = sc.n_hits  # insertion into the sorted few hit so far
+                    while j > 0 and buf[j - 1] > comp:
+                        j -= 1
+                    if j > 0 and buf[j - 1] == comp:
+                        continue
+                    memmove(buf + j + 1, buf + j, (sc.n_hits - j) * sizeof(int))
+                    buf[j] = comp
+                    sc.n_hits += 1
         return 0
 
     cdef inline int _nearest_target(self, KGoal kg, Parsed* pa, Scored* sc) except -1:
@@ -1366,20 +1491,39 @@ cdef class Episode:
     cdef inline int _repetition(self, Parsed* pa, Scored* sc) except -1:
         """Whether the step repeats an earlier one of the same goal (same state, action,
         place, params and view), remembering it otherwise."""
+        cdef RepKey key
         sc.repetitive = False
         if pa.ok and sc.kind != A_SWITCH:
+            key.goal_index = sc.goal_index
+            key.s0 = sc.s0
+            key.kind = sc.kind
+            key.v0 = sc.v0
+            key.params = self._params_id()
+            key.gx = key.gy = 0.0
+            key.n_hits = 0
             if not pa.has_coord:
-                where = ()
+                key.where = 0
             elif sc.n_hits:
-                where = ("c",) + _sorted_hits(self.hit_buf.data, sc.n_hits)
+                key.where = 1
+                key.n_hits = sc.n_hits
             else:
-                where = ("p", _grid(pa.x), _grid(pa.y))
-            key = (sc.goal_index, sc.s0, sc.kind, where, self._params, sc.v0)
-            if key in self.seen:
-                sc.repetitive = True
-            else:
-                self.seen.add(key)
+                key.where = 2
+                key.gx = floor(pa.x / 10 + 0.5)
+                key.gy = floor(pa.y / 10 + 0.5)
+                if not (isfinite(key.gx) and isfinite(key.gy)):  # math.floor's error, as
+                    math.floor(pa.x / 10 + 0.5), math.floor(pa.y / 10 + 0.5)  # the reference's
+            sc.repetitive = self.repeats.seen(&key, self.hit_buf.data)
         return 0
+
+    cdef inline int _params_id(self) except -1:
+        """The step's params by number: 0 for none, else their number in the batch."""
+        if not self._params:
+            return 0
+        got = self.param_ids.get(self._params)
+        if got is None:
+            got = len(self.param_ids) + 1
+            self.param_ids[self._params] = got
+        return got
 
     cdef inline int _write(self, Py_ssize_t row, Parsed* pa, Outcome* oc, Scored* sc) except -1:
         """The scored step's columns."""
@@ -1409,11 +1553,8 @@ cdef class Episode:
         out.is_interaction[row] = sc.is_interaction
         out.hit_component[row] = sc.n_hits > 0
         out.hit_target[row] = sc.hit_target
-        if sc.n_hits > 1:
-            for comp in _sorted_hits(self.hit_buf.data, sc.n_hits):
-                out.hits.push(cb + comp)
-        elif sc.n_hits == 1:
-            out.hits.push(cb + self.hit_buf.data[0])
+        for comp in range(sc.n_hits):
+            out.hits.push(cb + self.hit_buf.data[comp])
         out.hits_off.push(<int>out.hits.size)
         out.nearest[row] = -1 if sc.nearest < 0 else cb + sc.nearest
         out.progress[row] = sc.progress
@@ -1583,10 +1724,6 @@ cdef inline int _switch_code(unsigned int start_positive, unsigned int end_posit
     if start_positive:
         return SC_PP if end_positive else SC_PN
     return SC_NP if end_positive else SC_NN
-
-
-cdef tuple _sorted_hits(int* hits, int n):
-    return tuple(sorted({hits[i] for i in range(n)}))
 
 
 cdef tuple _target_error(KMachine km, KGoal kg, int s, int goal, int view, int kind, double px,
