@@ -64,6 +64,9 @@ from ._text cimport (
 
 cdef extern from "Python.h":
     bint PyUnicode_IS_ASCII(object text)
+    Py_ssize_t PyUnicode_GET_LENGTH(object text)
+    int PyUnicode_KIND(object text)
+    void* PyUnicode_DATA(object text)
     ctypedef struct PyObject
     ctypedef struct PyMemberDef:
         Py_ssize_t offset
@@ -89,10 +92,13 @@ for _f in range(NF):
     _STEP_OFFSET[_f] = (<PyMemberDescrObject*>_descr).d_member.offset
 
 
+cdef object _LOG_STEP = LogStep  # a C global: no look-up in the module's names per field
+
+
 cdef inline object _step_field(object step, int f):
     """`getattr(step, <field f>)`, from the slot when `step` is a `LogStep`."""
     cdef PyObject* value
-    if type(step) is LogStep:
+    if type(step) is _LOG_STEP:
         value = (<PyObject**>(<char*><PyObject*>step + _STEP_OFFSET[f]))[0]
         if value != NULL:
             return <object>value
@@ -659,11 +665,16 @@ cdef class KGoal:
 
 def kmachine(machine) -> KMachine:
     """The kernel tables of a compiled machine, kept in the machine's own cache."""
-    got = machine._cache.get("kernel")
+    return _kmachine(machine)
+
+
+cdef KMachine _kmachine(object machine):
+    cdef dict cache = machine._cache
+    got = cache.get("kernel")
     if got is None:
         got = KMachine(machine)
-        machine._cache["kernel"] = got
-    return got
+        cache["kernel"] = got
+    return <KMachine>got
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -1063,6 +1074,24 @@ cdef class Vocab:
         return got
 
 
+cdef tuple _KIND_NAMES = tuple(FEEDBACK_KINDS)
+cdef tuple _VIEW_NAMES = tuple(VIEW_ORDER)
+
+
+cdef inline bint _equal(object a, object b) except -1:
+    """`a == b`; two str (what the log's fields are) compared by their code points directly,
+    without the rich comparison's dispatch (one str has one representation: the same text
+    has the same length and kind)."""
+    cdef Py_ssize_t n
+    if type(a) is str and type(b) is str:
+        n = PyUnicode_GET_LENGTH(a)
+        return (
+            n == PyUnicode_GET_LENGTH(b) and PyUnicode_KIND(a) == PyUnicode_KIND(b)
+            and memcmp(PyUnicode_DATA(a), PyUnicode_DATA(b), n * PyUnicode_KIND(a)) == 0
+        )
+    return a == b
+
+
 cdef inline int _lower_view(object recorded) except -2:
     code = VIEW_CODE.get(recorded.lower())
     return -1 if code is None else <int>code
@@ -1078,11 +1107,9 @@ def replay_batch(list episodes, Vocab vocab, dict param_cache):
         n += len(ep.log.steps)
         n_goals += len(ep.setup.goals)
     cdef Out out = Out(n, len(episodes), n_goals, n * 256)
-    cdef Episode run
-    cdef Repeats repeats = Repeats()
-    cdef dict param_ids = {}
+    cdef Episode run = Episode(out, vocab, param_cache)
     for e in range(len(episodes)):
-        run = Episode(out, episodes[e], vocab, param_cache, e, repeats, param_ids)
+        run.start(episodes[e], e)
         row = run.steps(row)
         run.finish(goal_row)
         goal_row += run.n_goals
@@ -1106,7 +1133,7 @@ cdef class Episode:
     cdef long long l_opt, taken, n_switches, diverged_steps, truncated_steps, prompt, completion
     cdef bint has_prompt, has_completion, has_latency
     cdef IntVec goal_ids, started, completed_at, steps_used, switches, failures, visited
-    cdef IntVec c_opt, seen_state, hit_buf
+    cdef IntVec c_opt, seen_state, hit_buf, in_optimal
     cdef list dyn
     cdef Repeats repeats      # the batch's, emptied for this episode
     cdef dict param_ids       # params -> number, for the batch
@@ -1115,24 +1142,33 @@ cdef class Episode:
     cdef KGoal _kg            # the current goal's tables, kept while the goal stays
     cdef int _kg_goal
 
-    def __init__(self, Out out, object ep, Vocab vocab, dict param_cache, Py_ssize_t e,
-                 Repeats repeats, dict param_ids):
-        cdef int g
-        cdef KMachine km = kmachine(ep.machine)
+    def __init__(self, Out out, Vocab vocab, dict param_cache):
+        # One Episode replays every episode of a batch in turn (`start`): its buffers are
+        # made once and refilled, where an object per episode made and freed 13 of them.
         self.out = out
+        self.vocab = vocab
+        self.param_cache = param_cache
+        self.repeats = Repeats()
+        self.param_ids = {}
+        self.goal_ids, self.c_opt, self.started, self.completed_at = _vecs(4)
+        self.steps_used, self.switches, self.failures, self.seen_state = _vecs(4)
+        self.hit_buf, self.visited, self.in_optimal = _vecs(3)
+
+    cdef int start(self, object ep, Py_ssize_t e) except -1:
+        """Begin episode `e` of the batch (`ep`): as `replay_episode` sets up its session."""
+        cdef int g
+        cdef KMachine km = _kmachine(ep.machine)
         self.ep = ep
         self.setup = setup = ep.setup
         self.km = km
-        self.vocab = vocab
-        self.param_cache = param_cache
         self.e = e
-        sb, cb, tb, _ = vocab.offsets_of(km)
-        self.sb, self.cb, self.tb = sb, cb, tb
+        cdef tuple at = self.vocab.offsets_of(km)
+        self.sb, self.cb, self.tb = at[0], at[1], at[2]
         goals = setup.goals
         c_opt = setup.plan.c_opt
         self.n_goals = len(goals)
-        self.goal_ids = _filled(self.n_goals, 0)
-        self.c_opt = _filled(self.n_goals, 0)
+        _refill(self.goal_ids, self.n_goals, 0)
+        _refill(self.c_opt, self.n_goals, 0)
         self.l_opt = 0
         for g in range(self.n_goals):
             self.goal_ids.data[g] = goals[g]
@@ -1150,24 +1186,23 @@ cdef class Episode:
         self.prompt = self.completion = 0
         self.latency = 0.0
         self.has_prompt = self.has_completion = self.has_latency = False
-        self.started = _filled(self.n_goals, -1)
-        self.completed_at = _filled(self.n_goals, -1)
-        self.steps_used = _filled(self.n_goals, 0)
-        self.switches = _filled(self.n_goals, 0)
-        self.failures = _filled(self.n_goals * km.n_comps + 1, 0)
-        self.seen_state = _filled(km.n_states + 1, 0)
-        self.hit_buf = _filled(km.n_comps + 1, 0)
-        self.visited = IntVec(16)
+        _refill(self.started, self.n_goals, -1)
+        _refill(self.completed_at, self.n_goals, -1)
+        _refill(self.steps_used, self.n_goals, 0)
+        _refill(self.switches, self.n_goals, 0)
+        _refill(self.failures, self.n_goals * km.n_comps + 1, 0)
+        _refill(self.seen_state, km.n_states + 1, 0)
+        _refill(self.hit_buf, km.n_comps + 1, 0)
+        self.visited.size = 0
         for s in setup.reset_states:
             self._visit(s)
         self.started.data[0] = 0
         self.dyn = [None] * self.n_goals
         self.dyn[0] = km.c_opt_dyn(self.state, self.view, False, self.goal_ids.data[0])
-        self.repeats = repeats
-        repeats.clear()
-        self.param_ids = param_ids
+        self.repeats.clear()
         self._kg = None
         self._kg_goal = -1
+        return 0
 
     cdef inline int _visit(self, int s) except -1:
         if not self.seen_state.data[s]:
@@ -1600,12 +1635,15 @@ cdef class Episode:
         # Equal to what the replay gives is checked first: a comparison of short strings,
         # where looking the recorded text up (a kind? a view in any case?) hashes it anew.
         if feedback is not None or state is not None or view is not None:
-            if feedback is not None and feedback != FEEDBACK_KINDS[oc.kind]:
-                if feedback != self.vocab.texts[oc.text] or feedback in _FEEDBACK_KIND_SET:
+            if feedback is not None and not _equal(feedback, _KIND_NAMES[oc.kind]):
+                if (
+                    not _equal(feedback, self.vocab.texts[oc.text])
+                    or feedback in _FEEDBACK_KIND_SET
+                ):
                     div_mask |= 1  # another kind, or a text that is not the replay's
-            if state is not None and state != self.km.state_names[self.state]:
+            if state is not None and not _equal(state, self.km.state_names[self.state]):
                 div_mask |= 2
-            if view is not None and view != VIEW_ORDER[self.view]:
+            if view is not None and not _equal(view, _VIEW_NAMES[self.view]):
                 if _lower_view(view) != self.view:
                     div_mask |= 4
             out.diverged_valid[row] = 1
@@ -1626,7 +1664,8 @@ cdef class Episode:
         cdef int g, i, inter = 0, sb = self.sb, n_goals = self.n_goals
         cdef bint success = self.current == n_goals
         cdef long long vsps_switches = 0, l_act = self.taken, longest
-        cdef IntVec in_optimal = _filled(km.n_states + 1, 0)
+        cdef IntVec in_optimal = self.in_optimal
+        _refill(in_optimal, km.n_states + 1, 0)
         optimal = _optimal_states(self.setup)
         for s in optimal:
             in_optimal.data[<int>s] = 1
@@ -1711,13 +1750,19 @@ cdef inline int _count(object value, i64p column, u8p valid, Py_ssize_t row, lon
     return 0
 
 
-cdef IntVec _filled(Py_ssize_t n, int value):
-    cdef IntVec vec = IntVec(n if n > 0 else 1)
+cdef tuple _vecs(int n):
+    return tuple([IntVec(16) for _ in range(n)])
+
+
+cdef int _refill(IntVec vec, Py_ssize_t n, int value) except -1:
+    """`vec` as n times `value` (room for one at least, as IntVec(0) has)."""
     cdef Py_ssize_t i
+    if vec.cap < n:
+        vec._grow(n)
     for i in range(n):
         vec.data[i] = value
     vec.size = n
-    return vec
+    return 0
 
 
 cdef inline int _switch_code(unsigned int start_positive, unsigned int end_positive) noexcept:
