@@ -80,8 +80,9 @@ def coded(words: Words, codes: np.ndarray, valid: np.ndarray | None = None) -> p
     )
 
 
-def text(buffers: tuple[bytes, np.ndarray, np.ndarray]) -> pa.Array:
-    """A string column from a TextVec's (data, offsets, validity)."""
+def text(buffers: tuple[memoryview, np.ndarray, np.ndarray]) -> pa.Array:
+    """A string column from a TextVec's (data, offsets, validity), its buffers wrapped as
+    they are."""
     data, offsets, valid = buffers
     bitmap, nulls = validity_bitmap(valid)
     return pa.StringArray.from_buffers(

@@ -10,6 +10,7 @@ reference's. Strings become codes into per-batch vocabularies (`Vocab`) or are c
 """
 
 cimport cython
+from cpython.buffer cimport PyBuffer_FillInfo
 from cpython.unicode cimport PyUnicode_AsUTF8AndSize
 from libc.math cimport floor, isfinite, pow
 from libc.stdlib cimport free, malloc, realloc
@@ -180,10 +181,12 @@ _FEEDBACK_KIND_SET = frozenset(FEEDBACK_KINDS)
 
 
 cdef class IntVec:
-    """A growable int32 array."""
+    """A growable int32 array. Its values are handed to numpy and Arrow without a copy (the
+    buffer protocol); it cannot grow while they are."""
 
     cdef int* data
     cdef Py_ssize_t size, cap
+    cdef int exports
 
     def __cinit__(self, Py_ssize_t cap=64):
         self.cap = cap if cap > 0 else 1
@@ -204,6 +207,8 @@ cdef class IntVec:
 
     cdef int _grow(self, Py_ssize_t need) except -1:
         cdef Py_ssize_t cap = self.cap
+        if self.exports:
+            raise BufferError("an IntVec cannot grow while its values are in use")
         while cap < need:
             cap *= 2
         cdef int* data = <int*>realloc(self.data, cap * sizeof(int))
@@ -213,19 +218,26 @@ cdef class IntVec:
         self.cap = cap
         return 0
 
+    def __getbuffer__(self, Py_buffer* view, int flags):
+        PyBuffer_FillInfo(view, self, self.data, self.size * sizeof(int), 1, flags)
+        self.exports += 1
+
+    def __releasebuffer__(self, Py_buffer* view):
+        self.exports -= 1
+
     def array(self):
-        out = np.empty(self.size, np.int32)
-        cdef int[::1] view = out
-        if self.size:
-            memcpy(&view[0], self.data, self.size * sizeof(int))
-        return out
+        """The values as a read-only int32 array over this vector's memory."""
+        return np.frombuffer(self, np.int32)
 
 
 cdef class TextVec:
-    """A growable column of strings (UTF-8 bytes, int32 offsets, validity)."""
+    """A growable column of strings (UTF-8 bytes, int32 offsets, validity). Its bytes are
+    handed to Arrow without a copy (some 16 MB a batch, and the pages a copy would fault
+    in); it cannot grow while they are in use."""
 
     cdef char* data
     cdef Py_ssize_t nbytes, cap
+    cdef int exports
     cdef IntVec offsets
     cdef IntVec valid
 
@@ -246,6 +258,8 @@ cdef class TextVec:
         cdef Py_ssize_t cap
         cdef char* data
         if self.nbytes + n > self.cap:
+            if self.exports:
+                raise BufferError("a TextVec cannot grow while its bytes are in use")
             cap = self.cap
             while cap < self.nbytes + n:
                 cap *= 2
@@ -278,13 +292,17 @@ cdef class TextVec:
         self.valid.push(0)
         return 0
 
+    def __getbuffer__(self, Py_buffer* view, int flags):
+        PyBuffer_FillInfo(view, self, self.data, self.nbytes, 1, flags)
+        self.exports += 1
+
+    def __releasebuffer__(self, Py_buffer* view):
+        self.exports -= 1
+
     def buffers(self):
-        """(data bytes, int32 offsets, validity as uint8) of what was pushed."""
-        return (
-            bytes(self.data[:self.nbytes]) if self.nbytes else b"",
-            self.offsets.array(),
-            self.valid.array().astype(np.bool_),
-        )
+        """(the bytes, int32 offsets, validity as int32 0 or 1) of what was pushed, each
+        over this vector's own memory."""
+        return memoryview(self), self.offsets.array(), self.valid.array()
 
 
 cdef struct RepKey:
