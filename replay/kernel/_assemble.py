@@ -127,8 +127,9 @@ def origin_codes(step_k: np.ndarray, step_ep: np.ndarray, continuations: list) -
 
 def tables(out, vocab, episodes: list, head: tuple[str, str, str], prices: Prices) -> tuple:
     """(steps, episodes, goals) tables of a replayed batch, and rows per episode."""
-    step_counts = np.array([len(ep.log.steps) for ep in episodes], np.int64)
-    goal_counts = np.array([len(ep.setup.goals) for ep in episodes], np.int64)
+    # the kernel's own counts: len(ep.log.steps) and len(ep.setup.goals) of each episode
+    step_counts = np.array(out.episodes["n_steps"][: len(episodes)], np.int64)
+    goal_counts = np.array(out.episodes["n_goals"][: len(episodes)], np.int64)
     columns = _Columns(out, vocab, episodes, head)
     n, n_goals = int(step_counts.sum()), int(goal_counts.sum())
     return (
@@ -299,11 +300,7 @@ class _Columns:
         out, episodes = self.out, self.inputs
         ev_n_goals = out.episodes["n_goals"][: len(episodes)]
         gv = {k: v[:n_goals] for k, v in out.goals.items()}
-        instructions = [
-            ep.task.instructions[i] if i < len(ep.task.instructions) else None
-            for ep in episodes
-            for i in range(len(ep.setup.goals))
-        ]
+        instructions = goal_instructions(episodes)
         return {
             **self.head(gv["episode"], n_goals),
             "n_goals": numbers(ev_n_goals[gv["episode"]], pa.int64()),
@@ -320,6 +317,19 @@ class _Columns:
             "switches": numbers(gv["switches"], pa.int64()),
             "perfect": numbers(gv["perfect"], pa.bool_()),
         }
+
+
+def goal_instructions(episodes: list) -> list:
+    """Each goal's instruction, episode by episode: the task's list cut to the episode's
+    goals, None past its end (a slice per episode, where a test per goal cost 0.09 us a
+    step)."""
+    got: list = []
+    for ep in episodes:
+        given, n = ep.task.instructions, len(ep.setup.goals)
+        got += given[:n]
+        if n > len(given):
+            got += [None] * (n - len(given))
+    return got
 
 
 def continuation_columns(continuations: list) -> dict[str, pa.Array]:
