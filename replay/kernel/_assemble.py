@@ -149,14 +149,14 @@ class _Columns:
     def __init__(self, out, vocab, episodes: list, head: tuple[str, str, str]) -> None:
         self.out = out
         self.inputs = episodes
-        self.continuations = [ep.log.continuation for ep in episodes]
+        self.continuations = out.continuations
         self.states = Words(vocab.states)
         self.comps = Words(vocab.comps)
         self.texts = Words(vocab.texts)
         self.per_episode = {
-            "episode_id": Words([ep.task.episode_id for ep in episodes]),
-            "device_id": Words([ep.machine.device_id for ep in episodes]),
-            "category": Words([ep.machine.category for ep in episodes]),
+            "episode_id": Words(out.episode_ids),
+            "device_id": Words(out.device_ids),
+            "category": Words(out.categories),
         }
         self.run = dict(
             zip(("run_id", "model", "agent_kind"), (Words([v]) for v in head), strict=True)
@@ -254,7 +254,6 @@ class _Columns:
         out, states, episodes = self.out, self.states, self.inputs
         n_eps = len(episodes)
         ev = {k: v[:n_eps] for k, v in out.episodes.items()}
-        c_opt_stated = [ep.task.c_opt for ep in episodes]
         return {
             **self.head(np.arange(n_eps, dtype=np.int32), n_eps),
             "n_goals": numbers(ev["n_goals"], pa.int64()),
@@ -280,7 +279,7 @@ class _Columns:
                 out.e_goals_off.array(),
                 numbers(out.e_c_opt.array(), pa.int64()),
             ),
-            "c_opt_stated": int_lists(c_opt_stated),
+            "c_opt_stated": int_lists(out.c_opt_stated),
             "visited_states": listed(
                 out.e_visited_off.array(), coded(states, out.e_visited.array())
             ),
@@ -300,13 +299,12 @@ class _Columns:
         out, episodes = self.out, self.inputs
         ev_n_goals = out.episodes["n_goals"][: len(episodes)]
         gv = {k: v[:n_goals] for k, v in out.goals.items()}
-        instructions = goal_instructions(episodes)
         return {
             **self.head(gv["episode"], n_goals),
             "n_goals": numbers(ev_n_goals[gv["episode"]], pa.int64()),
             "goal_index": numbers(gv["index"], pa.int64()),
             "goal_state": coded(self.states, gv["state"]),
-            "instruction": py_column(instructions, pa.string()),
+            "instruction": py_column(out.instructions, pa.string()),
             "c_opt": numbers(gv["c_opt"], pa.int64()),
             "c_opt_dyn": numbers(gv["dyn"], pa.int64(), gv["dyn_valid"]),
             "reached": numbers(gv["reached"], pa.bool_()),
@@ -317,19 +315,6 @@ class _Columns:
             "switches": numbers(gv["switches"], pa.int64()),
             "perfect": numbers(gv["perfect"], pa.bool_()),
         }
-
-
-def goal_instructions(episodes: list) -> list:
-    """Each goal's instruction, episode by episode: the task's list cut to the episode's
-    goals, None past its end (a slice per episode, where a test per goal cost 0.09 us a
-    step)."""
-    got: list = []
-    for ep in episodes:
-        given, n = ep.task.instructions, len(ep.setup.goals)
-        got += given[:n]
-        if n > len(given):
-            got += [None] * (n - len(given))
-    return got
 
 
 def continuation_columns(continuations: list) -> dict[str, pa.Array]:
