@@ -1,13 +1,14 @@
 """Benchmark of the kernel alone (not a test): one batch of a run's first episodes, decoded
-and planned beforehand, through `replay_batch` and the Arrow tables (`tables`), warm.
+and planned beforehand, through `replay_kernel` (the compiled replay and its Arrow tables),
+warm.
 
 Usage:
 
     .venv/bin/python benchmarks/bench_kernel_batch.py /work/baseline/full [--run sim-vlm-a]
         [--episodes 4096] [--repeat 9]
 
-prints the least and median CPU per step of `replay_batch` and of the tables over `--repeat`
-tries, after a first cold call. For instruction counts, which hold on a noisy machine, run it
+prints the least and median CPU per step of `replay_kernel` over `--repeat` tries, after a
+first cold call. For instruction counts, which hold on a noisy machine, run it
 under `valgrind --tool=callgrind` with `--repeat 0` (the cold call only) and `--repeat 1`
 (one warm try more): the difference of the two totals is one warm `replay_kernel`, and
 `callgrind_annotate --inclusive=yes` gives `replay_batch`'s share.
@@ -31,13 +32,9 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=9)
     args = parser.parse_args()
 
-    from replay.kernel._engine import Vocab, replay_batch
-
     import replay.io
     from replay.kernel import EpisodeInput, replay_kernel
-    from replay.kernel._assemble import tables
-    from replay.kernel._batch import _PARAM_CACHE
-    from replay.semantics import NO_PRICES, episode_lambda
+    from replay.semantics import episode_lambda
 
     gc.disable()  # as in a batch (`replay.io.replay_batch`)
     state = replay.io.worker_state(str(args.data / "bench"))
@@ -52,23 +49,17 @@ def main() -> None:
         episodes.append(EpisodeInput(machine, task, setup, log, episode_lambda(task, None, None)))
     steps = sum(len(ep.log.steps) for ep in episodes)
     replay_kernel(episodes, run_id="r", model="m", agent_kind="a")  # cold: machines, goals
-    kernel, arrow = [], []
+    got = []
     for _ in range(args.repeat):
-        vocab = Vocab()
         c0 = time.process_time()
-        out = replay_batch(episodes, vocab, _PARAM_CACHE)
-        c1 = time.process_time()
-        tables(out, vocab, episodes, ("r", "m", "a"), NO_PRICES)
-        c2 = time.process_time()
-        kernel.append((c1 - c0) / steps * 1e6)
-        arrow.append((c2 - c1) / steps * 1e6)
+        replay_kernel(episodes, run_id="r", model="m", agent_kind="a")
+        got.append((time.process_time() - c0) / steps * 1e6)
     print(f"{args.run}: {len(episodes):,} episodes, {steps:,} steps")
-    if args.repeat:
-        for name, got in (("replay_batch", kernel), ("the Arrow tables", arrow)):
-            print(
-                f"{name}: least {min(got):.3f}, median {statistics.median(got):.3f} "
-                f"µs/step of CPU ({args.repeat} tries)"
-            )
+    if got:
+        print(
+            f"replay_kernel: least {min(got):.3f}, median {statistics.median(got):.3f} "
+            f"µs/step of CPU ({args.repeat} tries)"
+        )
 
 
 if __name__ == "__main__":
