@@ -11,7 +11,9 @@ reference's. Strings become codes into per-batch vocabularies (`Vocab`) or are c
 
 cimport cython
 from cpython.buffer cimport PyBuffer_FillInfo
-from cpython.unicode cimport PyUnicode_AsUTF8AndSize
+from cpython.ref cimport Py_INCREF
+from cpython.tuple cimport PyTuple_New, PyTuple_SET_ITEM
+from cpython.unicode cimport PyUnicode_AsUTF8AndSize, PyUnicode_DecodeUTF8
 from libc.math cimport floor, isfinite, pow
 from libc.stdlib cimport free, malloc, realloc
 from libc.string cimport memcmp, memcpy, memmove, memset
@@ -1270,16 +1272,7 @@ cdef class Episode:
                 pa.x = fp.x
                 pa.y = fp.y
                 if fp.n_params:
-                    cache = self.param_cache
-                    items = []
-                    for i in range(fp.n_params):
-                        word = s[fp.params[i].start:fp.params[i].end].decode("utf-8")
-                        norm = cache.get(word)
-                        if norm is None:
-                            norm = normalize_param(word)
-                            cache[word] = norm
-                        items.append(norm)
-                    self._params = tuple(items)
+                    self._params = self._param_words(s, &fp)
         else:
             parsed = parse_log_step(log_step)
             out.output.push_opt(output)
@@ -1313,6 +1306,24 @@ cdef class Episode:
             out.params.push_str(param)
         out.params_off.push(<int>out.params.valid.size)
         return 0
+
+    cdef tuple _param_words(self, const char* s, FastParse* fp):
+        """The parsed params, each word normalised once per process (`param_cache`): decoded
+        straight from the response's bytes into a tuple, with no bytes or list between."""
+        cdef int i
+        cdef dict cache = self.param_cache
+        cdef tuple words = PyTuple_New(fp.n_params)
+        for i in range(fp.n_params):
+            word = PyUnicode_DecodeUTF8(
+                s + fp.params[i].start, fp.params[i].end - fp.params[i].start, NULL
+            )
+            norm = cache.get(word)
+            if norm is None:
+                norm = normalize_param(word)
+                cache[word] = norm
+            Py_INCREF(norm)  # PyTuple_SET_ITEM takes a reference
+            PyTuple_SET_ITEM(words, i, norm)
+        return words
 
     cdef int _usage(self, object log_step, Py_ssize_t row) except -1:
         """The step's recorded tokens and latency, added to the episode's sums as
