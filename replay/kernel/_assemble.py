@@ -80,8 +80,9 @@ def coded(words: Words, codes: np.ndarray, valid: np.ndarray | None = None) -> p
     )
 
 
-def text(buffers: tuple[bytes, np.ndarray, np.ndarray]) -> pa.Array:
-    """A string column from a TextVec's (data, offsets, validity)."""
+def text(buffers: tuple[memoryview, np.ndarray, np.ndarray]) -> pa.Array:
+    """A string column from a TextVec's (data, offsets, validity), its buffers wrapped as
+    they are."""
     data, offsets, valid = buffers
     bitmap, nulls = validity_bitmap(valid)
     return pa.StringArray.from_buffers(
@@ -126,8 +127,9 @@ def origin_codes(step_k: np.ndarray, step_ep: np.ndarray, continuations: list) -
 
 def tables(out, vocab, episodes: list, head: tuple[str, str, str], prices: Prices) -> tuple:
     """(steps, episodes, goals) tables of a replayed batch, and rows per episode."""
-    step_counts = np.array([len(ep.log.steps) for ep in episodes], np.int64)
-    goal_counts = np.array([len(ep.setup.goals) for ep in episodes], np.int64)
+    # the kernel's own counts: len(ep.log.steps) and len(ep.setup.goals) of each episode
+    step_counts = np.array(out.episodes["n_steps"][: len(episodes)], np.int64)
+    goal_counts = np.array(out.episodes["n_goals"][: len(episodes)], np.int64)
     columns = _Columns(out, vocab, episodes, head)
     n, n_goals = int(step_counts.sum()), int(goal_counts.sum())
     return (
@@ -147,14 +149,14 @@ class _Columns:
     def __init__(self, out, vocab, episodes: list, head: tuple[str, str, str]) -> None:
         self.out = out
         self.inputs = episodes
-        self.continuations = [ep.log.continuation for ep in episodes]
+        self.continuations = out.continuations
         self.states = Words(vocab.states)
         self.comps = Words(vocab.comps)
         self.texts = Words(vocab.texts)
         self.per_episode = {
-            "episode_id": Words([ep.task.episode_id for ep in episodes]),
-            "device_id": Words([ep.machine.device_id for ep in episodes]),
-            "category": Words([ep.machine.category for ep in episodes]),
+            "episode_id": Words(out.episode_ids),
+            "device_id": Words(out.device_ids),
+            "category": Words(out.categories),
         }
         self.run = dict(
             zip(("run_id", "model", "agent_kind"), (Words([v]) for v in head), strict=True)
@@ -252,7 +254,6 @@ class _Columns:
         out, states, episodes = self.out, self.states, self.inputs
         n_eps = len(episodes)
         ev = {k: v[:n_eps] for k, v in out.episodes.items()}
-        c_opt_stated = [ep.task.c_opt for ep in episodes]
         return {
             **self.head(np.arange(n_eps, dtype=np.int32), n_eps),
             "n_goals": numbers(ev["n_goals"], pa.int64()),
@@ -278,7 +279,7 @@ class _Columns:
                 out.e_goals_off.array(),
                 numbers(out.e_c_opt.array(), pa.int64()),
             ),
-            "c_opt_stated": int_lists(c_opt_stated),
+            "c_opt_stated": int_lists(out.c_opt_stated),
             "visited_states": listed(
                 out.e_visited_off.array(), coded(states, out.e_visited.array())
             ),
@@ -298,17 +299,12 @@ class _Columns:
         out, episodes = self.out, self.inputs
         ev_n_goals = out.episodes["n_goals"][: len(episodes)]
         gv = {k: v[:n_goals] for k, v in out.goals.items()}
-        instructions = [
-            ep.task.instructions[i] if i < len(ep.task.instructions) else None
-            for ep in episodes
-            for i in range(len(ep.setup.goals))
-        ]
         return {
             **self.head(gv["episode"], n_goals),
             "n_goals": numbers(ev_n_goals[gv["episode"]], pa.int64()),
             "goal_index": numbers(gv["index"], pa.int64()),
             "goal_state": coded(self.states, gv["state"]),
-            "instruction": py_column(instructions, pa.string()),
+            "instruction": py_column(out.instructions, pa.string()),
             "c_opt": numbers(gv["c_opt"], pa.int64()),
             "c_opt_dyn": numbers(gv["dyn"], pa.int64(), gv["dyn_valid"]),
             "reached": numbers(gv["reached"], pa.bool_()),

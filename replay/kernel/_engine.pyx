@@ -10,10 +10,13 @@ reference's. Strings become codes into per-batch vocabularies (`Vocab`) or are c
 """
 
 cimport cython
-from cpython.unicode cimport PyUnicode_AsUTF8AndSize
-from libc.math cimport floor, pow
+from cpython.buffer cimport PyBuffer_FillInfo
+from cpython.ref cimport Py_INCREF
+from cpython.tuple cimport PyTuple_New, PyTuple_SET_ITEM
+from cpython.unicode cimport PyUnicode_AsUTF8AndSize, PyUnicode_DecodeUTF8
+from libc.math cimport floor, isfinite, pow
 from libc.stdlib cimport free, malloc, realloc
-from libc.string cimport memcpy, memset
+from libc.string cimport memcmp, memcpy, memmove, memset
 
 import math
 
@@ -64,6 +67,9 @@ from ._text cimport (
 
 cdef extern from "Python.h":
     bint PyUnicode_IS_ASCII(object text)
+    Py_ssize_t PyUnicode_GET_LENGTH(object text)
+    int PyUnicode_KIND(object text)
+    void* PyUnicode_DATA(object text)
     ctypedef struct PyObject
     ctypedef struct PyMemberDef:
         Py_ssize_t offset
@@ -89,10 +95,13 @@ for _f in range(NF):
     _STEP_OFFSET[_f] = (<PyMemberDescrObject*>_descr).d_member.offset
 
 
+cdef object _LOG_STEP = LogStep  # a C global: no look-up in the module's names per field
+
+
 cdef inline object _step_field(object step, int f):
     """`getattr(step, <field f>)`, from the slot when `step` is a `LogStep`."""
     cdef PyObject* value
-    if type(step) is LogStep:
+    if type(step) is _LOG_STEP:
         value = (<PyObject**>(<char*><PyObject*>step + _STEP_OFFSET[f]))[0]
         if value != NULL:
             return <object>value
@@ -174,10 +183,12 @@ _FEEDBACK_KIND_SET = frozenset(FEEDBACK_KINDS)
 
 
 cdef class IntVec:
-    """A growable int32 array."""
+    """A growable int32 array. Its values are handed to numpy and Arrow without a copy (the
+    buffer protocol); it cannot grow while they are."""
 
     cdef int* data
     cdef Py_ssize_t size, cap
+    cdef int exports
 
     def __cinit__(self, Py_ssize_t cap=64):
         self.cap = cap if cap > 0 else 1
@@ -198,6 +209,8 @@ cdef class IntVec:
 
     cdef int _grow(self, Py_ssize_t need) except -1:
         cdef Py_ssize_t cap = self.cap
+        if self.exports:
+            raise BufferError("an IntVec cannot grow while its values are in use")
         while cap < need:
             cap *= 2
         cdef int* data = <int*>realloc(self.data, cap * sizeof(int))
@@ -207,19 +220,26 @@ cdef class IntVec:
         self.cap = cap
         return 0
 
+    def __getbuffer__(self, Py_buffer* view, int flags):
+        PyBuffer_FillInfo(view, self, self.data, self.size * sizeof(int), 1, flags)
+        self.exports += 1
+
+    def __releasebuffer__(self, Py_buffer* view):
+        self.exports -= 1
+
     def array(self):
-        out = np.empty(self.size, np.int32)
-        cdef int[::1] view = out
-        if self.size:
-            memcpy(&view[0], self.data, self.size * sizeof(int))
-        return out
+        """The values as a read-only int32 array over this vector's memory."""
+        return np.frombuffer(self, np.int32)
 
 
 cdef class TextVec:
-    """A growable column of strings (UTF-8 bytes, int32 offsets, validity)."""
+    """A growable column of strings (UTF-8 bytes, int32 offsets, validity). Its bytes are
+    handed to Arrow without a copy (some 16 MB a batch, and the pages a copy would fault
+    in); it cannot grow while they are in use."""
 
     cdef char* data
     cdef Py_ssize_t nbytes, cap
+    cdef int exports
     cdef IntVec offsets
     cdef IntVec valid
 
@@ -240,6 +260,8 @@ cdef class TextVec:
         cdef Py_ssize_t cap
         cdef char* data
         if self.nbytes + n > self.cap:
+            if self.exports:
+                raise BufferError("a TextVec cannot grow while its bytes are in use")
             cap = self.cap
             while cap < self.nbytes + n:
                 cap *= 2
@@ -272,13 +294,137 @@ cdef class TextVec:
         self.valid.push(0)
         return 0
 
+    def __getbuffer__(self, Py_buffer* view, int flags):
+        PyBuffer_FillInfo(view, self, self.data, self.nbytes, 1, flags)
+        self.exports += 1
+
+    def __releasebuffer__(self, Py_buffer* view):
+        self.exports -= 1
+
     def buffers(self):
-        """(data bytes, int32 offsets, validity as uint8) of what was pushed."""
-        return (
-            bytes(self.data[:self.nbytes]) if self.nbytes else b"",
-            self.offsets.array(),
-            self.valid.array().astype(np.bool_),
-        )
+        """(the bytes, int32 offsets, validity as int32 0 or 1) of what was pushed, each
+        over this vector's own memory."""
+        return memoryview(self), self.offsets.array(), self.valid.array()
+
+
+cdef struct RepKey:
+    # A step's repetition key (`Classifier._repeated`: goal index, state, action, where,
+    # params, view), every part a number: the action and view by code, the params by their
+    # number in the batch (`Episode._params_id`), where it acted as the sorted components
+    # hit (`where` 1, in `Repeats.hits`) or its grid cell (`where` 2; floor() as a double
+    # names the int `math.floor` gives, one to one), or nowhere (`where` 0).
+    int goal_index, s0, kind, v0, where, params, hits_at, n_hits
+    int slot            # where it sits in `Repeats.slots`
+    double gx, gy
+    unsigned long long hash
+
+
+cdef inline unsigned long long _mix(unsigned long long h, unsigned long long v) noexcept:
+    h ^= v + 0x9E3779B97F4A7C15ULL + (h << 6) + (h >> 2)
+    return h * 0xFF51AFD7ED558CCDULL
+
+
+cdef class Repeats:
+    """The repetition keys an episode has met, as a C hash set: what the reference keeps as
+    a set of tuples, without a tuple and a set entry per step. Keys are compared in full,
+    so the decisions are the set's. Kept for the batch, emptied for each episode."""
+
+    cdef RepKey* keys
+    cdef Py_ssize_t n, cap
+    cdef int* slots       # open addressing: a key's number, or -1; `mask + 1` of them
+    cdef Py_ssize_t mask
+    cdef IntVec hits
+
+    def __cinit__(self):
+        self.cap = 64
+        self.mask = 127
+        self.n = 0
+        self.keys = <RepKey*>malloc(self.cap * sizeof(RepKey))
+        self.slots = <int*>malloc((self.mask + 1) * sizeof(int))
+        if self.keys == NULL or self.slots == NULL:
+            raise MemoryError()
+        memset(self.slots, 0xFF, (self.mask + 1) * sizeof(int))
+        self.hits = IntVec(64)
+
+    def __dealloc__(self):
+        free(self.keys)
+        free(self.slots)
+
+    cdef void clear(self) noexcept:
+        cdef Py_ssize_t i
+        for i in range(self.n):
+            self.slots[self.keys[i].slot] = -1
+        self.n = 0
+        self.hits.size = 0
+
+    cdef inline Py_ssize_t _slot(self, RepKey* key) noexcept:
+        """The slot holding `key`, or the empty one where it would go."""
+        cdef Py_ssize_t at = <Py_ssize_t>(key.hash & <unsigned long long>self.mask)
+        cdef RepKey* other
+        while self.slots[at] >= 0:
+            other = &self.keys[self.slots[at]]
+            if (
+                other.hash == key.hash and other.goal_index == key.goal_index
+                and other.s0 == key.s0 and other.kind == key.kind and other.v0 == key.v0
+                and other.where == key.where and other.params == key.params
+                and other.gx == key.gx and other.gy == key.gy and other.n_hits == key.n_hits
+                and memcmp(self.hits.data + other.hits_at, self.hits.data + key.hits_at,
+                           key.n_hits * sizeof(int)) == 0
+            ):
+                return at
+            at = (at + 1) & self.mask
+        return at
+
+    cdef bint seen(self, RepKey* key, const int* hits) except -1:
+        """Whether `key` (with the `key.n_hits` components `hits`) was met before; it is
+        remembered from now on."""
+        cdef Py_ssize_t i, at
+        key.hits_at = <int>self.hits.size
+        key.hash = _mix(_mix(_mix(_mix(0, key.goal_index), key.s0), key.kind), key.v0)
+        key.hash = _mix(_mix(_mix(key.hash, key.where), key.params), key.n_hits)
+        key.hash = _mix(_mix(key.hash, _bits(key.gx)), _bits(key.gy))
+        for i in range(key.n_hits):
+            key.hash = _mix(key.hash, hits[i])
+            self.hits.push(hits[i])  # taken back below when the key is known
+        at = self._slot(key)
+        if self.slots[at] >= 0:
+            self.hits.size = key.hits_at
+            return True
+        if self.n == self.cap:
+            self._grow()
+            at = self._slot(key)
+        key.slot = <int>at
+        self.keys[self.n] = key[0]
+        self.slots[at] = <int>self.n
+        self.n += 1
+        return False
+
+    cdef int _grow(self) except -1:
+        """Twice the keys, and the slots rebuilt at four times the keys."""
+        cdef Py_ssize_t i, cap = self.cap * 2, mask = cap * 4 - 1
+        cdef RepKey* keys = <RepKey*>realloc(self.keys, cap * sizeof(RepKey))
+        if keys == NULL:
+            raise MemoryError()
+        self.keys = keys
+        self.cap = cap
+        cdef int* slots = <int*>realloc(self.slots, (mask + 1) * sizeof(int))
+        if slots == NULL:
+            raise MemoryError()
+        self.slots = slots
+        self.mask = mask
+        memset(self.slots, 0xFF, (mask + 1) * sizeof(int))
+        for i in range(self.n):
+            self.keys[i].slot = <int>self._slot(&self.keys[i])
+            self.slots[self.keys[i].slot] = <int>i
+        return 0
+
+
+cdef inline unsigned long long _bits(double value) noexcept:
+    cdef unsigned long long bits
+    if value == 0.0:
+        value = 0.0  # -0.0 and 0.0 are one cell
+    memcpy(&bits, &value, sizeof(double))
+    return bits
 
 
 # ------------------------------------------------------------------------------ machines
@@ -539,11 +685,16 @@ cdef class KGoal:
 
 def kmachine(machine) -> KMachine:
     """The kernel tables of a compiled machine, kept in the machine's own cache."""
-    got = machine._cache.get("kernel")
+    return _kmachine(machine)
+
+
+cdef KMachine _kmachine(object machine):
+    cdef dict cache = machine._cache
+    got = cache.get("kernel")
     if got is None:
         got = KMachine(machine)
-        machine._cache["kernel"] = got
-    return got
+        cache["kernel"] = got
+    return <KMachine>got
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -665,6 +816,9 @@ cdef class Out:
     cdef i64p e_prompt, e_completion
     cdef readonly IntVec e_goals_off, e_goals, e_c_opt, e_visited_off, e_visited
     cdef readonly IntVec e_optimal_off, e_optimal
+    # from the inputs, per episode (`Episode.keep_inputs`) and per goal (`instructions`)
+    cdef readonly list episode_ids, device_ids, categories, continuations, c_opt_stated
+    cdef readonly list instructions
     # goals
     cdef i64p g_index, g_c_opt, g_dyn, g_started, g_completed_step, g_steps_used
     cdef i64p g_switches
@@ -733,6 +887,8 @@ cdef class Out:
         self.e_optimal_off = IntVec(n_eps + 1); self.e_optimal = IntVec(n_eps * 8 + 1)
         for offsets in (self.e_goals_off, self.e_visited_off, self.e_optimal_off):
             offsets.push(0)
+        self.episode_ids, self.device_ids, self.categories = [], [], []
+        self.continuations, self.c_opt_stated, self.instructions = [], [], []
         self.g_index = _p64(g["index"]); self.g_c_opt = _p64(g["c_opt"]); self.g_dyn = _p64(g["dyn"])
         self.g_started = _p64(g["started"]); self.g_completed_step = _p64(g["completed_step"])
         self.g_steps_used = _p64(g["steps_used"]); self.g_switches = _p64(g["switches"])
@@ -943,17 +1099,27 @@ cdef class Vocab:
         return got
 
 
+cdef tuple _KIND_NAMES = tuple(FEEDBACK_KINDS)
+cdef tuple _VIEW_NAMES = tuple(VIEW_ORDER)
+
+
+cdef inline bint _equal(object a, object b) except -1:
+    """`a == b`; two str (what the log's fields are) compared by their code points directly,
+    without the rich comparison's dispatch (one str has one representation: the same text
+    has the same length and kind)."""
+    cdef Py_ssize_t n
+    if type(a) is str and type(b) is str:
+        n = PyUnicode_GET_LENGTH(a)
+        return (
+            n == PyUnicode_GET_LENGTH(b) and PyUnicode_KIND(a) == PyUnicode_KIND(b)
+            and memcmp(PyUnicode_DATA(a), PyUnicode_DATA(b), n * PyUnicode_KIND(a)) == 0
+        )
+    return a == b
+
+
 cdef inline int _lower_view(object recorded) except -2:
     code = VIEW_CODE.get(recorded.lower())
     return -1 if code is None else <int>code
-
-
-cdef object _grid(double value):
-    """`math.floor(value / 10 + 0.5)` as a Python int (exact for any finite value)."""
-    cdef double g = floor(value / 10 + 0.5)
-    if -1e15 < g < 1e15:
-        return <long long>g
-    return math.floor(value / 10 + 0.5)
 
 
 def replay_batch(list episodes, Vocab vocab, dict param_cache):
@@ -966,11 +1132,12 @@ def replay_batch(list episodes, Vocab vocab, dict param_cache):
         n += len(ep.log.steps)
         n_goals += len(ep.setup.goals)
     cdef Out out = Out(n, len(episodes), n_goals, n * 256)
-    cdef Episode run
+    cdef Episode run = Episode(out, vocab, param_cache)
     for e in range(len(episodes)):
-        run = Episode(out, episodes[e], vocab, param_cache, e)
+        run.start(episodes[e], e)
         row = run.steps(row)
         run.finish(goal_row)
+        run.keep_inputs()
         goal_row += run.n_goals
     return out
 
@@ -992,31 +1159,42 @@ cdef class Episode:
     cdef long long l_opt, taken, n_switches, diverged_steps, truncated_steps, prompt, completion
     cdef bint has_prompt, has_completion, has_latency
     cdef IntVec goal_ids, started, completed_at, steps_used, switches, failures, visited
-    cdef IntVec c_opt, seen_state, hit_buf
+    cdef IntVec c_opt, seen_state, hit_buf, in_optimal
     cdef list dyn
-    cdef set seen
+    cdef Repeats repeats      # the batch's, emptied for this episode
+    cdef dict param_ids       # params -> number, for the batch
     cdef tuple _params
     cdef Py_ssize_t _row
     cdef KGoal _kg            # the current goal's tables, kept while the goal stays
     cdef int _kg_goal
 
-    def __init__(self, Out out, object ep, Vocab vocab, dict param_cache, Py_ssize_t e):
-        cdef int g
-        cdef KMachine km = kmachine(ep.machine)
+    def __init__(self, Out out, Vocab vocab, dict param_cache):
+        # One Episode replays every episode of a batch in turn (`start`): its buffers are
+        # made once and refilled, where an object per episode made and freed 13 of them.
         self.out = out
+        self.vocab = vocab
+        self.param_cache = param_cache
+        self.repeats = Repeats()
+        self.param_ids = {}
+        self.goal_ids, self.c_opt, self.started, self.completed_at = _vecs(4)
+        self.steps_used, self.switches, self.failures, self.seen_state = _vecs(4)
+        self.hit_buf, self.visited, self.in_optimal = _vecs(3)
+
+    cdef int start(self, object ep, Py_ssize_t e) except -1:
+        """Begin episode `e` of the batch (`ep`): as `replay_episode` sets up its session."""
+        cdef int g
+        cdef KMachine km = _kmachine(ep.machine)
         self.ep = ep
         self.setup = setup = ep.setup
         self.km = km
-        self.vocab = vocab
-        self.param_cache = param_cache
         self.e = e
-        sb, cb, tb, _ = vocab.offsets_of(km)
-        self.sb, self.cb, self.tb = sb, cb, tb
+        cdef tuple at = self.vocab.offsets_of(km)
+        self.sb, self.cb, self.tb = at[0], at[1], at[2]
         goals = setup.goals
         c_opt = setup.plan.c_opt
         self.n_goals = len(goals)
-        self.goal_ids = _filled(self.n_goals, 0)
-        self.c_opt = _filled(self.n_goals, 0)
+        _refill(self.goal_ids, self.n_goals, 0)
+        _refill(self.c_opt, self.n_goals, 0)
         self.l_opt = 0
         for g in range(self.n_goals):
             self.goal_ids.data[g] = goals[g]
@@ -1034,22 +1212,23 @@ cdef class Episode:
         self.prompt = self.completion = 0
         self.latency = 0.0
         self.has_prompt = self.has_completion = self.has_latency = False
-        self.started = _filled(self.n_goals, -1)
-        self.completed_at = _filled(self.n_goals, -1)
-        self.steps_used = _filled(self.n_goals, 0)
-        self.switches = _filled(self.n_goals, 0)
-        self.failures = _filled(self.n_goals * km.n_comps + 1, 0)
-        self.seen_state = _filled(km.n_states + 1, 0)
-        self.hit_buf = _filled(km.n_comps + 1, 0)
-        self.visited = IntVec(16)
+        _refill(self.started, self.n_goals, -1)
+        _refill(self.completed_at, self.n_goals, -1)
+        _refill(self.steps_used, self.n_goals, 0)
+        _refill(self.switches, self.n_goals, 0)
+        _refill(self.failures, self.n_goals * km.n_comps + 1, 0)
+        _refill(self.seen_state, km.n_states + 1, 0)
+        _refill(self.hit_buf, km.n_comps + 1, 0)
+        self.visited.size = 0
         for s in setup.reset_states:
             self._visit(s)
         self.started.data[0] = 0
         self.dyn = [None] * self.n_goals
         self.dyn[0] = km.c_opt_dyn(self.state, self.view, False, self.goal_ids.data[0])
-        self.seen = set()
+        self.repeats.clear()
         self._kg = None
         self._kg_goal = -1
+        return 0
 
     cdef inline int _visit(self, int s) except -1:
         if not self.seen_state.data[s]:
@@ -1093,16 +1272,7 @@ cdef class Episode:
                 pa.x = fp.x
                 pa.y = fp.y
                 if fp.n_params:
-                    cache = self.param_cache
-                    items = []
-                    for i in range(fp.n_params):
-                        word = s[fp.params[i].start:fp.params[i].end].decode("utf-8")
-                        norm = cache.get(word)
-                        if norm is None:
-                            norm = normalize_param(word)
-                            cache[word] = norm
-                        items.append(norm)
-                    self._params = tuple(items)
+                    self._params = self._param_words(s, &fp)
         else:
             parsed = parse_log_step(log_step)
             out.output.push_opt(output)
@@ -1136,6 +1306,24 @@ cdef class Episode:
             out.params.push_str(param)
         out.params_off.push(<int>out.params.valid.size)
         return 0
+
+    cdef tuple _param_words(self, const char* s, FastParse* fp):
+        """The parsed params, each word normalised once per process (`param_cache`): decoded
+        straight from the response's bytes into a tuple, with no bytes or list between."""
+        cdef int i
+        cdef dict cache = self.param_cache
+        cdef tuple words = PyTuple_New(fp.n_params)
+        for i in range(fp.n_params):
+            word = PyUnicode_DecodeUTF8(
+                s + fp.params[i].start, fp.params[i].end - fp.params[i].start, NULL
+            )
+            norm = cache.get(word)
+            if norm is None:
+                norm = normalize_param(word)
+                cache[word] = norm
+            Py_INCREF(norm)  # PyTuple_SET_ITEM takes a reference
+            PyTuple_SET_ITEM(words, i, norm)
+        return words
 
     cdef int _usage(self, object log_step, Py_ssize_t row) except -1:
         """The step's recorded tokens and latency, added to the episode's sums as
@@ -1277,18 +1465,25 @@ cdef class Episode:
         return 0
 
     cdef inline int _hits(self, Parsed* pa, Scored* sc) except -1:
-        """The components whose boxes in the view hold the point, into `hit_buf`."""
+        """The components whose boxes in the view hold the point, into `hit_buf`: each once,
+        in ascending order (the order of their names), as the columns and the repetition
+        key take them."""
         cdef KMachine km = self.km
-        cdef int i, comp, last_comp = -1
+        cdef int i, j, comp
+        cdef int* buf = self.hit_buf.data
         sc.n_hits = 0
         if sc.kind >= 0 and pa.has_coord and sc.kind != A_SWITCH:
             for i in range(km.cr_off[sc.v0], km.cr_off[sc.v0 + 1]):
                 if _inside(km.cr + 4 * i, pa.x, pa.y):
                     comp = km.cr_comp[i]
-                    if comp != last_comp:
-                        self.hit_buf.data[sc.n_hits] = comp
-                        sc.n_hits += 1
-                        last_comp = comp
+                    j = sc.n_hits  # insertion into the sorted few hit so far
+                    while j > 0 and buf[j - 1] > comp:
+                        j -= 1
+                    if j > 0 and buf[j - 1] == comp:
+                        continue
+                    memmove(buf + j + 1, buf + j, (sc.n_hits - j) * sizeof(int))
+                    buf[j] = comp
+                    sc.n_hits += 1
         return 0
 
     cdef inline int _nearest_target(self, KGoal kg, Parsed* pa, Scored* sc) except -1:
@@ -1366,20 +1561,39 @@ cdef class Episode:
     cdef inline int _repetition(self, Parsed* pa, Scored* sc) except -1:
         """Whether the step repeats an earlier one of the same goal (same state, action,
         place, params and view), remembering it otherwise."""
+        cdef RepKey key
         sc.repetitive = False
         if pa.ok and sc.kind != A_SWITCH:
+            key.goal_index = sc.goal_index
+            key.s0 = sc.s0
+            key.kind = sc.kind
+            key.v0 = sc.v0
+            key.params = self._params_id()
+            key.gx = key.gy = 0.0
+            key.n_hits = 0
             if not pa.has_coord:
-                where = ()
+                key.where = 0
             elif sc.n_hits:
-                where = ("c",) + _sorted_hits(self.hit_buf.data, sc.n_hits)
+                key.where = 1
+                key.n_hits = sc.n_hits
             else:
-                where = ("p", _grid(pa.x), _grid(pa.y))
-            key = (sc.goal_index, sc.s0, sc.kind, where, self._params, sc.v0)
-            if key in self.seen:
-                sc.repetitive = True
-            else:
-                self.seen.add(key)
+                key.where = 2
+                key.gx = floor(pa.x / 10 + 0.5)
+                key.gy = floor(pa.y / 10 + 0.5)
+                if not (isfinite(key.gx) and isfinite(key.gy)):  # math.floor's error, as
+                    math.floor(pa.x / 10 + 0.5), math.floor(pa.y / 10 + 0.5)  # the reference's
+            sc.repetitive = self.repeats.seen(&key, self.hit_buf.data)
         return 0
+
+    cdef inline int _params_id(self) except -1:
+        """The step's params by number: 0 for none, else their number in the batch."""
+        if not self._params:
+            return 0
+        got = self.param_ids.get(self._params)
+        if got is None:
+            got = len(self.param_ids) + 1
+            self.param_ids[self._params] = got
+        return got
 
     cdef inline int _write(self, Py_ssize_t row, Parsed* pa, Outcome* oc, Scored* sc) except -1:
         """The scored step's columns."""
@@ -1409,11 +1623,8 @@ cdef class Episode:
         out.is_interaction[row] = sc.is_interaction
         out.hit_component[row] = sc.n_hits > 0
         out.hit_target[row] = sc.hit_target
-        if sc.n_hits > 1:
-            for comp in _sorted_hits(self.hit_buf.data, sc.n_hits):
-                out.hits.push(cb + comp)
-        elif sc.n_hits == 1:
-            out.hits.push(cb + self.hit_buf.data[0])
+        for comp in range(sc.n_hits):
+            out.hits.push(cb + self.hit_buf.data[comp])
         out.hits_off.push(<int>out.hits.size)
         out.nearest[row] = -1 if sc.nearest < 0 else cb + sc.nearest
         out.progress[row] = sc.progress
@@ -1459,12 +1670,15 @@ cdef class Episode:
         # Equal to what the replay gives is checked first: a comparison of short strings,
         # where looking the recorded text up (a kind? a view in any case?) hashes it anew.
         if feedback is not None or state is not None or view is not None:
-            if feedback is not None and feedback != FEEDBACK_KINDS[oc.kind]:
-                if feedback != self.vocab.texts[oc.text] or feedback in _FEEDBACK_KIND_SET:
+            if feedback is not None and not _equal(feedback, _KIND_NAMES[oc.kind]):
+                if (
+                    not _equal(feedback, self.vocab.texts[oc.text])
+                    or feedback in _FEEDBACK_KIND_SET
+                ):
                     div_mask |= 1  # another kind, or a text that is not the replay's
-            if state is not None and state != self.km.state_names[self.state]:
+            if state is not None and not _equal(state, self.km.state_names[self.state]):
                 div_mask |= 2
-            if view is not None and view != VIEW_ORDER[self.view]:
+            if view is not None and not _equal(view, _VIEW_NAMES[self.view]):
                 if _lower_view(view) != self.view:
                     div_mask |= 4
             out.diverged_valid[row] = 1
@@ -1477,6 +1691,25 @@ cdef class Episode:
         out.div_off.push(<int>out.div.size)
         return 0
 
+    cdef int keep_inputs(self) except -1:
+        """What the tables take from the episode's inputs as they are (its keys, its
+        continuation, the task's stated C_opt and its goals' instructions: the task's list cut
+        to the goals, None past its end), gathered here while they are at hand: passes in
+        Python over the batch's inputs cost about 0.1 us a step."""
+        cdef Out out = self.out
+        task = self.ep.task
+        machine = self.ep.machine
+        out.episode_ids.append(task.episode_id)
+        out.device_ids.append(machine.device_id)
+        out.categories.append(machine.category)
+        out.continuations.append(self.ep.log.continuation)
+        out.c_opt_stated.append(task.c_opt)
+        given = task.instructions
+        out.instructions.extend(given[:self.n_goals])
+        if self.n_goals > len(given):
+            out.instructions.extend([None] * (self.n_goals - len(given)))
+        return 0
+
     cdef int finish(self, Py_ssize_t goal_row) except -1:
         """The episode row and the goal rows (the end of `replay_episode`)."""
         cdef Out out = self.out
@@ -1485,7 +1718,8 @@ cdef class Episode:
         cdef int g, i, inter = 0, sb = self.sb, n_goals = self.n_goals
         cdef bint success = self.current == n_goals
         cdef long long vsps_switches = 0, l_act = self.taken, longest
-        cdef IntVec in_optimal = _filled(km.n_states + 1, 0)
+        cdef IntVec in_optimal = self.in_optimal
+        _refill(in_optimal, km.n_states + 1, 0)
         optimal = _optimal_states(self.setup)
         for s in optimal:
             in_optimal.data[<int>s] = 1
@@ -1570,23 +1804,25 @@ cdef inline int _count(object value, i64p column, u8p valid, Py_ssize_t row, lon
     return 0
 
 
-cdef IntVec _filled(Py_ssize_t n, int value):
-    cdef IntVec vec = IntVec(n if n > 0 else 1)
+cdef tuple _vecs(int n):
+    return tuple([IntVec(16) for _ in range(n)])
+
+
+cdef int _refill(IntVec vec, Py_ssize_t n, int value) except -1:
+    """`vec` as n times `value` (room for one at least, as IntVec(0) has)."""
     cdef Py_ssize_t i
+    if vec.cap < n:
+        vec._grow(n)
     for i in range(n):
         vec.data[i] = value
     vec.size = n
-    return vec
+    return 0
 
 
 cdef inline int _switch_code(unsigned int start_positive, unsigned int end_positive) noexcept:
     if start_positive:
         return SC_PP if end_positive else SC_PN
     return SC_NP if end_positive else SC_NN
-
-
-cdef tuple _sorted_hits(int* hits, int n):
-    return tuple(sorted({hits[i] for i in range(n)}))
 
 
 cdef tuple _target_error(KMachine km, KGoal kg, int s, int goal, int view, int kind, double px,
