@@ -28,8 +28,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
-import urllib.request
 from pathlib import Path
 
 from playwright.sync_api import sync_playwright
@@ -38,7 +36,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from app._lifecycle import END_MARKER  # noqa: E402
-from tests.app.streamlit_browser import LAUNCH_ARGS, AppPage, AppServer, free_port  # noqa: E402
+from tests.app.streamlit_browser import (  # noqa: E402
+    LAUNCH_ARGS,
+    AppPage,
+    AppServer,
+    answering,
+    free_port,
+)
 
 TEXT_APP = f"""
 import streamlit as st
@@ -61,8 +65,8 @@ st.markdown('<div id="{END_MARKER}" data-run="1"></div>', unsafe_allow_html=True
 class Floor:
     """`streamlit run` of a one-file app on a free port (a context manager)."""
 
-    def __init__(self, source: str, folder: Path) -> None:
-        self.script = folder / f"floor_{abs(hash(source)) % 10**8}.py"
+    def __init__(self, name: str, source: str, folder: Path) -> None:
+        self.script = folder / f"floor_{name}.py"
         self.script.write_text(source)
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
@@ -74,15 +78,10 @@ class Floor:
         self._proc = subprocess.Popen(
             cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=self.script.parent
         )
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            try:
-                with urllib.request.urlopen(f"{self.url}/_stcore/health", timeout=2) as r:
-                    if r.status == 200:
-                        return self
-            except OSError:
-                time.sleep(0.2)
-        raise RuntimeError(f"streamlit did not start for {self.script}")
+        if not answering(self.url, self._proc, 60.0):
+            self.__exit__()
+            raise RuntimeError(f"streamlit did not start for {self.script}")
+        return self
 
     def __exit__(self, *exc: object) -> None:
         if self._proc is not None:
@@ -114,8 +113,8 @@ def main() -> None:
         folder = Path(tmp)
         log = folder / "app.log"
         with (
-            Floor(TEXT_APP, folder) as text,
-            Floor(CHART_APP, folder) as chart,
+            Floor("text", TEXT_APP, folder) as text,
+            Floor("chart", CHART_APP, folder) as chart,
             AppServer(args.out, log=log) as app,
         ):
             first_visit(pw, app.url, "", "Per metric")  # the server's first visit: its queries

@@ -81,6 +81,22 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def answering(url: str, proc: subprocess.Popen, startup: float) -> bool:
+    """Wait until the Streamlit server at `url` answers its health check (True), or `proc`
+    ended or `startup` seconds went by first (False)."""
+    deadline = time.monotonic() + startup
+    while True:
+        try:
+            with urllib.request.urlopen(f"{url}/_stcore/health", timeout=2) as r:
+                if r.status == 200:
+                    return True
+        except OSError:
+            pass
+        if proc.poll() is not None or time.monotonic() > deadline:
+            return False
+        time.sleep(0.2)
+
+
 class AppServer:
     """`vge app OUT` (or `vge COMMAND OUT`: `play BENCH`) on a free port; a context manager
     (start, then stop)."""
@@ -133,18 +149,10 @@ class AppServer:
                 start_new_session=True,
                 preexec_fn=self._limit,
             )
-        deadline = time.monotonic() + self.startup
-        while True:
-            try:
-                with urllib.request.urlopen(f"{self.url}/_stcore/health", timeout=2) as r:
-                    if r.status == 200:
-                        return self
-            except OSError:
-                pass
-            if self._proc.poll() is not None or time.monotonic() > deadline:
-                self.stop()
-                raise RuntimeError(f"vge {self.command} did not start:\n{self.log.read_text()}")
-            time.sleep(0.2)
+        if not answering(self.url, self._proc, self.startup):
+            self.stop()
+            raise RuntimeError(f"vge {self.command} did not start:\n{self.log.read_text()}")
+        return self
 
     def stop(self) -> None:
         """SIGTERM to the server's process group (SIGKILL after 10 s); records its peak
