@@ -267,7 +267,7 @@ def _views(data: pa.Array | pa.ChunkedArray) -> int:
         return _views(data.keys) + _views(data.items)
     if pa.types.is_list(kind) or pa.types.is_large_list(kind) or pa.types.is_fixed_size_list(kind):
         return _views(data.values)
-    return len(data) if any(test(kind) for test in _STRING_TYPES) else 0
+    return len(data) if _text(kind) else 0
 
 
 _STRING_TYPES = (
@@ -278,6 +278,11 @@ _STRING_TYPES = (
     pa.types.is_large_binary,
     pa.types.is_binary_view,
 )
+
+
+def _text(kind: pa.DataType) -> bool:
+    """Whether values of `kind` are strings or binaries (polars makes a view of each)."""
+    return any(test(kind) for test in _STRING_TYPES)
 
 
 def polars_room(table: pa.Table, copies: int) -> int:
@@ -301,7 +306,7 @@ def longest_row(table: pa.Table) -> int:
             parents = pc.list_parent_indices(data).to_numpy()
             rows = parents if rows is None else rows[parents]
             data = pc.list_flatten(data)
-        if not any(test(data.type) for test in _STRING_TYPES) or len(data) == 0:
+        if not _text(data.type) or len(data) == 0:
             continue
         lengths = pc.fill_null(pc.binary_length(data), 0).to_numpy().astype(np.int64)
         if rows is not None:  # a list's values summed into its row
