@@ -295,7 +295,9 @@ def polars_room(table: pa.Table, copies: int) -> int:
 
 def longest_row(table: pa.Table) -> int:
     """Bytes of text in `table`'s longest row: the string and binary values of its columns,
-    lists of them included (a list is written as its values joined)."""
+    lists of them and dictionary-encoded ones (DuckDB's ENUM) included (a list is written as
+    its values joined, a dictionary's value as itself). A dictionary's lengths are taken per
+    distinct value, then by index: one long value on many rows is never written out here."""
     import numpy as np
     import pyarrow.compute as pc
 
@@ -306,9 +308,18 @@ def longest_row(table: pa.Table) -> int:
             parents = pc.list_parent_indices(data).to_numpy()
             rows = parents if rows is None else rows[parents]
             data = pc.list_flatten(data)
-        if not _text(data.type) or len(data) == 0:
+        if len(data) == 0:
             continue
-        lengths = pc.fill_null(pc.binary_length(data), 0).to_numpy().astype(np.int64)
+        if pa.types.is_dictionary(data.type):
+            if not _text(data.type.value_type):
+                continue
+            sizes = pc.fill_null(pc.binary_length(data.dictionary), 0)
+            lengths = pc.fill_null(pc.take(sizes, data.indices), 0)
+        elif _text(data.type):
+            lengths = pc.fill_null(pc.binary_length(data), 0)
+        else:
+            continue
+        lengths = lengths.to_numpy().astype(np.int64)
         if rows is not None:  # a list's values summed into its row
             lengths = np.bincount(rows, lengths, table.num_rows).astype(np.int64)
         total += lengths

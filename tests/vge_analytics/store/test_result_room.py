@@ -162,6 +162,20 @@ def test_longest_row_counts_the_text_of_strings_binaries_and_lists():
     assert _sql.longest_row(pa.table({"n": [1, 2]})) == 0
 
 
+def test_longest_row_counts_dictionary_encoded_text_by_value():
+    """An ENUM (a dictionary of strings) counts each row's value, as a list of them does;
+    a dictionary of numbers counts nothing, like numbers."""
+    words = pa.array(["", "long" * 250_000, "abc"])  # 0, 1,000,000 and 3 bytes
+    enum = pa.DictionaryArray.from_arrays(pa.array([2, None, 0, 1, 2], pa.int8()), words)
+    listed = pa.ListArray.from_arrays(pa.array([0, 2, 2, 3, 3, 5], pa.int32()), enum)
+    numbers = pa.DictionaryArray.from_arrays(pa.array([0, 0, 0, 0, 0]), pa.array([10**9]))
+    table = pa.table({"e": enum, "l": listed, "n": numbers})
+    # e: 3, 0, 0, 1e6, 3; l: [3, 0], [], [0], [], [1e6, 3]; rows: 6, 0, 0, 1e6, 1e6 + 6
+    assert _sql.longest_row(table) == 1_000_006
+    assert _sql.longest_row(table.slice(0, 3)) == 6
+    assert _sql.longest_row(table.select(["n"])) == 0
+
+
 def test_a_row_too_long_to_write_under_the_cap_ends_in_one_line(pair_out: Path, tmp_path: Path):
     # One 15 MB value: its frame fits the room left under a 128 MB limit, but polars' CSV
     # writer takes about 14 times a row's text. At BASE the process aborted, hung for ever
