@@ -42,6 +42,7 @@ import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import duckdb
 import polars as pl
@@ -293,15 +294,26 @@ def polars_room(table: pa.Table, copies: int) -> int:
     return copies * copy + POLARS_SLACK
 
 
-def longest_row(table: pa.Table) -> int:
-    """Bytes of text in `table`'s longest row: the string and binary values of its columns,
-    lists of them and dictionary-encoded ones (DuckDB's ENUM) included (a list is written as
-    its values joined, a dictionary's value as itself). A dictionary's lengths are taken per
+class RowText(NamedTuple):
+    """The text a table stands for when written out (`row_text`)."""
+
+    longest: int
+    """Bytes of text in its longest row."""
+    encoded: int
+    """Bytes its dictionary-encoded values stand for, over all rows: a table holds each
+    distinct value once, its text as many times as rows use it."""
+
+
+def row_text(table: pa.Table) -> RowText:
+    """The text of `table`'s rows: the string and binary values of its columns, lists of
+    them and dictionary-encoded ones (DuckDB's ENUM) included (a list is written as its
+    values joined, a dictionary's value as itself). A dictionary's lengths are taken per
     distinct value, then by index: one long value on many rows is never written out here."""
     import numpy as np
     import pyarrow.compute as pc
 
     total = np.zeros(table.num_rows, dtype=np.int64)
+    encoded = 0
     for column in table.columns:
         data, rows = column.combine_chunks(), None
         while pa.types.is_list(data.type) or pa.types.is_large_list(data.type):
@@ -310,20 +322,21 @@ def longest_row(table: pa.Table) -> int:
             data = pc.list_flatten(data)
         if len(data) == 0:
             continue
-        if pa.types.is_dictionary(data.type):
-            if not _text(data.type.value_type):
-                continue
+        coded = pa.types.is_dictionary(data.type)
+        if coded and _text(data.type.value_type):
             sizes = pc.fill_null(pc.binary_length(data.dictionary), 0)
             lengths = pc.fill_null(pc.take(sizes, data.indices), 0)
-        elif _text(data.type):
+        elif not coded and _text(data.type):
             lengths = pc.fill_null(pc.binary_length(data), 0)
         else:
             continue
         lengths = lengths.to_numpy().astype(np.int64)
+        if coded:
+            encoded += int(lengths.sum())
         if rows is not None:  # a list's values summed into its row
             lengths = np.bincount(rows, lengths, table.num_rows).astype(np.int64)
         total += lengths
-    return int(total.max()) if table.num_rows else 0
+    return RowText(int(total.max()) if table.num_rows else 0, encoded)
 
 
 def polars_frame(
@@ -337,13 +350,15 @@ def polars_frame(
     """`table` as a polars frame (its chunks kept), or, when the process is capped
     (`process_memory_cap`) and there may not be room under the cap for `copies` copies of
     it (`polars_room`), and with `text` for its CSV text too (`ROW_TEXT_COPIES` times its
-    longest row), the one-line memory error naming `subject`: polars aborts the process
-    where an allocation fails instead of raising."""
+    longest row, and `copies` times the text its dictionary-encoded values stand for),
+    the one-line memory error naming `subject`: polars aborts the process where an
+    allocation fails instead of raising."""
     room = memory_room()
     if room is not None:
         need = polars_room(table, copies)
         if text and need <= room:
-            need += ROW_TEXT_COPIES * longest_row(table)
+            written = row_text(table)
+            need += ROW_TEXT_COPIES * written.longest + copies * written.encoded
         if need > room:
             raise QueryLimitError(memory_message(subject, limits), limit="memory")
     return pl.from_arrow(table, rechunk=False)

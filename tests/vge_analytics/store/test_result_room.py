@@ -143,7 +143,7 @@ def test_vge_sqls_rows_need_room_for_their_text(pair_out: Path, monkeypatch):
     assert head.frame["s"].str.len_bytes().to_list() == [1_000_000] * 4
 
 
-def test_longest_row_counts_the_text_of_strings_binaries_and_lists():
+def test_row_text_counts_the_text_of_strings_binaries_and_lists():
     table = pa.table(
         {
             "n": pa.array([1, 2, 3]),
@@ -156,24 +156,25 @@ def test_longest_row_counts_the_text_of_strings_binaries_and_lists():
         }
     )
     # rows: 2 + 0 + 4 + 5 = 11; 0 + 3 + 0 + 2 = 5; 2 + 1 = 3
-    assert _sql.longest_row(table) == 11
-    assert _sql.longest_row(table.slice(1)) == 5
-    assert _sql.longest_row(table.slice(0, 0)) == 0
-    assert _sql.longest_row(pa.table({"n": [1, 2]})) == 0
+    assert _sql.row_text(table) == (11, 0)
+    assert _sql.row_text(table.slice(1)) == (5, 0)
+    assert _sql.row_text(table.slice(0, 0)) == (0, 0)
+    assert _sql.row_text(pa.table({"n": [1, 2]})) == (0, 0)
 
 
-def test_longest_row_counts_dictionary_encoded_text_by_value():
-    """An ENUM (a dictionary of strings) counts each row's value, as a list of them does;
-    a dictionary of numbers counts nothing, like numbers."""
+def test_row_text_counts_dictionary_encoded_text_by_value():
+    """An ENUM (a dictionary of strings) counts each row's value, as a list of them does,
+    and the text its values stand for in all; a dictionary of numbers counts nothing."""
     words = pa.array(["", "long" * 250_000, "abc"])  # 0, 1,000,000 and 3 bytes
     enum = pa.DictionaryArray.from_arrays(pa.array([2, None, 0, 1, 2], pa.int8()), words)
     listed = pa.ListArray.from_arrays(pa.array([0, 2, 2, 3, 3, 5], pa.int32()), enum)
     numbers = pa.DictionaryArray.from_arrays(pa.array([0, 0, 0, 0, 0]), pa.array([10**9]))
     table = pa.table({"e": enum, "l": listed, "n": numbers})
     # e: 3, 0, 0, 1e6, 3; l: [3, 0], [], [0], [], [1e6, 3]; rows: 6, 0, 0, 1e6, 1e6 + 6
-    assert _sql.longest_row(table) == 1_000_006
-    assert _sql.longest_row(table.slice(0, 3)) == 6
-    assert _sql.longest_row(table.select(["n"])) == 0
+    # encoded: e 1e6 + 6, l 1e6 + 6
+    assert _sql.row_text(table) == (1_000_006, 2_000_012)
+    assert _sql.row_text(table.slice(0, 3)) == (6, 6)
+    assert _sql.row_text(table.select(["n"])) == (0, 0)
 
 
 def test_a_row_too_long_to_write_under_the_cap_ends_in_one_line(pair_out: Path, tmp_path: Path):
@@ -192,6 +193,25 @@ def test_a_row_too_long_to_write_under_the_cap_ends_in_one_line(pair_out: Path, 
     written = _vge("sql", str(pair_out), query.replace("15", "2"), "-f", "csv", cwd=tmp_path)
     assert written.returncode == 0, written.stderr[-2000:]
     assert written.stdout == "s\n" + "x" * 2_000_000 + "\n"
+
+
+def test_an_enum_written_out_under_the_cap_ends_in_one_line(pair_out: Path, tmp_path: Path):
+    # One 100 kB ENUM value on 40,000 rows: each batch of 2,048 rows holds the value once
+    # (a few hundred kB), and stands for 205 MB of text when written. The room asked for
+    # counted only the batch's buffers, and the process aborted inside polars' CSV writer.
+    value = "x" * 100_000
+    query = f"SELECT CAST(repeat('x', 100000) AS ENUM('{value}')) AS e FROM range(40000)"
+    stopped = _vge(
+        "sql", str(pair_out), query, "-f", "csv", "--memory-limit", "512MB", cwd=tmp_path
+    )
+    assert stopped.returncode == 1, stopped.stderr[-2000:]
+    assert stopped.stderr.splitlines() == [
+        "error: the query needed more memory than its limit (512 MB in memory, 1 GB on "
+        "disk) and was stopped (--memory-limit sets the limit)"
+    ]
+    written = _vge("sql", str(pair_out), query.replace("40000", "3"), "-f", "csv", cwd=tmp_path)
+    assert written.returncode == 0, written.stderr[-2000:]
+    assert written.stdout == "e\n" + (value + "\n") * 3
 
 
 PANIC = """
