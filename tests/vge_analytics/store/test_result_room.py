@@ -177,41 +177,48 @@ def test_row_text_counts_dictionary_encoded_text_by_value():
     assert _sql.row_text(table.select(["n"])) == (0, 0)
 
 
-def test_a_row_too_long_to_write_under_the_cap_ends_in_one_line(pair_out: Path, tmp_path: Path):
-    # One 15 MB value: its frame fits the room left under a 128 MB limit, but polars' CSV
-    # writer takes about 14 times a row's text. At BASE the process aborted, hung for ever
-    # (RUST_BACKTRACE=1) or printed a MemoryError with a panic from polars' threads.
-    query = "SELECT repeat('x', 15000000) AS s"
-    stopped = _vge(
-        "sql", str(pair_out), query, "-f", "csv", "--memory-limit", "128MB", cwd=tmp_path
-    )
-    assert stopped.returncode == 1, stopped.stderr[-2000:]
-    assert stopped.stderr.splitlines() == [
-        "error: the query needed more memory than its limit (128 MB in memory, 256 MB on "
-        "disk) and was stopped (--memory-limit sets the limit)"
-    ]
-    written = _vge("sql", str(pair_out), query.replace("15", "2"), "-f", "csv", cwd=tmp_path)
-    assert written.returncode == 0, written.stderr[-2000:]
-    assert written.stdout == "s\n" + "x" * 2_000_000 + "\n"
+_LONG = "x" * 100_000
+_ENUM = f"SELECT CAST(repeat('x', 100000) AS ENUM('{_LONG}')) AS e FROM range(ROWS)"
 
 
-def test_an_enum_written_out_under_the_cap_ends_in_one_line(pair_out: Path, tmp_path: Path):
-    # One 100 kB ENUM value on 40,000 rows: each batch of 2,048 rows holds the value once
-    # (a few hundred kB), and stands for 205 MB of text when written. The room asked for
-    # counted only the batch's buffers, and the process aborted inside polars' CSV writer.
-    value = "x" * 100_000
-    query = f"SELECT CAST(repeat('x', 100000) AS ENUM('{value}')) AS e FROM range(40000)"
-    stopped = _vge(
-        "sql", str(pair_out), query, "-f", "csv", "--memory-limit", "512MB", cwd=tmp_path
-    )
+@pytest.mark.parametrize(
+    ("query", "limit", "disk", "fits", "written"),
+    [
+        # One 15 MB value: its frame fits the room left under a 128 MB limit, but polars'
+        # CSV writer takes about 14 times a row's text. At BASE the process aborted, hung for
+        # ever (RUST_BACKTRACE=1) or printed a MemoryError with a panic from polars' threads.
+        (
+            "SELECT repeat('x', 15000000) AS s",
+            "128MB",
+            "256 MB",
+            "SELECT repeat('x', 2000000) AS s",
+            "s\n" + "x" * 2_000_000 + "\n",
+        ),
+        # One 100 kB ENUM value on 40,000 rows: each batch of 2,048 rows holds the value once
+        # (a few hundred kB) and stands for 205 MB of text when written. The room asked for
+        # counted only the batch's buffers, and the process aborted inside polars' writer.
+        (
+            _ENUM.replace("ROWS", "40000"),
+            "512MB",
+            "1 GB",
+            _ENUM.replace("ROWS", "3"),
+            "e\n" + (_LONG + "\n") * 3,
+        ),
+    ],
+    ids=["long-row", "enum"],
+)
+def test_text_too_long_to_write_under_the_cap_ends_in_one_line(
+    pair_out: Path, tmp_path: Path, query: str, limit: str, disk: str, fits: str, written: str
+):
+    stopped = _vge("sql", str(pair_out), query, "-f", "csv", "--memory-limit", limit, cwd=tmp_path)
     assert stopped.returncode == 1, stopped.stderr[-2000:]
     assert stopped.stderr.splitlines() == [
-        "error: the query needed more memory than its limit (512 MB in memory, 1 GB on "
-        "disk) and was stopped (--memory-limit sets the limit)"
+        f"error: the query needed more memory than its limit ({limit[:-2]} MB in memory, "
+        f"{disk} on disk) and was stopped (--memory-limit sets the limit)"
     ]
-    written = _vge("sql", str(pair_out), query.replace("40000", "3"), "-f", "csv", cwd=tmp_path)
-    assert written.returncode == 0, written.stderr[-2000:]
-    assert written.stdout == "e\n" + (value + "\n") * 3
+    done = _vge("sql", str(pair_out), fits, "-f", "csv", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout == written
 
 
 PANIC = """
