@@ -1,12 +1,22 @@
 """The fast path: whole batches of episodes replayed to Arrow tables, proven identical to the reference.
 
 `replay.io` replays each batch of `vge replay` with `replay_kernel` (and decodes inputs
-with `nested_beyond`'s depth check); the benchmarks time it against the reference
+with `nested_beyond`'s depth check; an episode line straight into the kernel's structs with
+`decode_line`, a `LogLine`, when it can); the benchmarks time it against the reference
 (`benchmarks/`).
 """
 
 from ._batch import BatchTables, EpisodeInput, replay_kernel
 from ._json import nested_beyond
+from ._logline import LogLine, decode_line
 from ._text import parse_fields
 
-__all__ = ["BatchTables", "EpisodeInput", "nested_beyond", "parse_fields", "replay_kernel"]
+__all__ = [
+    "BatchTables",
+    "EpisodeInput",
+    "LogLine",
+    "decode_line",
+    "nested_beyond",
+    "parse_fields",
+    "replay_kernel",
+]
