@@ -97,14 +97,18 @@ for _f in range(NF):
 cdef object _LOG_STEP = LogStep  # a C global: no look-up in the module's names per field
 
 
-cdef inline object _step_field(object step, int f):
-    """`getattr(step, <field f>)`, from the slot when `step` is a `LogStep`."""
+cdef inline object _step_field(object step, int f, list hold):
+    """`getattr(step, <field f>)`, from the slot when `step` is a `LogStep` (which holds the
+    value); anything else's is kept in `hold` (a stand-in may make the value anew on each
+    read, and its UTF-8 must outlive the read)."""
     cdef PyObject* value
     if type(step) is _LOG_STEP:
         value = (<PyObject**>(<char*><PyObject*>step + _STEP_OFFSET[f]))[0]
         if value != NULL:
             return <object>value
-    return getattr(step, _STEP_FIELDS[f])
+    got = getattr(step, _STEP_FIELDS[f])
+    hold.append(got)
+    return got
 
 
 cdef inline int _text_of(object text, Text* t) except -1:
@@ -120,15 +124,6 @@ cdef inline int _text_of(object text, Text* t) except -1:
     return 0
 
 
-cdef inline object _held_field(object step, int f, list hold):
-    """A field of `step`; kept in `hold` when `step` is not a `LogStep` (a stand-in may make
-    the value anew on each read, and its UTF-8 must outlive the read)."""
-    value = _step_field(step, f)
-    if type(step) is not _LOG_STEP:
-        hold.append(value)
-    return value
-
-
 cdef int _step_in(object step, StepIn* si, list hold) except -1:
     """`si` filled from a `LogStep` (msgspec's path), which it borrows (`si.step`): its texts
     as UTF-8 spans into its strings, a float timestamp as seconds, an ASCII str one as its
@@ -137,11 +132,11 @@ cdef int _step_in(object step, StepIn* si, list hold) except -1:
     is no time, not an error); its counts and latency converted as the columns hold them."""
     cdef double seconds
     si.step = <PyObject*>step
-    _text_of(_held_field(step, F_OUTPUT, hold), &si.output)
-    _text_of(_held_field(step, F_VIEW, hold), &si.view)
-    _text_of(_held_field(step, F_FEEDBACK, hold), &si.feedback)
-    _text_of(_held_field(step, F_STATE, hold), &si.state)
-    ts = _held_field(step, F_TIMESTAMP, hold)
+    _text_of(_step_field(step, F_OUTPUT, hold), &si.output)
+    _text_of(_step_field(step, F_VIEW, hold), &si.view)
+    _text_of(_step_field(step, F_FEEDBACK, hold), &si.feedback)
+    _text_of(_step_field(step, F_STATE, hold), &si.state)
+    ts = _step_field(step, F_TIMESTAMP, hold)
     si.ts_kind = TS_NONE
     if type(ts) is float:
         si.ts_kind = TS_NUMBER
@@ -154,15 +149,15 @@ cdef int _step_in(object step, StepIn* si, list hold) except -1:
         if ts is not None:
             si.ts_kind = TS_NUMBER
             si.ts = ts
-    value = _step_field(step, F_PROMPT)
+    value = _step_field(step, F_PROMPT, hold)
     si.has_prompt = value is not None
     if si.has_prompt:
         si.prompt = value
-    value = _step_field(step, F_COMPLETION)
+    value = _step_field(step, F_COMPLETION, hold)
     si.has_completion = value is not None
     if si.has_completion:
         si.completion = value
-    value = _step_field(step, F_LATENCY)
+    value = _step_field(step, F_LATENCY, hold)
     si.has_latency = value is not None
     if si.has_latency:
         seconds = value

@@ -104,3 +104,39 @@ def test_timestamps_of_each_kind() -> None:
         1_700_000_000.5, 1_700_000_001.0, 1_767_323_045.0, 1_767_323_045.0, None, None, None, None, 7.0,
     ]  # fmt: skip
     assert 20_455 * 86_400 + 3 * 3600 + 4 * 60 + 5 == 1_767_323_045
+
+
+class _Fresh:
+    """A logged step that is no `LogStep`: its texts are made anew on each read."""
+
+    action = None
+    prompt_tokens = completion_tokens = latency_seconds = None
+
+    def __init__(self, view: str) -> None:
+        self._view = view
+
+    output = property(lambda self: "".join([SWITCH[:21], SWITCH[21:].format("back")]))
+    view = property(lambda self: "".join(self._view))
+    feedback = property(lambda self: "".join(["view_", "switched"]))
+    state = property(lambda self: "".join(["Arr", "êt"]))
+    timestamp = property(lambda self: "".join(["2026-01-02", "T03:04:05Z"]))
+
+
+def test_steps_that_are_no_log_steps() -> None:
+    """Steps of another type (a subclass of `LogStep`, a stand-in whose fields are made on
+    each read) are read by their attributes, and give the reference's rows."""
+
+    class Sub(replay.LogStep):
+        pass
+
+    m, task = _cafe()
+    front = Sub(output=SWITCH.format("front"), view="front", feedback="view_switched")
+    steps = [_Fresh("bac\u212a"), front, _Fresh("x")]
+    log = replay.EpisodeLog(episode_id="cafe", steps=steps)
+    e = episode(m, task, [], 20.0)._replace(log=log)
+    check_batch([e])
+    assert _columns(e, "recorded_view", "recorded_state", "diverged_fields", "timestamp") == [
+        ("bac\u212a", "Arrêt", [], 1_767_323_045.0),
+        ("front", None, [], None),
+        ("x", "Arrêt", ["view"], 1_767_323_045.0),
+    ]
