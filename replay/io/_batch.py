@@ -23,10 +23,9 @@ import numpy as np
 from pyarrow._compute import call_function
 
 from .._errors import OutputError, TaskError, VGEError
-from ..kernel import BatchTables, EpisodeInput, LogLine, decode_line, replay_kernel
+from ..kernel import BatchTables, EpisodeInput, replay_kernel
 from ..semantics import (
     NO_PRICES,
-    EpisodeLog,
     EpisodeResult,
     EpisodeRow,
     GoalRow,
@@ -37,13 +36,12 @@ from ..semantics import (
     replay_episode,
     rows_to_table,
 )
-from ._decode import decode
 from ._file_names import mcap_file_name, part_name
 from ._files import write_part
 from ._fs import location
 from ._images import ViewImage
 from ._layout import MCAP_DIR, TASKS
-from ._load import episode_decoder
+from ._load import decode_episode_line, episode_log
 from ._quarantine import classify_decode_error, one_line
 from ._rows import TABLE_ROWS
 from ._worker import WorkerState, worker_state
@@ -330,7 +328,7 @@ def _replay_reference(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeR
         return replay_episode(
             e.machine,
             e.task,
-            _episode_log(e.log),
+            episode_log(e.log),
             lam=e.lam,
             run_id=ctx.run_id,
             model=ctx.model,
@@ -341,11 +339,6 @@ def _replay_reference(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeR
     except Exception as exc:
         exc.vge_line = number  # type: ignore[attr-defined]
         raise
-
-
-def _episode_log(log: EpisodeLog | LogLine) -> EpisodeLog:
-    """msgspec's log of a line the kernel's decoder took (`LogLine`), for the reference."""
-    return decode(episode_decoder, log.raw) if type(log) is LogLine else log
 
 
 def _write_mcap(
@@ -373,17 +366,14 @@ def _prepare_line(
     todo: _Todo,
 ) -> None:
     """Decode and check one line: a quarantine outcome, or an episode to replay (its
-    outcome is filled in after the replay). The line is decoded straight into the kernel's
-    structs (`decode_line`) when it can be, else by msgspec (whose errors quarantine it)."""
+    outcome is filled in after the replay)."""
     bench = state.bench
-    log = decode_line(raw)
-    if log is None:
-        try:
-            log = decode(episode_decoder, raw)
-        except msgspec.DecodeError as exc:
-            kind, reason, episode_id = classify_decode_error(raw, exc)
-            outcomes.append(LineOutcome(number, episode_id, False, kind, reason))
-            return
+    try:
+        log = decode_episode_line(raw)
+    except msgspec.DecodeError as exc:
+        kind, reason, episode_id = classify_decode_error(raw, exc)
+        outcomes.append(LineOutcome(number, episode_id, False, kind, reason))
+        return
     eid = log.episode_id
     entry = bench.tasks.get(eid)
     if entry is None:
