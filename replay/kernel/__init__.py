@@ -1,8 +1,7 @@
 """The fast path: whole batches of episodes replayed to Arrow tables, proven identical to the reference.
 
 `replay.io` replays each batch of `vge replay` with `replay_kernel` (and decodes inputs
-with `nested_beyond`'s depth check; an episode line straight into the kernel's structs with
-`decode_line`, a `LogLine`, when it can); the benchmarks time it against the reference
+with `nested_beyond`'s depth check); the benchmarks time it against the reference
 (`benchmarks/`).
 """
 
