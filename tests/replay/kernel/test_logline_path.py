@@ -9,12 +9,23 @@ from __future__ import annotations
 
 import msgspec
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import replay
 from replay.kernel import EpisodeInput, LogLine, decode_line, replay_kernel
 
 from . import test_step_in
-from .test_kernel import _case_docs, _sample_batches, _ssm_file, assert_same, episode, machine_of
+from .test_kernel import (
+    _case_docs,
+    _machines,
+    _sample_batches,
+    _ssm_file,
+    _step,
+    assert_same,
+    episode,
+    machine_of,
+)
 
 pytestmark = pytest.mark.skipif(
     decode_line(b'{"episode_id":"x","steps":[]}') is None,
@@ -103,3 +114,22 @@ def test_texts_outside_ascii_and_timestamps_as_lines() -> None:
     two_goals = replay.Task(episode_id="cafe2", device_id="dev", goals=["Marche", "Arrêt"])
     batch = [episode(m, two_goals, steps, 20.0), episode(m, task, steps, 20.0)]
     assert check_lines(batch) == 2
+
+
+@st.composite
+def _text_episodes(draw) -> list[EpisodeInput]:
+    """1-3 episodes of generated text steps (test_kernel's, without structured actions):
+    outputs well-formed and broken, texts outside ASCII, recorded values, timestamps."""
+    out = []
+    for _ in range(draw(st.integers(1, 3))):
+        machine, tasks = draw(st.sampled_from(_machines()))
+        steps = draw(st.lists(_step(machine).filter(lambda s: "action" not in s), max_size=12))
+        lam = draw(st.sampled_from([0.7, 1.5, 5.0]))
+        out.append(episode(machine, draw(st.sampled_from(tasks)), steps, lam))
+    return out
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_text_episodes())
+def test_generated_logs_as_lines(episodes: list[EpisodeInput]) -> None:
+    assert check_lines(episodes) == len(episodes)
