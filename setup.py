@@ -3,7 +3,7 @@
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-KERNEL = ["_text", "_engine", "_words", "_json"]
+KERNEL = ["_text", "_engine", "_words", "_json", "_logline"]
 
 setup(
     ext_modules=cythonize(

@@ -36,13 +36,12 @@ from ..semantics import (
     replay_episode,
     rows_to_table,
 )
-from ._decode import decode
 from ._file_names import mcap_file_name, part_name
 from ._files import write_part
 from ._fs import location
 from ._images import ViewImage
 from ._layout import MCAP_DIR, TASKS
-from ._load import episode_decoder
+from ._load import decode_episode_line, episode_log
 from ._quarantine import classify_decode_error, one_line
 from ._rows import TABLE_ROWS
 from ._worker import WorkerState, worker_state
@@ -329,7 +328,7 @@ def _replay_reference(ctx: RunContext, number: int, e: EpisodeInput) -> EpisodeR
         return replay_episode(
             e.machine,
             e.task,
-            e.log,
+            episode_log(e.log),
             lam=e.lam,
             run_id=ctx.run_id,
             model=ctx.model,
@@ -370,7 +369,7 @@ def _prepare_line(
     outcome is filled in after the replay)."""
     bench = state.bench
     try:
-        log = decode(episode_decoder, raw)
+        log = decode_episode_line(raw)
     except msgspec.DecodeError as exc:
         kind, reason, episode_id = classify_decode_error(raw, exc)
         outcomes.append(LineOutcome(number, episode_id, False, kind, reason))

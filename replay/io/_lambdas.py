@@ -20,8 +20,7 @@ import pyarrow as pa
 
 from ..kernel import EpisodeInput, replay_kernel
 from ..semantics import LOG_ENDED, episode_lambda
-from ._decode import decode
-from ._load import episode_decoder
+from ._load import decode_episode_line
 from ._worker import worker_state
 
 
@@ -60,7 +59,7 @@ def replay_lambdas(task: LambdaTask) -> LambdaBatch:
     seen: set[str] = set()
     for _, line in task.lines:
         try:
-            log = decode(episode_decoder, line)
+            log = decode_episode_line(line)
         except msgspec.DecodeError:
             continue  # quarantined by the replay: not in OUT either
         eid = log.episode_id

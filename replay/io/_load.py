@@ -14,6 +14,7 @@ from typing import Any
 import msgspec
 
 from .._errors import InputError, Problem, SSMError, TaskError, VGEError, decode_error_message
+from ..kernel import LogLine, decode_line
 from ..semantics import (
     EpisodeLog,
     Machine,
@@ -48,6 +49,20 @@ _ssm_decoder = msgspec.json.Decoder(StateMachine)
 _task_decoder = msgspec.json.Decoder(Task)
 _run_decoder = msgspec.json.Decoder(RunHeader)
 episode_decoder = msgspec.json.Decoder(EpisodeLog)
+
+
+def decode_episode_line(raw: bytes) -> EpisodeLog | LogLine:
+    """A line of an episodes file for the kernel: decoded straight into its structs when
+    `decode_line` can prove msgspec's reading (a `LogLine`), else by msgspec (`decode`, whose
+    `msgspec.DecodeError` quarantines the line)."""
+    line = decode_line(raw)
+    return decode(episode_decoder, raw) if line is None else line
+
+
+def episode_log(log: EpisodeLog | LogLine) -> EpisodeLog:
+    """msgspec's log of a line `decode_episode_line` read, for what reads `LogStep`s (the
+    reference replay): a `LogLine`'s line decoded again."""
+    return decode(episode_decoder, log.raw) if type(log) is LogLine else log
 
 
 def _line_of(data: bytes, message: str) -> int | None:

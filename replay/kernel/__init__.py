@@ -7,6 +7,15 @@ with `nested_beyond`'s depth check); the benchmarks time it against the referenc
 
 from ._batch import BatchTables, EpisodeInput, replay_kernel
 from ._json import nested_beyond
+from ._logline import LogLine, decode_line
 from ._text import parse_fields
 
-__all__ = ["BatchTables", "EpisodeInput", "nested_beyond", "parse_fields", "replay_kernel"]
+__all__ = [
+    "BatchTables",
+    "EpisodeInput",
+    "LogLine",
+    "decode_line",
+    "nested_beyond",
+    "parse_fields",
+    "replay_kernel",
+]

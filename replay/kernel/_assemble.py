@@ -127,7 +127,7 @@ def origin_codes(step_k: np.ndarray, step_ep: np.ndarray, continuations: list) -
 
 def tables(out, vocab, episodes: list, head: tuple[str, str, str], prices: Prices) -> tuple:
     """(steps, episodes, goals) tables of a replayed batch, and rows per episode."""
-    # the kernel's own counts: len(ep.log.steps) and len(ep.setup.goals) of each episode
+    # the kernel's own counts: the steps of each episode's log (either kind) and its goals
     step_counts = np.array(out.episodes["n_steps"][: len(episodes)], np.int64)
     goal_counts = np.array(out.episodes["n_goals"][: len(episodes)], np.int64)
     columns = _Columns(out, vocab, episodes, head)

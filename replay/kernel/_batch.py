@@ -22,6 +22,7 @@ from ..semantics import (
 )
 from ._assemble import tables
 from ._engine import Vocab, replay_batch
+from ._logline import LogLine
 
 _PARAM_CACHE: dict[str, str] = {}
 """Raw parameter word -> normalised form, kept per process (bounded below)."""
@@ -29,12 +30,13 @@ _PARAM_CACHE_SIZE = 65_536
 
 
 class EpisodeInput(NamedTuple):
-    """One episode to replay: its machine, task, setup (the plan), log and lambda."""
+    """One episode to replay: its machine, task, setup (the plan), log (decoded by msgspec,
+    or straight into the kernel's structs) and lambda."""
 
     machine: Machine
     task: Task
     setup: EpisodeSetup
-    log: EpisodeLog
+    log: EpisodeLog | LogLine
     lam: float
 
 

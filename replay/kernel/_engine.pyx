@@ -47,12 +47,14 @@ from ..semantics import (
     distances,
     invalid_text,
     normalize_param,
+    parse_action,
     parse_log_step,
     switched_text,
     target_components,
     timestamp_seconds,
 )
 
+from ._logline cimport TS_NONE, TS_NUMBER, TS_TEXT, LogLine, StepIn, Text
 from ._text cimport (
     PARSE_FALLBACK,
     PARSE_MALFORMED,
@@ -67,9 +69,6 @@ from ._text cimport (
 
 cdef extern from "Python.h":
     bint PyUnicode_IS_ASCII(object text)
-    Py_ssize_t PyUnicode_GET_LENGTH(object text)
-    int PyUnicode_KIND(object text)
-    void* PyUnicode_DATA(object text)
     ctypedef struct PyObject
     ctypedef struct PyMemberDef:
         Py_ssize_t offset
@@ -98,14 +97,120 @@ for _f in range(NF):
 cdef object _LOG_STEP = LogStep  # a C global: no look-up in the module's names per field
 
 
-cdef inline object _step_field(object step, int f):
-    """`getattr(step, <field f>)`, from the slot when `step` is a `LogStep`."""
+cdef inline object _step_field(object step, int f, list hold):
+    """`getattr(step, <field f>)`, from the slot when `step` is a `LogStep` (which holds the
+    value); anything else's is kept in `hold` (a stand-in may make the value anew on each
+    read, and its UTF-8 must outlive the read)."""
     cdef PyObject* value
     if type(step) is _LOG_STEP:
         value = (<PyObject**>(<char*><PyObject*>step + _STEP_OFFSET[f]))[0]
         if value != NULL:
             return <object>value
-    return getattr(step, _STEP_FIELDS[f])
+    got = getattr(step, _STEP_FIELDS[f])
+    hold.append(got)
+    return got
+
+
+cdef inline int _text_of(object text, Text* t) except -1:
+    """`t` spans the UTF-8 of `text` (a str, whose UTF-8 CPython keeps with it), or is
+    absent (NULL) for None."""
+    if text is None:
+        t.data = NULL
+        t.size = 0
+        t.ascii = True
+        return 0
+    t.data = PyUnicode_AsUTF8AndSize(text, &t.size)  # TypeError for anything but a str
+    t.ascii = PyUnicode_IS_ASCII(text)
+    return 0
+
+
+cdef int _step_in(object step, StepIn* si, list hold) except -1:
+    """`si` filled from a `LogStep` (msgspec's path), which it borrows (`si.step`): its texts
+    as UTF-8 spans into its strings, a float timestamp as seconds, an ASCII str one as its
+    text (`timestamp_seconds` reads it where it is used), any other through
+    `timestamp_seconds` now (a str msgspec did not make may have no UTF-8: a lone surrogate
+    is no time, not an error); its counts and latency converted as the columns hold them."""
+    cdef double seconds
+    si.step = <PyObject*>step
+    _text_of(_step_field(step, F_OUTPUT, hold), &si.output)
+    _text_of(_step_field(step, F_VIEW, hold), &si.view)
+    _text_of(_step_field(step, F_FEEDBACK, hold), &si.feedback)
+    _text_of(_step_field(step, F_STATE, hold), &si.state)
+    ts = _step_field(step, F_TIMESTAMP, hold)
+    si.ts_kind = TS_NONE
+    if type(ts) is float:
+        si.ts_kind = TS_NUMBER
+        si.ts = ts
+    elif type(ts) is str and PyUnicode_IS_ASCII(ts):
+        si.ts_kind = TS_TEXT
+        _text_of(ts, &si.ts_text)
+    elif ts is not None:
+        ts = timestamp_seconds(ts)
+        if ts is not None:
+            si.ts_kind = TS_NUMBER
+            si.ts = ts
+    value = _step_field(step, F_PROMPT, hold)
+    si.has_prompt = value is not None
+    if si.has_prompt:
+        si.prompt = value
+    value = _step_field(step, F_COMPLETION, hold)
+    si.has_completion = value is not None
+    if si.has_completion:
+        si.completion = value
+    value = _step_field(step, F_LATENCY, hold)
+    si.has_latency = value is not None
+    if si.has_latency:
+        seconds = value
+        si.latency = seconds
+    return 0
+
+
+cdef inline bint _same(const Text* a, const Text* b) noexcept:
+    """Two present texts hold the same bytes (equal UTF-8 <=> equal str)."""
+    return (
+        b.data != NULL and a.size == b.size
+        and (a.size == 0 or memcmp(a.data, b.data, a.size) == 0)
+    )
+
+
+cdef inline str _decoded(const Text* t):
+    """The str of a present text (valid UTF-8: the str it was encoded from)."""
+    return PyUnicode_DecodeUTF8(t.data, t.size, NULL)
+
+
+@cython.final
+cdef class Names:
+    """Strings (or None) with their UTF-8 at hand, for comparisons with what a log recorded:
+    `at[i]` spans the UTF-8 of the i-th, which CPython keeps with the str (held here)."""
+
+    cdef list strs
+    cdef Text* at
+    cdef Py_ssize_t n, cap
+
+    def __cinit__(self, strs=()):
+        self.strs = []
+        self.n = self.cap = 0
+        self.at = NULL
+        self.extend(strs)
+
+    def __dealloc__(self):
+        free(self.at)
+
+    cdef int extend(self, object strs) except -1:
+        cdef Py_ssize_t cap
+        cdef Text* at
+        for text in strs:
+            if self.n == self.cap:
+                cap = self.cap * 2 if self.cap else 16
+                at = <Text*>realloc(self.at, cap * sizeof(Text))
+                if at == NULL:
+                    raise MemoryError()
+                self.at = at
+                self.cap = cap
+            _text_of(text, &self.at[self.n])
+            self.strs.append(text)
+            self.n += 1
+        return 0
 
 # ------------------------------------------------------------------------------ codes
 
@@ -177,7 +282,6 @@ cdef int T_WAIT_NO_EFFECT = T_UNLOCK_SWITCH + 3
 cdef int T_UNLOCKED = T_UNLOCK_SWITCH + 4
 N_FIXED_TEXTS = len(FIXED_TEXTS)
 
-_FEEDBACK_KIND_SET = frozenset(FEEDBACK_KINDS)
 
 # ------------------------------------------------------------------------------ buffers
 
@@ -284,10 +388,11 @@ cdef class TextVec:
         cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)
         return self.push_bytes(s, n)
 
-    cdef int push_opt(self, object text) except -1:
-        if text is None:
+    cdef inline int push_text(self, const Text* text) except -1:
+        """A recorded text's bytes, or null when it is absent."""
+        if text.data == NULL:
             return self.push_null()
-        return self.push_str(text)
+        return self.push_bytes(text.data, text.size)
 
     cdef int push_null(self) except -1:
         self.offsets.push(<int>self.nbytes)
@@ -441,6 +546,7 @@ cdef class KMachine:
 
     cdef readonly object machine
     cdef readonly tuple state_names
+    cdef Names state_utf8             # `state_names`, for comparisons with recorded states
     cdef readonly tuple comp_names
     cdef readonly list texts          # feedback text per transition
     cdef dict comp_id
@@ -472,6 +578,7 @@ cdef class KMachine:
     def __init__(self, machine):
         self.machine = machine
         self.state_names = tuple(machine.states)
+        self.state_utf8 = Names(self.state_names)
         self.n_states = len(self.state_names)
         self.comp_names = tuple(sorted({t.component for t in machine.transitions if t.action is not None}))
         self.n_comps = len(self.comp_names)
@@ -1079,12 +1186,14 @@ cdef class Vocab:
     which names the wait transitions) and feedback texts get an offset in them."""
 
     cdef readonly list states, comps, texts
+    cdef Names text_utf8      # `texts`, for comparisons with the recorded feedback
     cdef dict offsets
 
     def __init__(self):
         self.states = []
         self.comps = []
         self.texts = list(FIXED_TEXTS)
+        self.text_utf8 = Names(FIXED_TEXTS)
         self.offsets = {}
 
     cdef tuple offsets_of(self, KMachine km):
@@ -1095,31 +1204,70 @@ cdef class Vocab:
             self.comps.extend(km.comp_names)
             self.comps.append(TIMED_WAIT)
             self.texts.extend(km.texts)
+            self.text_utf8.extend(km.texts)
             self.offsets[id(km)] = got
         return got
 
 
-cdef tuple _KIND_NAMES = tuple(FEEDBACK_KINDS)
-cdef tuple _VIEW_NAMES = tuple(VIEW_ORDER)
+# The feedback kinds and the views, as UTF-8, for comparisons with the recorded values.
+cdef Names _KINDS = Names(FEEDBACK_KINDS)
+cdef Names _VIEWS = Names(VIEW_ORDER)
+cdef Py_ssize_t _LONGEST_VIEW = max([len(v.encode()) for v in VIEW_ORDER])
+assert _LONGEST_VIEW <= 32
 
 
-cdef inline bint _equal(object a, object b) except -1:
-    """`a == b`; two str (what the log's fields are) compared by their code points directly,
-    without the rich comparison's dispatch (one str has one representation: the same text
-    has the same length and kind)."""
-    cdef Py_ssize_t n
-    if type(a) is str and type(b) is str:
-        n = PyUnicode_GET_LENGTH(a)
-        return (
-            n == PyUnicode_GET_LENGTH(b) and PyUnicode_KIND(a) == PyUnicode_KIND(b)
-            and memcmp(PyUnicode_DATA(a), PyUnicode_DATA(b), n * PyUnicode_KIND(a)) == 0
-        )
-    return a == b
+cdef inline bint _is_kind(const Text* t) noexcept:
+    """`t` names a feedback kind (`in FEEDBACK_KINDS`)."""
+    cdef Py_ssize_t i
+    for i in range(_KINDS.n):
+        if _same(t, &_KINDS.at[i]):
+            return True
+    return False
 
 
-cdef inline int _lower_view(object recorded) except -2:
-    code = VIEW_CODE.get(recorded.lower())
-    return -1 if code is None else <int>code
+cdef int _lower_view(const Text* recorded) except -2:
+    """The code of the view `recorded.lower()` names, or -1. ASCII text lowers byte by byte
+    (A-Z only, as `str.lower` does); other text is lowered by `str.lower`, which may make
+    ASCII of it (the Kelvin sign U+212A lowers to 'k')."""
+    cdef char[32] low
+    cdef Py_ssize_t i, v
+    cdef char c
+    cdef Text t
+    if not recorded.ascii:
+        code = VIEW_CODE.get(_decoded(recorded).lower())
+        return -1 if code is None else <int>code
+    if recorded.size > _LONGEST_VIEW:
+        return -1
+    for i in range(recorded.size):
+        c = recorded.data[i]
+        low[i] = c + 32 if 65 <= c <= 90 else c  # A-Z
+    t.data = low
+    t.size = recorded.size
+    for v in range(NV):
+        if _same(&t, &_VIEWS.at[v]):
+            return <int>v
+    return -1
+
+
+cdef inline Py_ssize_t _n_steps(object log) except -1:
+    """The number of steps of a log: a `LogLine` or msgspec's `EpisodeLog`."""
+    if type(log) is LogLine:
+        return (<LogLine>log).n_steps
+    return len(log.steps)
+
+
+cdef object _NO_STEP = LogStep()  # a step with neither output nor action: "no action"
+
+
+cdef object _reference_parse(const StepIn* si):
+    """The reference parser's result for a step the compiled grammar leaves to it: of the
+    `LogStep` itself (a structured action, or its output) when there is one, else (a decoded
+    line, whose steps have no structured action) of its output, or "no action" without."""
+    if si.step != NULL:
+        return parse_log_step(<object>si.step)
+    if si.output.data != NULL:
+        return parse_action(_decoded(&si.output))
+    return parse_log_step(_NO_STEP)
 
 
 def replay_batch(list episodes, Vocab vocab, dict param_cache):
@@ -1129,7 +1277,7 @@ def replay_batch(list episodes, Vocab vocab, dict param_cache):
     bounded by the caller)."""
     cdef Py_ssize_t n = 0, n_goals = 0, text_bytes = 0, e, row = 0, goal_row = 0
     for ep in episodes:
-        n += len(ep.log.steps)
+        n += _n_steps(ep.log)
         n_goals += len(ep.setup.goals)
     cdef Out out = Out(n, len(episodes), n_goals, n * 256)
     cdef Episode run = Episode(out, vocab, param_cache)
@@ -1165,6 +1313,7 @@ cdef class Episode:
     cdef dict param_ids       # params -> number, for the batch
     cdef tuple _params
     cdef Py_ssize_t _row
+    cdef Py_ssize_t n_steps   # the log's
     cdef KGoal _kg            # the current goal's tables, kept while the goal stays
     cdef int _kg_goal
 
@@ -1236,20 +1385,18 @@ cdef class Episode:
             self.visited.push(s)
         return 0
 
-    cdef int _parse(self, object log_step, Parsed* pa) except -1:
+    cdef int _parse(self, const StepIn* si, Parsed* pa) except -1:
         """Parse a step (PROTOCOL §2) and write the columns a truncated step has too;
         `self._params` holds its params."""
         cdef Out out = self.out
         cdef FastParse fp
-        cdef const char* s = NULL
+        cdef const char* s = si.output.data
+        cdef Py_ssize_t size = si.output.size
         pa.x = pa.y = 0.0
-        cdef Py_ssize_t size = 0, i
-        output = _step_field(log_step, F_OUTPUT)
         self._params = ()
         fp.status = PARSE_FALLBACK
-        if output is not None:
-            s = PyUnicode_AsUTF8AndSize(output, &size)
-            parse_utf8(s, size, PyUnicode_IS_ASCII(output), &fp)
+        if s != NULL:
+            parse_utf8(s, size, si.output.ascii, &fp)
         if fp.status != PARSE_FALLBACK:
             out.output.push_bytes(s, size)
             if fp.thinking.end > fp.thinking.start:
@@ -1274,8 +1421,8 @@ cdef class Episode:
                 if fp.n_params:
                     self._params = self._param_words(s, &fp)
         else:
-            parsed = parse_log_step(log_step)
-            out.output.push_opt(output)
+            parsed = _reference_parse(si)
+            out.output.push_text(&si.output)
             if parsed.thinking:
                 out.thinking.push_str(parsed.thinking)
             else:
@@ -1325,21 +1472,19 @@ cdef class Episode:
             PyTuple_SET_ITEM(words, i, norm)
         return words
 
-    cdef int _usage(self, object log_step, Py_ssize_t row) except -1:
+    cdef int _usage(self, const StepIn* si, Py_ssize_t row) except -1:
         """The step's recorded tokens and latency, added to the episode's sums as
         `EpisodeSession._usage` adds them (the first value recorded starts a sum)."""
         cdef Out out = self.out
-        cdef double seconds
-        _count(_step_field(log_step, F_PROMPT), out.prompt, out.prompt_valid, row, &self.prompt,
-               &self.has_prompt)
-        _count(_step_field(log_step, F_COMPLETION), out.completion, out.completion_valid, row,
-               &self.completion, &self.has_completion)
-        value = _step_field(log_step, F_LATENCY)
-        if value is not None:
-            seconds = value
-            out.latency[row] = seconds
+        if si.has_prompt:
+            _count(si.prompt, out.prompt, out.prompt_valid, row, &self.prompt, &self.has_prompt)
+        if si.has_completion:
+            _count(si.completion, out.completion, out.completion_valid, row, &self.completion,
+                   &self.has_completion)
+        if si.has_latency:
+            out.latency[row] = si.latency
             out.latency_valid[row] = 1
-            self.latency = seconds if not self.has_latency else self.latency + seconds
+            self.latency = si.latency if not self.has_latency else self.latency + si.latency
             self.has_latency = True
         return 0
 
@@ -1351,27 +1496,42 @@ cdef class Episode:
         """Every logged step into its row, from `row` on; returns the next row. A step is
         parsed and what the log recorded kept whatever happens; once the episode has
         terminated a step is truncated (nothing scored), else simulated, scored, written,
-        checked for termination and compared with what the log recorded."""
+        checked for termination and compared with what the log recorded.
+
+        Each step is read through a `StepIn`: a decoded line's own (`LogLine`), or one
+        filled from each of msgspec's `LogStep`s (held by the log's list meanwhile)."""
         cdef Out out = self.out
-        cdef list steps = self.ep.log.steps
+        cdef LogLine line = None
+        cdef list steps = None, hold = []
         cdef Py_ssize_t k
+        cdef StepIn filled
+        cdef const StepIn* si = &filled
         cdef Parsed pa
         cdef Outcome oc
         cdef Scored sc
-        for k in range(len(steps)):
-            log_step = steps[k]
+        log = self.ep.log
+        if type(log) is LogLine:
+            line = <LogLine>log
+            self.n_steps = line.n_steps
+        else:
+            steps = log.steps
+            self.n_steps = len(steps)
+        for k in range(self.n_steps):
+            if line is not None:
+                si = &line.steps[k]
+            else:
+                if hold:
+                    del hold[:]
+                _step_in(steps[k], &filled, hold)
             self._row = row
             out.step_k[row] = k
             out.step_ep[row] = self.e
-            self._parse(log_step, &pa)
-            recorded_feedback = _step_field(log_step, F_FEEDBACK)
-            recorded_state = _step_field(log_step, F_STATE)
-            recorded_view = _step_field(log_step, F_VIEW)
-            out.rec_feedback.push_opt(recorded_feedback)
-            out.rec_state.push_opt(recorded_state)
-            out.rec_view.push_opt(recorded_view)
-            self._timestamp(_step_field(log_step, F_TIMESTAMP), row)
-            self._usage(log_step, row)
+            self._parse(si, &pa)
+            out.rec_feedback.push_text(&si.feedback)
+            out.rec_state.push_text(&si.state)
+            out.rec_view.push_text(&si.view)
+            self._timestamp(si, row)
+            self._usage(si, row)
             if self.termination >= 0:  # after termination: truncated, nothing scored
                 self.truncated_steps += 1
                 out.entered_off.push(<int>out.entered.size)
@@ -1382,15 +1542,17 @@ cdef class Episode:
                 self._score(&pa, &oc, &sc)
                 self._write(row, &pa, &oc, &sc)
                 self._terminate()
-                self._diverge(recorded_feedback, recorded_state, recorded_view, &oc, row)
+                self._diverge(si, &oc, row)
             row += 1
         return row
 
-    cdef inline int _timestamp(self, object ts, Py_ssize_t row) except -1:
+    cdef inline int _timestamp(self, const StepIn* si, Py_ssize_t row) except -1:
         """The recorded time of the step, in seconds (`timestamp_seconds`), when it has one."""
-        if ts is not None:
-            if type(ts) is not float:
-                ts = timestamp_seconds(ts)
+        if si.ts_kind == TS_NUMBER:
+            self.out.timestamp[row] = si.ts
+            self.out.timestamp_valid[row] = 1
+        elif si.ts_kind == TS_TEXT:
+            ts = timestamp_seconds(_decoded(&si.ts_text))
             if ts is not None:
                 self.out.timestamp[row] = ts
                 self.out.timestamp_valid[row] = 1
@@ -1660,25 +1822,23 @@ cdef class Episode:
             self.termination = 2
         return 0
 
-    cdef inline int _diverge(
-        self, object feedback, object state, object view, Outcome* oc, Py_ssize_t row
-    ) except -1:
+    cdef inline int _diverge(self, const StepIn* si, Outcome* oc, Py_ssize_t row) except -1:
         """The recorded values against the replay (PROTOCOL §7.2): a recorded feedback kind
-        is compared with the kind, a text with the text."""
+        is compared with the kind, a text with the text. Compared as UTF-8 (equal bytes,
+        equal str), with the replay's names' UTF-8 kept once (`Names`)."""
         cdef Out out = self.out
         cdef int div_mask = 0, c
-        # Equal to what the replay gives is checked first: a comparison of short strings,
-        # where looking the recorded text up (a kind? a view in any case?) hashes it anew.
-        if feedback is not None or state is not None or view is not None:
-            if feedback is not None and not _equal(feedback, _KIND_NAMES[oc.kind]):
-                if (
-                    not _equal(feedback, self.vocab.texts[oc.text])
-                    or feedback in _FEEDBACK_KIND_SET
-                ):
+        cdef const Text* feedback = &si.feedback
+        cdef const Text* state = &si.state
+        cdef const Text* view = &si.view
+        # Equal to what the replay gives is checked first; the other readings after.
+        if feedback.data != NULL or state.data != NULL or view.data != NULL:
+            if feedback.data != NULL and not _same(feedback, &_KINDS.at[oc.kind]):
+                if not _same(feedback, &self.vocab.text_utf8.at[oc.text]) or _is_kind(feedback):
                     div_mask |= 1  # another kind, or a text that is not the replay's
-            if state is not None and not _equal(state, self.km.state_names[self.state]):
+            if state.data != NULL and not _same(state, &self.km.state_utf8.at[self.state]):
                 div_mask |= 2
-            if view is not None and not _equal(view, _VIEW_NAMES[self.view]):
+            if view.data != NULL and not _same(view, &_VIEWS.at[self.view]):
                 if _lower_view(view) != self.view:
                     div_mask |= 4
             out.diverged_valid[row] = 1
@@ -1742,7 +1902,7 @@ cdef class Episode:
         if self.termination >= 0:
             out.e_termination[e] = self.termination
         else:  # the log ran out first: log_ended, or how the harness ended it (`ended`)
-            ended = self.ep.log.ended
+            ended = self.ep.log.ended  # an attribute of either kind of log
             out.e_termination[e] = TERMINATIONS.index(ended) if ended is not None else 3
         out.e_l_opt[e] = self.l_opt
         out.e_l_act[e] = l_act
@@ -1754,7 +1914,7 @@ cdef class Episode:
         if self.current:
             out.e_vsps[e] = <double>vsps_switches / <double>self.current
             out.e_vsps_valid[e] = 1
-        out.e_n_steps[e] = len(self.ep.log.steps)
+        out.e_n_steps[e] = self.n_steps
         out.e_truncated[e] = self.truncated_steps
         out.e_diverged[e] = self.diverged_steps
         out.e_lam[e] = self.lam
@@ -1790,13 +1950,9 @@ cdef class Episode:
         return 0
 
 
-cdef inline int _count(object value, i64p column, u8p valid, Py_ssize_t row, long long* total,
-                       bint* has) except -1:
-    """A recorded token count (or None) into its column and the episode's sum."""
-    cdef long long n
-    if value is None:
-        return 0
-    n = value
+cdef inline int _count(long long n, i64p column, u8p valid, Py_ssize_t row, long long* total,
+                       bint* has) noexcept:
+    """A recorded token count into its column and the episode's sum."""
     column[row] = n
     valid[row] = 1
     total[0] = n if not has[0] else total[0] + n
