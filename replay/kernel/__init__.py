@@ -2,11 +2,21 @@
 
 `replay.io` replays each batch of `vge replay` with `replay_kernel` (and decodes inputs
 with `nested_beyond`'s depth check); the benchmarks time it against the reference
-(`benchmarks/`).
+(`benchmarks/`). `decode_line` decodes an episode line straight into the structs the
+kernel reads (`LogLine`), for the lines it can prove msgspec decodes to the same values.
 """
 
 from ._batch import BatchTables, EpisodeInput, replay_kernel
 from ._json import nested_beyond
+from ._logline import LogLine, decode_line
 from ._text import parse_fields
 
-__all__ = ["BatchTables", "EpisodeInput", "nested_beyond", "parse_fields", "replay_kernel"]
+__all__ = [
+    "BatchTables",
+    "EpisodeInput",
+    "LogLine",
+    "decode_line",
+    "nested_beyond",
+    "parse_fields",
+    "replay_kernel",
+]
