@@ -19,11 +19,10 @@ from hypothesis import strategies as st
 from replay.io import iter_lines
 from replay.io._decode import decode
 from replay.io._load import episode_decoder
-from replay.kernel import LogLine, _logline, decode_line
+from replay.kernel import LogLine, _logline, decline_reason, decode_line
 from replay.semantics import EpisodeLog, timestamp_seconds
 from replay.semantics._records import MAX_TOKENS
 
-decline_reason = _logline.decline_reason
 STEP_BYTES = _logline.STEP_BYTES
 
 LOGS = Path(__file__).resolve().parents[3] / "logs"
