@@ -32,7 +32,7 @@ from cpython.unicode cimport PyUnicode_DecodeUTF8
 from libc.math cimport fabs, isfinite
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc, realloc
-from libc.string cimport memcmp, memcpy, memset
+from libc.string cimport memcmp, memcpy, memset, strlen
 
 from ..semantics import CONTEXT_EXCEEDED
 
@@ -111,6 +111,26 @@ STEP_BYTES = sizeof(StepIn)
 cdef enum:
     _K_OUTPUT, _K_ACTION, _K_VIEW, _K_FEEDBACK, _K_STATE, _K_TIMESTAMP, _K_PROMPT,
     _K_COMPLETION, _K_LATENCY, _K_EPISODE_ID, _K_STEPS, _K_ENDED, _K_CONTINUATION
+
+
+cdef StepIn _NO_STEP  # all zeros: every field None
+cdef const char* _KEY_NAME[13]
+cdef Py_ssize_t _KEY_SIZE[13]
+_KEY_NAME[_K_OUTPUT] = b"output"
+_KEY_NAME[_K_ACTION] = b"action"
+_KEY_NAME[_K_VIEW] = b"view"
+_KEY_NAME[_K_FEEDBACK] = b"feedback"
+_KEY_NAME[_K_STATE] = b"state"
+_KEY_NAME[_K_TIMESTAMP] = b"timestamp"
+_KEY_NAME[_K_PROMPT] = b"prompt_tokens"
+_KEY_NAME[_K_COMPLETION] = b"completion_tokens"
+_KEY_NAME[_K_LATENCY] = b"latency_seconds"
+_KEY_NAME[_K_EPISODE_ID] = b"episode_id"
+_KEY_NAME[_K_STEPS] = b"steps"
+_KEY_NAME[_K_ENDED] = b"ended"
+_KEY_NAME[_K_CONTINUATION] = b"continuation"
+for _c in range(13):
+    _KEY_SIZE[_c] = strlen(_KEY_NAME[_c])
 
 
 cdef struct Parser:
@@ -276,7 +296,7 @@ cdef bint _record(Parser* p) noexcept:
                 if not _null(p):
                     if p.s[p.i] != 34 or not _string(p, &ended):
                         return _fail(p, p.why if p.why else _MALFORMED)
-                    if not _is(<const unsigned char*>ended.data, ended.size, _ENDED, len(_ENDED)):
+                    if ended.size != len(_ENDED) or memcmp(ended.data, <const char*>_ENDED, ended.size):
                         return _fail(p, _MALFORMED)
                     p.ended = True
             elif not _null(p):  # continuation
@@ -308,24 +328,18 @@ cdef inline bint _next(Parser* p, unsigned char close) noexcept nogil:
 cdef int _key(Parser* p, bint record) noexcept nogil:
     """A key and its `:`, as a `_K_*` (-1 and `why` set when it is not a key of the object)."""
     cdef const unsigned char* s = p.s
-    cdef Py_ssize_t start = p.i + 1, i = p.i + 1
+    cdef Py_ssize_t i = p.i + 1
     cdef int key
     if s[p.i] != 34:
         _fail(p, _MALFORMED)
         return -1
-    while s[i] != 34:
-        if s[i] == 92:
-            _fail(p, _ESCAPE)
-            return -1
-        if s[i] < 32:  # a control character, or the end of the line
-            _fail(p, _MALFORMED)
-            return -1
-        i += 1
-    key = _record_key(s + start, i - start) if record else _step_key(s + start, i - start)
-    if key < 0:
-        _fail(p, _UNKNOWN_KEY)
+    key = _known_key(s + i, p.n - i, record)
+    if key < 0:  # why not: an escape, the end of the line, or a name not of the object
+        while s[i] != 34 and s[i] != 92 and s[i] >= 32:
+            i += 1
+        _fail(p, _ESCAPE if s[i] == 92 else _MALFORMED if s[i] < 32 else _UNKNOWN_KEY)
         return -1
-    p.i = i + 1
+    p.i = i + _KEY_SIZE[key] + 1
     _ws(p)
     if s[p.i] != 58:
         _fail(p, _MALFORMED)
@@ -335,42 +349,39 @@ cdef int _key(Parser* p, bint record) noexcept nogil:
     return key
 
 
-cdef inline bint _is(const unsigned char* k, Py_ssize_t size, const char* name, Py_ssize_t n) noexcept nogil:
-    return size == n and memcmp(k, name, n) == 0
-
-
-cdef int _record_key(const unsigned char* k, Py_ssize_t size) noexcept nogil:
-    if _is(k, size, b"episode_id", 10):
-        return _K_EPISODE_ID
-    if _is(k, size, b"steps", 5):
-        return _K_STEPS
-    if _is(k, size, b"ended", 5):
-        return _K_ENDED
-    if _is(k, size, b"continuation", 12):
-        return _K_CONTINUATION
-    return -1
-
-
-cdef int _step_key(const unsigned char* k, Py_ssize_t size) noexcept nogil:
-    if _is(k, size, b"output", 6):
-        return _K_OUTPUT
-    if _is(k, size, b"view", 4):
-        return _K_VIEW
-    if _is(k, size, b"feedback", 8):
-        return _K_FEEDBACK
-    if _is(k, size, b"state", 5):
-        return _K_STATE
-    if _is(k, size, b"timestamp", 9):
-        return _K_TIMESTAMP
-    if _is(k, size, b"prompt_tokens", 13):
-        return _K_PROMPT
-    if _is(k, size, b"completion_tokens", 17):
-        return _K_COMPLETION
-    if _is(k, size, b"latency_seconds", 15):
-        return _K_LATENCY
-    if _is(k, size, b"action", 6):
-        return _K_ACTION
-    return -1
+cdef int _known_key(const unsigned char* k, Py_ssize_t room, bint record) noexcept nogil:
+    """The key whose name and closing quote start at `k` (`room` bytes before the line's
+    end), or -1: the candidate by its first byte or two, then compared whole."""
+    cdef int key = -1
+    cdef unsigned char c = k[0]
+    if record:
+        if c == 101:  # e
+            key = _K_EPISODE_ID if k[1] == 112 else _K_ENDED
+        elif c == 115:  # s
+            key = _K_STEPS
+        elif c == 99:  # c
+            key = _K_CONTINUATION
+    elif c == 111:  # o
+        key = _K_OUTPUT
+    elif c == 118:  # v
+        key = _K_VIEW
+    elif c == 102:  # f
+        key = _K_FEEDBACK
+    elif c == 115:  # s
+        key = _K_STATE
+    elif c == 116:  # t
+        key = _K_TIMESTAMP
+    elif c == 112:  # p
+        key = _K_PROMPT
+    elif c == 99:  # c
+        key = _K_COMPLETION
+    elif c == 108:  # l
+        key = _K_LATENCY
+    elif c == 97:  # a
+        key = _K_ACTION
+    if key < 0 or room <= _KEY_SIZE[key] or k[_KEY_SIZE[key]] != 34:
+        return -1
+    return key if memcmp(k, _KEY_NAME[key], _KEY_SIZE[key]) == 0 else -1
 
 
 cdef bint _steps(Parser* p) noexcept:
@@ -411,7 +422,7 @@ cdef bint _grow(Parser* p) noexcept nogil:
 cdef bint _step(Parser* p, StepIn* st) noexcept:
     """One step object into `st` (absent fields stay None: NULL texts, TS_NONE, no numbers)."""
     cdef int key, seen = 0
-    memset(st, 0, sizeof(StepIn))
+    st[0] = _NO_STEP
     if p.s[p.i] != 123:
         return _fail(p, _MALFORMED)
     p.i += 1

@@ -410,3 +410,29 @@ def test_plain_well_formed_lines_are_decoded(raw: bytes) -> None:
     line = decode_line(raw)
     assert line is not None, (decline_reason(raw), raw)
     assert_agrees(raw, line)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    st.integers(0, 10**16),
+    st.integers(-25, 25),
+    st.integers(0, 16),
+    st.sampled_from(["e", "E", "e+", "e-0"]),
+    st.booleans(),
+)
+def test_decimals_are_rounded_as_msgspec_rounds_them(
+    mantissa: int, exponent: int, point: int, e: str, negative: bool
+) -> None:
+    """A decimal of up to 17 digits, the point anywhere, within and past the exact fast path
+    (15 digits, powers of ten to 22): the float msgspec gives, bit for bit."""
+    digits = str(mantissa)
+    point = min(point, len(digits) - 1)
+    text = digits[: len(digits) - point] + ("." + digits[len(digits) - point :] if point else "")
+    spelled = (
+        ("-" if negative else "") + text + (f"{e}{exponent}" if exponent >= 0 else f"e{exponent}")
+    )
+    raw = record(b'{"timestamp":%s,"latency_seconds":%s}' % (spelled.encode(), text.encode()))
+    line = decode_line(raw)
+    assert line is not None, (spelled, decline_reason(raw))
+    assert_agrees(raw, line)
+    assert bits(line.step(0)["ts"]) == bits(float(spelled))
