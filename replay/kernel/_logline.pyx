@@ -129,8 +129,16 @@ _KEY_NAME[_K_EPISODE_ID] = b"episode_id"
 _KEY_NAME[_K_STEPS] = b"steps"
 _KEY_NAME[_K_ENDED] = b"ended"
 _KEY_NAME[_K_CONTINUATION] = b"continuation"
+# A step's keys (row 0) and a record's (row 1) by their first byte (-1: no key starts so).
+cdef signed char _BY_FIRST[2][256]
 for _c in range(13):
     _KEY_SIZE[_c] = strlen(_KEY_NAME[_c])
+for _c in range(256):
+    _BY_FIRST[0][_c] = _BY_FIRST[1][_c] = -1
+for _c in range(_K_EPISODE_ID):  # the step keys, whose first bytes all differ
+    _BY_FIRST[0][<unsigned char>_KEY_NAME[_c][0]] = _c
+for _c in (_K_EPISODE_ID, _K_STEPS, _K_CONTINUATION):  # and ended: see _known_key
+    _BY_FIRST[1][<unsigned char>_KEY_NAME[_c][0]] = _c
 
 
 cdef struct Parser:
@@ -272,13 +280,11 @@ cdef inline bint _null(Parser* p) noexcept nogil:
 
 cdef bint _record(Parser* p) noexcept:
     """The record's object: `episode_id` (a string), `steps`, `ended` and `continuation`."""
-    cdef int key, seen = 0
+    cdef int key, seen = 0, members = _open(p, 123, 125)
     cdef Text ended
-    if p.s[p.i] != 123:
-        return _fail(p, _MALFORMED)
-    p.i += 1
-    _ws(p)
-    if p.s[p.i] != 125:
+    if members < 0:
+        return False
+    if members:
         while True:
             key = _key(p, True)
             if key < 0:
@@ -305,8 +311,6 @@ cdef bint _record(Parser* p) noexcept:
                 return _fail(p, p.why if p.why else _MALFORMED)
             if p.s[p.i - 1] == 125:
                 break
-    else:
-        p.i += 1
     if not seen & (1 << _K_EPISODE_ID):
         return _fail(p, _MALFORMED)
     return True
@@ -352,33 +356,9 @@ cdef int _key(Parser* p, bint record) noexcept nogil:
 cdef int _known_key(const unsigned char* k, Py_ssize_t room, bint record) noexcept nogil:
     """The key whose name and closing quote start at `k` (`room` bytes before the line's
     end), or -1: the candidate by its first byte or two, then compared whole."""
-    cdef int key = -1
-    cdef unsigned char c = k[0]
-    if record:
-        if c == 101:  # e
-            key = _K_EPISODE_ID if k[1] == 112 else _K_ENDED
-        elif c == 115:  # s
-            key = _K_STEPS
-        elif c == 99:  # c
-            key = _K_CONTINUATION
-    elif c == 111:  # o
-        key = _K_OUTPUT
-    elif c == 118:  # v
-        key = _K_VIEW
-    elif c == 102:  # f
-        key = _K_FEEDBACK
-    elif c == 115:  # s
-        key = _K_STATE
-    elif c == 116:  # t
-        key = _K_TIMESTAMP
-    elif c == 112:  # p
-        key = _K_PROMPT
-    elif c == 99:  # c
-        key = _K_COMPLETION
-    elif c == 108:  # l
-        key = _K_LATENCY
-    elif c == 97:  # a
-        key = _K_ACTION
+    cdef int key = _BY_FIRST[record][k[0]]
+    if key == _K_EPISODE_ID and k[1] != 112:  # "ended", the other record key in e
+        key = _K_ENDED
     if key < 0 or room <= _KEY_SIZE[key] or k[_KEY_SIZE[key]] != 34:
         return -1
     return key if memcmp(k, _KEY_NAME[key], _KEY_SIZE[key]) == 0 else -1
@@ -386,13 +366,9 @@ cdef int _known_key(const unsigned char* k, Py_ssize_t room, bint record) noexce
 
 cdef bint _steps(Parser* p) noexcept:
     """`steps`: an array of step objects, each decoded into the next `StepIn`."""
-    if p.s[p.i] != 91:
-        return _fail(p, _MALFORMED)
-    p.i += 1
-    _ws(p)
-    if p.s[p.i] == 93:
-        p.i += 1
-        return True
+    cdef int members = _open(p, 91, 93)
+    if members <= 0:
+        return members == 0
     while True:
         if p.n_steps == p.cap and not _grow(p):
             return False
@@ -403,6 +379,20 @@ cdef bint _steps(Parser* p) noexcept:
             return _fail(p, _MALFORMED)
         if p.s[p.i - 1] == 93:
             return True
+
+
+cdef inline int _open(Parser* p, unsigned char opener, unsigned char closer) noexcept nogil:
+    """Past an array's or an object's opener: 1 when members follow, 0 past the closer of an
+    empty one, -1 (`why` set) when there is none."""
+    if p.s[p.i] != opener:
+        _fail(p, _MALFORMED)
+        return -1
+    p.i += 1
+    _ws(p)
+    if p.s[p.i] == closer:
+        p.i += 1
+        return 0
+    return 1
 
 
 cdef bint _grow(Parser* p) noexcept nogil:
@@ -421,15 +411,10 @@ cdef bint _grow(Parser* p) noexcept nogil:
 
 cdef bint _step(Parser* p, StepIn* st) noexcept:
     """One step object into `st` (absent fields stay None: NULL texts, TS_NONE, no numbers)."""
-    cdef int key, seen = 0
+    cdef int key, seen = 0, members = _open(p, 123, 125)
     st[0] = _NO_STEP
-    if p.s[p.i] != 123:
-        return _fail(p, _MALFORMED)
-    p.i += 1
-    _ws(p)
-    if p.s[p.i] == 125:
-        p.i += 1
-        return True
+    if members <= 0:
+        return members == 0
     while True:
         key = _key(p, False)
         if key < 0:
