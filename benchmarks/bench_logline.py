@@ -5,7 +5,7 @@ on every line of every run, each followed by freeing what it made.
 Usage:
 
     .venv/bin/python benchmarks/bench_logline.py /work/baseline/full [--runs sim-vlm-a ...]
-        [--batch 512] [--rounds 3]
+        [--batch 512] [--rounds 3] [--lines N] [--once msgspec|decode_line|none]
 
 Each run's lines are read first (`replay.io.iter_lines`, outside the timing). Then, `--rounds`
 times, alternating which goes first: the CPU time (`time.process_time`) of decoding every
@@ -14,6 +14,11 @@ dropped (freed) before the next; the garbage collector off, as in a batch. Print
 lines, steps, lines accepted and declined (by reason), the least CPU per step of each decoder
 and their ratio; then the same over all runs (docs/PERFORMANCE.md, *Episode lines decoded
 straight into the kernel's structs*).
+
+For instruction counts, which hold on a noisy machine: `--once NAME` decodes the lines once
+with one decoder (`none`: none), untimed, and prints their steps; run it under `valgrind
+--tool=callgrind` for each NAME: the difference of a decoder's total and `none`'s is its
+instructions (`--lines` takes the first N lines of each run).
 """
 
 from __future__ import annotations
@@ -40,6 +45,8 @@ def main() -> None:
     parser.add_argument("--runs", nargs="*", help="run names (default: every run)")
     parser.add_argument("--batch", type=int, default=512)
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--lines", type=int, help="the first N lines of each run")
+    parser.add_argument("--once", choices=["msgspec", "decode_line", "none"])
     args = parser.parse_args()
 
     import replay.io
@@ -56,14 +63,24 @@ def main() -> None:
     names = args.runs or sorted(p.name for p in (args.data / "runs").iterdir() if p.is_dir())
     gc.disable()
     total = Counter()
-    print(
-        f"{'run':<16} {'lines':>7} {'steps':>8} {'accepted':>8}  {'msgspec':>8} "
-        f"{'decode_line':>11} {'ratio':>6}  declined"
-    )
+    if not args.once:
+        print(
+            f"{'run':<16} {'lines':>7} {'steps':>8} {'accepted':>8}  {'msgspec':>8} "
+            f"{'decode_line':>11} {'ratio':>6}  declined"
+        )
     for name in names:
         path = replay.io.episodes_file(str(args.data / "runs" / name))
-        lines = [raw for _, raw in replay.io.iter_lines(path)]
+        lines = [raw for _, raw in replay.io.iter_lines(path)][: args.lines]
         steps = sum(len(decoder.decode(raw).steps) for raw in lines)
+        if args.once:
+            if args.once != "none":
+                _timed(
+                    {"msgspec": with_msgspec, "decode_line": decode_line}[args.once],
+                    lines,
+                    args.batch,
+                )
+            print(f"{name}: {len(lines):,} lines, {steps:,} steps")
+            continue
         reasons = Counter(decline_reason(raw) for raw in lines)
         accepted = reasons.pop(None, 0)
         best = {"msgspec": float("inf"), "decode_line": float("inf")}
@@ -74,6 +91,8 @@ def main() -> None:
         total.update({"lines": len(lines), "steps": steps, "accepted": accepted, **best})
         total.update({f"declined: {k}": v for k, v in reasons.items()})
         _row(name, len(lines), steps, accepted, best, reasons)
+    if args.once:
+        return
     declined = Counter({k[10:]: v for k, v in total.items() if k.startswith("declined: ")})
     _row("all", total["lines"], total["steps"], total["accepted"], total, declined)
 
