@@ -3,11 +3,9 @@
 
 `decode_line` is a second reader of PROTOCOL §1.4's episode records, for speed only: it
 returns a `LogLine` only for a line msgspec (`replay.io._decode.decode(episode_decoder, raw)`)
-decodes without error to an `EpisodeLog` with no continuation and no structured action, with
-every field equal to msgspec's; on anything else (an error, an unknown or repeated key, a
-number or an escape it does not handle) it declines with None and msgspec decodes the line,
-so every error message stays msgspec's. tests/replay/kernel/test_logline.py proves the
-agreement (hand-worked cases and a differential test against msgspec).
+decodes without error to an `EpisodeLog` with no continuation and no structured action, every
+field equal to msgspec's; on any doubt it returns None and msgspec decodes the line (so every
+error message stays msgspec's). tests/replay/kernel/test_logline.py proves the agreement.
 
 What it accepts, as msgspec decodes it (measured with msgspec 0.22):
 - JSON whitespace (space, tab, CR, LF) around the object and between tokens; keys in any order;
@@ -32,7 +30,7 @@ from cpython.unicode cimport PyUnicode_DecodeUTF8
 from libc.math cimport fabs, isfinite
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc, realloc
-from libc.string cimport memcmp, memcpy, memset, strlen
+from libc.string cimport memcmp, memcpy, memset
 
 from ..semantics import CONTEXT_EXCEEDED
 
@@ -117,23 +115,15 @@ cdef enum:
 cdef StepIn _NO_STEP  # all zeros: every field None
 cdef const char* _KEY_NAME[13]
 cdef Py_ssize_t _KEY_SIZE[13]
-_KEY_NAME[_K_OUTPUT] = b"output"
-_KEY_NAME[_K_ACTION] = b"action"
-_KEY_NAME[_K_VIEW] = b"view"
-_KEY_NAME[_K_FEEDBACK] = b"feedback"
-_KEY_NAME[_K_STATE] = b"state"
-_KEY_NAME[_K_TIMESTAMP] = b"timestamp"
-_KEY_NAME[_K_PROMPT] = b"prompt_tokens"
-_KEY_NAME[_K_COMPLETION] = b"completion_tokens"
-_KEY_NAME[_K_LATENCY] = b"latency_seconds"
-_KEY_NAME[_K_EPISODE_ID] = b"episode_id"
-_KEY_NAME[_K_STEPS] = b"steps"
-_KEY_NAME[_K_ENDED] = b"ended"
-_KEY_NAME[_K_CONTINUATION] = b"continuation"
+cdef tuple _KEY_BYTES = (  # in the order of the `_K_*`; held here, for `_KEY_NAME`
+    b"output", b"action", b"view", b"feedback", b"state", b"timestamp", b"prompt_tokens",
+    b"completion_tokens", b"latency_seconds", b"episode_id", b"steps", b"ended", b"continuation",
+)
 # A step's keys (row 0) and a record's (row 1) by their first byte (-1: no key starts so).
 cdef signed char _BY_FIRST[2][256]
 for _c in range(13):
-    _KEY_SIZE[_c] = strlen(_KEY_NAME[_c])
+    _KEY_NAME[_c] = <bytes>_KEY_BYTES[_c]
+    _KEY_SIZE[_c] = len(_KEY_BYTES[_c])
 for _c in range(256):
     _BY_FIRST[0][_c] = _BY_FIRST[1][_c] = -1
 for _c in range(_K_EPISODE_ID):  # the step keys, whose first bytes all differ
@@ -158,9 +148,19 @@ cdef struct Parser:
 
 cdef struct Num:
     bint is_int
-    int64_t ival
-    double fval
+    int64_t ival            # an integer's value
+    double fval             # the value as a float (an integer's too)
 
+
+# What a one-letter escape stands for, by its letter (0: none, or the `u` of `\uXXXX`).
+cdef unsigned char _SHORT_ESCAPE[256]
+for _c, _to in {34: 34, 92: 92, 47: 47, 98: 8, 102: 12, 110: 10, 114: 13, 116: 9}.items():
+    _SHORT_ESCAPE[_c] = _to
+
+# A hex digit's value by its byte, -1 for every other byte.
+cdef signed char _HEX[256]
+for _c in range(256):
+    _HEX[_c] = int(chr(_c), 16) if chr(_c) in "0123456789abcdefABCDEF" else -1
 
 # Exact powers of ten (10**22 is the largest a double holds exactly).
 cdef double _POW10[23]
@@ -296,15 +296,15 @@ cdef bint _record(Parser* p) noexcept:
                 return _fail(p, _DUPLICATE_KEY)
             seen |= 1 << key
             if key == _K_EPISODE_ID:
-                if p.s[p.i] != 34 or not _string(p, &p.episode_id):
-                    return _fail(p, p.why if p.why else _MALFORMED)
+                if not _text_value(p, &p.episode_id):
+                    return False
             elif key == _K_STEPS:
                 if not _steps(p):
                     return False
             elif key == _K_ENDED:
                 if not _null(p):
-                    if p.s[p.i] != 34 or not _string(p, &ended):
-                        return _fail(p, p.why if p.why else _MALFORMED)
+                    if not _text_value(p, &ended):
+                        return False
                     if ended.size != len(_ENDED) or memcmp(ended.data, <char*>_ENDED, ended.size):
                         return _fail(p, _MALFORMED)
                     p.ended = True
@@ -437,28 +437,20 @@ cdef bint _step_value(Parser* p, StepIn* st, int key) noexcept:
     cdef Num num
     if _null(p):
         return True
-    if key == _K_OUTPUT:
-        return _text_value(p, &st.output)
-    if key == _K_VIEW:
-        return _text_value(p, &st.view)
-    if key == _K_FEEDBACK:
-        return _text_value(p, &st.feedback)
-    if key == _K_STATE:
-        return _text_value(p, &st.state)
     if key == _K_ACTION:
         return _fail(p, _ACTION)
+    if key <= _K_STATE:  # output, view, feedback, state
+        return _text_value(p, _texts(st, key))
     if key == _K_TIMESTAMP and p.s[p.i] == 34:
         st.ts_kind = TS_TEXT
         return _string(p, &st.ts_text)
     if not _number(p, &num):
         return False
     if key == _K_TIMESTAMP:
-        st.ts_kind = TS_NUMBER
-        st.ts = <double>num.ival if num.is_int else num.fval
+        st.ts_kind, st.ts = TS_NUMBER, num.fval
     elif key == _K_LATENCY:  # a float >= 0 (an integer is made one; -0.0 is >= 0)
-        st.has_latency = True
-        st.latency = <double>num.ival if num.is_int else num.fval
-        if not st.latency >= 0:
+        st.has_latency, st.latency = True, num.fval
+        if not num.fval >= 0:
             return _fail(p, _MALFORMED)
     else:  # tokens: an integer from 0 to 2**40 (a float, even 1.0, is msgspec's error)
         if not num.is_int or num.ival < 0 or num.ival > _MAX_TOKENS:
@@ -468,6 +460,12 @@ cdef bint _step_value(Parser* p, StepIn* st, int key) noexcept:
         else:
             st.has_completion, st.completion = True, num.ival
     return True
+
+
+cdef inline Text* _texts(StepIn* st, int key) noexcept nogil:
+    """A step's text field by its key (`_K_OUTPUT`, `_K_VIEW`, `_K_FEEDBACK`, `_K_STATE`)."""
+    return &st.output if key == _K_OUTPUT else &st.view if key == _K_VIEW else (
+        &st.feedback if key == _K_FEEDBACK else &st.state)
 
 
 cdef inline bint _text_value(Parser* p, Text* out) noexcept nogil:
@@ -521,6 +519,7 @@ cdef bint _number(Parser* p, Num* out) noexcept:
         if digits > _MAX_INT_DIGITS:
             return _fail(p, _NUMBER)
         out.ival = -mantissa if negative else mantissa
+        out.fval = <double>out.ival  # as msgspec makes an integer a float: -0 gives 0.0
         return True
     if digits > _MAX_DIGITS:
         return _fail(p, _NUMBER)
@@ -636,100 +635,64 @@ cdef int _escape(const unsigned char* e, long* code) noexcept nogil:
     """The escape at `e` (its backslash): its length, with its code point in `code`; 0 when
     it is not an escape of JSON, -1 for a lone surrogate (msgspec's error, declined)."""
     cdef long low
-    cdef unsigned char c = e[1]
-    if c == 34 or c == 92 or c == 47:
-        code[0] = c
-    elif c == 98:
-        code[0] = 8
-    elif c == 102:
-        code[0] = 12
-    elif c == 110:
-        code[0] = 10
-    elif c == 114:
-        code[0] = 13
-    elif c == 116:
-        code[0] = 9
-    elif c == 117:
-        code[0] = _hex4(e + 2)
-        if code[0] < 0:
-            return 0
-        if 0xDC00 <= code[0] <= 0xDFFF:
-            return -1
-        if 0xD800 <= code[0] <= 0xDBFF:
-            if e[6] != 92 or e[7] != 117:
-                return -1
-            low = _hex4(e + 8)
-            if not 0xDC00 <= low <= 0xDFFF:
-                return -1
-            code[0] = 0x10000 + ((code[0] - 0xD800) << 10) + (low - 0xDC00)
-            return 12
-        return 6
-    else:
+    if _SHORT_ESCAPE[e[1]]:
+        code[0] = _SHORT_ESCAPE[e[1]]
+        return 2
+    if e[1] != 117:  # \u
         return 0
-    return 2
+    code[0] = _hex4(e + 2)
+    if code[0] < 0:
+        return 0
+    if 0xDC00 <= code[0] <= 0xDFFF:
+        return -1
+    if 0xD800 <= code[0] <= 0xDBFF:
+        if e[6] != 92 or e[7] != 117:
+            return -1
+        low = _hex4(e + 8)
+        if not 0xDC00 <= low <= 0xDFFF:
+            return -1
+        code[0] = 0x10000 + ((code[0] - 0xD800) << 10) + (low - 0xDC00)
+        return 12
+    return 6
 
 
 cdef inline long _hex4(const unsigned char* h) noexcept nogil:
     """Four hex digits as a number, or -1 (stops at the first other byte: the line's NUL)."""
-    cdef long value = 0
-    cdef int j
-    cdef unsigned char c
-    for j in range(4):
-        c = h[j]
-        if 48 <= c <= 57:
-            value = value * 16 + (c - 48)
-        elif 97 <= c <= 102:
-            value = value * 16 + (c - 87)
-        elif 65 <= c <= 70:
-            value = value * 16 + (c - 55)
-        else:
-            return -1
-    return value
+    if _HEX[h[0]] < 0 or _HEX[h[1]] < 0 or _HEX[h[2]] < 0 or _HEX[h[3]] < 0:
+        return -1
+    return (_HEX[h[0]] << 12) | (_HEX[h[1]] << 8) | (_HEX[h[2]] << 4) | _HEX[h[3]]
 
 
 cdef inline int _put_utf8(unsigned char* d, long code) noexcept nogil:
-    if code < 0x80:
-        d[0] = <unsigned char>code
-        return 1
-    if code < 0x800:
-        d[0] = <unsigned char>(0xC0 | (code >> 6))
-        d[1] = <unsigned char>(0x80 | (code & 0x3F))
-        return 2
-    if code < 0x10000:
-        d[0] = <unsigned char>(0xE0 | (code >> 12))
-        d[1] = <unsigned char>(0x80 | ((code >> 6) & 0x3F))
-        d[2] = <unsigned char>(0x80 | (code & 0x3F))
-        return 3
-    d[0] = <unsigned char>(0xF0 | (code >> 18))
-    d[1] = <unsigned char>(0x80 | ((code >> 12) & 0x3F))
-    d[2] = <unsigned char>(0x80 | ((code >> 6) & 0x3F))
-    d[3] = <unsigned char>(0x80 | (code & 0x3F))
-    return 4
-
-
-cdef inline bint _tail(unsigned char c) noexcept nogil:
-    return (c & 0xC0) == 0x80
+    """`code` written as UTF-8 at `d`: its length."""
+    cdef int n = 1 if code < 0x80 else 2 if code < 0x800 else 3 if code < 0x10000 else 4, k
+    for k in range(n - 1, 0, -1):  # continuation bytes, six bits each, from the last
+        d[k] = <unsigned char>(0x80 | (code & 0x3F))
+        code >>= 6
+    d[0] = <unsigned char>(code if n == 1 else ((0xFF << (8 - n)) & 0xFF) | code)
+    return n
 
 
 cdef int _utf8_length(const unsigned char* q) noexcept nogil:
     """The length of the UTF-8 character at `q` (a byte >= 0x80), or 0 where Python's codec
     rejects it: a stray continuation byte, an overlong form, a surrogate, past U+10FFFF, a cut
-    sequence (the line's closing NUL is no continuation byte, so reading stops there)."""
+    sequence (the line's closing NUL is no continuation byte, so reading stops there). A
+    continuation byte is 10xxxxxx."""
     cdef unsigned char c = q[0], low = 0x80, high = 0xBF
     if c < 0xC2:
         return 0
     if c < 0xE0:
-        return 2 if _tail(q[1]) else 0
+        return 2 if (q[1] & 0xC0) == 0x80 else 0
     if c < 0xF0:
         if c == 0xE0:
             low = 0xA0
         elif c == 0xED:
             high = 0x9F
-        return 3 if low <= q[1] <= high and _tail(q[2]) else 0
+        return 3 if low <= q[1] <= high and (q[2] & 0xC0) == 0x80 else 0
     if c < 0xF5:
         if c == 0xF0:
             low = 0x90
         elif c == 0xF4:
             high = 0x8F
-        return 4 if low <= q[1] <= high and _tail(q[2]) and _tail(q[3]) else 0
+        return 4 if low <= q[1] <= high and (q[2] & 0xC0) == 0x80 and (q[3] & 0xC0) == 0x80 else 0
     return 0

@@ -435,3 +435,21 @@ def test_decimals_are_rounded_as_msgspec_rounds_them(
     assert line is not None, (spelled, decline_reason(raw))
     assert_agrees(raw, line)
     assert bits(line.step(0)["ts"]) == bits(float(spelled))
+
+
+def test_every_code_point_through_its_escape() -> None:
+    """Each of the 1,112,064 code points that are not surrogates, as `\\uXXXX` (a surrogate
+    pair past U+FFFF), is decoded to its UTF-8."""
+    wrong = []
+    for code in range(0x110000):
+        if 0xD800 <= code <= 0xDFFF:
+            continue
+        if code < 0x10000:
+            escape = f"\\u{code:04x}"
+        else:
+            high, low = divmod(code - 0x10000, 0x400)
+            escape = f"\\u{0xD800 + high:04x}\\u{0xDC00 + low:04X}"
+        line = decode_line(b'{"episode_id":"' + escape.encode() + b'"}')
+        if line is None or line.episode_id != chr(code):
+            wrong.append(code)
+    assert wrong == []
