@@ -27,12 +27,6 @@ from .test_kernel import (
     machine_of,
 )
 
-pytestmark = pytest.mark.skipif(
-    decode_line(b'{"episode_id":"x","steps":[]}') is None,
-    reason="decoder not built on this branch",
-)
-
-
 def _takeable(log: replay.EpisodeLog) -> bool:
     return log.continuation is None and all(s.action is None for s in log.steps)
 
