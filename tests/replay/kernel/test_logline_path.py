@@ -8,7 +8,6 @@ others are left to msgspec, in the same batches."""
 from __future__ import annotations
 
 import msgspec
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -26,6 +25,7 @@ from .test_kernel import (
     episode,
     machine_of,
 )
+
 
 def _takeable(log: replay.EpisodeLog) -> bool:
     return log.continuation is None and all(s.action is None for s in log.steps)
