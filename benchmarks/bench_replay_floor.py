@@ -13,8 +13,8 @@ Each try runs in a fresh interpreter (`--inner`), one after the other:
   and the kernel's own tables per machine and goal (the first pass over the batches, less
   the second);
 - per step, over every batch of every run as the replay cuts them (4,096 lines): reading
-  and inflating the lines (`iter_lines`), decoding them (`EpisodeLog`, the depth check
-  included), the rest of preparing them (look-ups, the plan from the cache), the kernel's
+  and inflating the lines (`iter_lines`), decoding them as a batch does (`decode_episode_line`:
+  into the kernel's structs, or by msgspec with the depth check for what it declines), the rest of preparing them (look-ups, the plan from the cache), the kernel's
   replay and its Arrow tables (`replay_kernel`), the Parquet parts as the replay writes
   them (`write_part`, a part per batch and table) and, beside them, each run's tables
   written as one part (what bigger parts could save at most);
@@ -68,8 +68,9 @@ def _pass(data: Path, scratch: Path, state, got: dict[str, float], write: bool) 
     """One pass over every batch, each piece timed into `got`; the steps replayed. What it
     does to a line is what `replay_batch` does to a good one (the checks that quarantine a
     bad one are look-ups that find nothing wrong here)."""
-    from replay.io import ROW_GROUP_ROWS, episode_decoder, location, write_part
-    from replay.kernel import EpisodeInput, nested_beyond, replay_kernel
+    from replay.io import ROW_GROUP_ROWS, location, write_part
+    from replay.io._load import decode_episode_line
+    from replay.kernel import EpisodeInput, replay_kernel
     from replay.semantics import episode_lambda
 
     bench = state.bench
@@ -77,9 +78,8 @@ def _pass(data: Path, scratch: Path, state, got: dict[str, float], write: bool) 
     for index, (run, lines) in enumerate(_batches(data, got)):
         c0 = time.process_time()
         logs = []
-        for _, raw in lines:
-            if nested_beyond(raw, 256) < 0:  # the depth check of `io/_decode.py`
-                logs.append(episode_decoder.decode(raw))
+        for _, raw in lines:  # as a batch reads a line (`_batch._prepare_line`)
+            logs.append(decode_episode_line(raw))
         c1 = time.process_time()
         episodes = []
         for log in logs:
