@@ -68,8 +68,7 @@ def _pass(data: Path, scratch: Path, state, got: dict[str, float], write: bool) 
     """One pass over every batch, each piece timed into `got`; the steps replayed. What it
     does to a line is what `replay_batch` does to a good one (the checks that quarantine a
     bad one are look-ups that find nothing wrong here)."""
-    from replay.io import ROW_GROUP_ROWS, location, write_part
-    from replay.io._load import decode_episode_line
+    from replay.io import ROW_GROUP_ROWS, decode_episode_line, location, write_part
     from replay.kernel import EpisodeInput, replay_kernel
     from replay.semantics import episode_lambda
 

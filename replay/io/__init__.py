@@ -97,6 +97,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._lines import MAX_RECORD_BYTES, iter_lines
     from ._load import (
         Benchmark,
+        decode_episode_line,
         decode_state_machine,
         episode_decoder,
         episodes_file,
@@ -138,6 +139,7 @@ __all__ = [
     "MAX_RECORD_BYTES",
     "Benchmark",
     "Location",
+    "decode_episode_line",
     "decode_state_machine",
     "episode_decoder",
     "episodes_file",
