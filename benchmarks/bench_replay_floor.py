@@ -13,9 +13,10 @@ Each try runs in a fresh interpreter (`--inner`), one after the other:
   and the kernel's own tables per machine and goal (the first pass over the batches, less
   the second);
 - per step, over every batch of every run as the replay cuts them (4,096 lines): reading
-  and inflating the lines (`iter_lines`), decoding them as a batch does (`decode_episode_line`:
-  into the kernel's structs, or by msgspec with the depth check for what it declines), the rest of preparing them (look-ups, the plan from the cache), the kernel's
-  replay and its Arrow tables (`replay_kernel`), the Parquet parts as the replay writes
+  and inflating the lines (`iter_lines`), decoding them as a batch does
+  (`decode_episode_line`: into the kernel's structs, or by msgspec with the depth check for
+  what it declines), the rest of preparing them (look-ups, the plan from the cache), the
+  kernel's replay and its Arrow tables (`replay_kernel`), the Parquet parts as the replay writes
   them (`write_part`, a part per batch and table) and, beside them, each run's tables
   written as one part (what bigger parts could save at most);
 - the floor of a bare untyped decode, as `bench_replay_process.py` measures it.

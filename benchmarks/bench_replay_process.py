@@ -227,7 +227,7 @@ PIECES = (
     ("start", "start: interpreter and the imports a worker needs"),
     ("open", "opening BENCH"),
     ("read", "reading and inflating the lines"),
-    ("decode", "decoding (`EpisodeLog`, with the depth check)"),
+    ("decode", "decoding (`decode_episode_line`: the kernel's structs, msgspec for the rest)"),
     ("prepare", "preparing the lines (compiling and planning met cold, look-ups)"),
     ("kernel_arrow", "the kernel and its Arrow tables (its tables per machine met cold)"),
     ("parquet_parts", "Parquet, a part per batch and table"),
