@@ -91,16 +91,18 @@ def replay_command(
     from rich.console import Console
     from rich.markup import escape
 
-    from ..synth import image_source
-
     console = Console(highlight=False)
     if not console.is_terminal:  # logs and pipes: do not squeeze the table into 80 columns
         console = Console(highlight=False, width=120)
     # BENCH opened here once for both checks of MCAP's (0.75 s on the full benchmark)
     opened = replay.Benchmark.open(bench) if mcap or mcap_episodes else None
     chosen = checked_mcap_episodes(opened, mcap_episodes)
+    images = None
     if opened is not None:
         warn_refused_pictures(opened, chosen, "left out of the MCAP files")
+        from ..synth import image_source  # the renderer (PIL, 0.08 s) only for MCAP's pictures
+
+        images = image_source(bench)
     manifest = replay.replay_runs(
         runs,
         bench,
@@ -111,7 +113,7 @@ def replay_command(
         mcap_episodes=chosen,
         force=force,
         progress=progress,
-        image_source=image_source(bench),
+        image_source=images,
         ray=ray,
         max_record_bytes=max_record_bytes,
     )
