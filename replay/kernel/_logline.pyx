@@ -289,12 +289,9 @@ cdef bint _record(Parser* p) noexcept:
         return False
     if members:
         while True:
-            key = _key(p, True)
+            key = _new_key(p, &seen, True)
             if key < 0:
                 return False
-            if seen & (1 << key):
-                return _fail(p, _DUPLICATE_KEY)
-            seen |= 1 << key
             if key == _K_EPISODE_ID:
                 if not _text_value(p, &p.episode_id):
                     return False
@@ -353,6 +350,19 @@ cdef int _key(Parser* p, bint record) noexcept nogil:
         return -1
     p.i += 1
     _ws(p)
+    return key
+
+
+cdef inline int _new_key(Parser* p, int* seen, bint record) noexcept nogil:
+    """The next key of an object (`_key`), marked in `seen`; -1 and `why` set when it is not
+    a key of the object or was seen before (msgspec would keep the last value)."""
+    cdef int key = _key(p, record)
+    if key < 0:
+        return -1
+    if seen[0] & (1 << key):
+        _fail(p, _DUPLICATE_KEY)
+        return -1
+    seen[0] |= 1 << key
     return key
 
 
@@ -419,12 +429,9 @@ cdef bint _step(Parser* p, StepIn* st) noexcept:
     if members <= 0:
         return members == 0
     while True:
-        key = _key(p, False)
+        key = _new_key(p, &seen, False)
         if key < 0:
             return False
-        if seen & (1 << key):
-            return _fail(p, _DUPLICATE_KEY)
-        seen |= 1 << key
         if not _step_value(p, st, key):
             return _fail(p, p.why if p.why else _MALFORMED)
         if not _next(p, 125):
