@@ -183,7 +183,7 @@ cdef class Names:
     """Strings (or None) with their UTF-8 at hand, for comparisons with what a log recorded:
     `at[i]` spans the UTF-8 of the i-th, which CPython keeps with the str (held here)."""
 
-    cdef list strs
+    cdef readonly list strs
     cdef Text* at
     cdef Py_ssize_t n, cap
 
@@ -1185,25 +1185,28 @@ cdef class Vocab:
     """Per-batch string vocabularies: each machine's states, components (then `timed_wait`,
     which names the wait transitions) and feedback texts get an offset in them."""
 
-    cdef readonly list states, comps, texts
-    cdef Names text_utf8      # `texts`, for comparisons with the recorded feedback
+    cdef readonly list states, comps
+    cdef Names text_utf8      # the feedback texts, their UTF-8 at hand for comparisons
     cdef dict offsets
 
     def __init__(self):
         self.states = []
         self.comps = []
-        self.texts = list(FIXED_TEXTS)
         self.text_utf8 = Names(FIXED_TEXTS)
         self.offsets = {}
+
+    @property
+    def texts(self) -> list:
+        """The feedback texts: the fixed ones, then each machine's."""
+        return self.text_utf8.strs
 
     cdef tuple offsets_of(self, KMachine km):
         got = self.offsets.get(id(km))
         if got is None:
-            got = (len(self.states), len(self.comps), len(self.texts), km)
+            got = (len(self.states), len(self.comps), self.text_utf8.n, km)
             self.states.extend(km.state_names)
             self.comps.extend(km.comp_names)
             self.comps.append(TIMED_WAIT)
-            self.texts.extend(km.texts)
             self.text_utf8.extend(km.texts)
             self.offsets[id(km)] = got
         return got
