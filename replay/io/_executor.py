@@ -17,7 +17,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Generic, Protocol, TypeVar
 
 from .._errors import ConfigError, WorkerError
-from ._worker import end_with_parent
+from ._lifetime import start_worker
 
 T = TypeVar("T")
 Batch = Callable[[Any], Any]
@@ -83,19 +83,26 @@ class WorkerProcesses:
     the worker's when it kept batch 0, and the wall time followed it). While waiting for a
     result, this process works: on its own tasks first, then on pool tasks that no worker
     has started (a pending future can be cancelled). So no process idles while another has
-    a queue."""
+    a queue.
 
-    def __init__(self, workers: int) -> None:
+    Given BENCH, the workers start at once and get ready for their first batch (the batch
+    function imported, BENCH opened: `_lifetime.start_worker`) while this process goes on;
+    otherwise a pool starts a worker when a task needs one."""
+
+    def __init__(self, workers: int, bench: str | None = None) -> None:
         context = multiprocessing.get_context("spawn")
         self.slots = workers
         self.nodes: Counter[str] = Counter()
         self.pool = ProcessPoolExecutor(
             max_workers=workers - 1,
             mp_context=context,
-            initializer=end_with_parent,  # no worker outlives this process (`_worker`)
-            initargs=(os.getpid(),),
+            initializer=start_worker,  # no worker outlives this process (`_lifetime`)
+            initargs=(os.getpid(), bench),
         )
         self._open: deque[_Share] = deque()  # submitted, result not taken yet
+        if bench is not None:
+            for _ in range(workers - 1):  # a pool starts a worker per task it is given
+                self.pool.submit(os.getpid)
 
     def submit(self, fn: Batch, task: Any) -> _Share:
         index = getattr(task, "index", 0)
@@ -142,18 +149,19 @@ class WorkerProcesses:
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
-def make_executor(workers: int = 1, ray: str | None = None) -> Executor:
+def make_executor(workers: int = 1, ray: str | None = None, bench: str | None = None) -> Executor:
     """This process (`workers=1`), `workers` processes, or the Ray cluster at `ray`
     (`auto`: the cluster this host belongs to or `RAY_ADDRESS`; `local`: a cluster started
     in this process; else an address). Worker processes end with this process; on Linux
-    also with the thread that first submits to them, which must outlive the executor."""
+    also with the thread that first submits to them, which must outlive the executor. Given
+    `bench` (as the tasks will name it), worker processes start now and open it."""
     if ray is not None:
         from ._ray import RayCluster
 
         return RayCluster(ray)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers must be a positive integer, not {workers!r}")
-    return InProcess() if workers == 1 else WorkerProcesses(workers)
+    return InProcess() if workers == 1 else WorkerProcesses(workers, bench)
 
 
 class _Pending(Generic[T]):

@@ -20,6 +20,7 @@ import functools
 import math
 import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 import msgspec
@@ -121,6 +122,7 @@ def replay_runs(
     image_source: ImageSource | None = None,
     ray: str | None = None,
     max_record_bytes: int = MAX_RECORD_BYTES,
+    executor: Executor | None = None,
 ) -> Manifest:
     """Replay run directories against a benchmark into `out_dir` (PROTOCOL §7).
 
@@ -135,6 +137,8 @@ def replay_runs(
     every node must reach `bench_dir`, `out_dir` and the image source (docs/SCALE.md).
     `max_record_bytes` bounds an episode line: a longer one is quarantined as
     `record_too_large` and ends the reading of its file (PROTOCOL §1.5).
+    `executor` (`make_executor`, made and closed by the caller) runs the batches instead of
+    one made here from `workers` and `ray`.
     Run directories, `bench_dir` and `out_dir` are local paths or URIs of pyarrow's
     filesystems (`s3://bucket/out`, `gs://...`, `file:///...`); in an object store the
     manifest is the commit marker and the writer lock is a lease object (docs/SCALE.md).
@@ -156,24 +160,23 @@ def replay_runs(
         todo, skipped = _runs_to_replay(runs, entries, force, bench_given, options, hasher, out)
         adopt(WorkerState(bench), bench_given)  # the main process replays with this one
 
-        executor: Executor = make_executor(workers, ray) if todo else InProcess()
         bar = _make_progress(progress, cluster=ray is not None)
         try:
-            if bar is not None:
-                bar.start()
-                for run_id in skipped:
-                    bar.console.print(f"{run_id}: up to date, skipped (use --force)")
-            for job in _replay_all(
-                todo, bench, bench_given, out, options, image_source, hasher, executor, bar,
-                functools.partial(_commit, out, entries, lock),
-            ):  # fmt: skip
-                replayed.append(job.ctx.run_id)
-            lock.check()
-            content = publish(out, entries)
+            with _running(executor, todo, workers, ray, bench_given) as executor:
+                if bar is not None:
+                    bar.start()
+                    for run_id in skipped:
+                        bar.console.print(f"{run_id}: up to date, skipped (use --force)")
+                for job in _replay_all(
+                    todo, bench, bench_given, out, options, image_source, hasher, executor, bar,
+                    functools.partial(_commit, out, entries, lock),
+                ):  # fmt: skip
+                    replayed.append(job.ctx.run_id)
+                lock.check()
+                content = publish(out, entries)
         finally:
             if bar is not None:
                 bar.stop()
-            executor.close()
             (state_dir / "staging").rmtree()
     manifest_file = manifest_path(out)
     return Manifest(
@@ -184,6 +187,22 @@ def replay_runs(
         skipped=skipped,
         nodes=dict(sorted(executor.nodes.items())),
     )
+
+
+@contextmanager
+def _running(
+    given: Executor | None, todo: list[RunInput], workers: int, ray: str | None, bench: str
+) -> Iterator[Executor]:
+    """The executor given, else one made here (this process alone when nothing is to be
+    replayed; its workers open `bench` as they start) and closed when the batches are done."""
+    if given is not None:
+        yield given
+        return
+    executor = make_executor(workers, ray, bench) if todo else InProcess()
+    try:
+        yield executor
+    finally:
+        executor.close()
 
 
 def _output_dir(given: str | os.PathLike[str]) -> Location:

@@ -546,7 +546,7 @@ _IDLE_POOL = """
 import functools, os, sys, time
 from concurrent.futures import ProcessPoolExecutor
 import multiprocessing
-from replay.io._worker import end_with_parent
+from replay.io._lifetime import end_with_parent
 if __name__ == "__main__":
     init = functools.partial(end_with_parent, death_signal=sys.argv[1] == "signal")
     pool = ProcessPoolExecutor(1, multiprocessing.get_context("spawn"), init, (os.getpid(),))
