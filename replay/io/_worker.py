@@ -1,8 +1,8 @@
 """A worker process of `vge replay`: what it keeps between batches, and how long it lives.
 
 - `WorkerState`: the caches of a process, all bounded (the benchmark opened once, episode
-  setups, SSM bytes and view images for the MCAP files); `worker_state(bench)` is this
-  process's, whichever executor runs the batches here.
+  setups, the episodes that passed their checks, SSM bytes and view images for the MCAP
+  files); `worker_state(bench)` is this process's, whichever executor runs the batches here.
 - `end_with_parent` (a pool's initializer) ties a worker to the process that started it.
   Killed with `kill -9`, a parent leaves its pool's workers waiting for tasks that will never
   come, and with them the multiprocessing resource tracker, which lives until the last
@@ -21,6 +21,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from .._errors import TaskError
 from ..semantics import EpisodeSetup, Machine, Task, setup_episode
@@ -28,7 +29,8 @@ from ._images import ImageSource, ViewImage, as_view_image
 from ._load import Benchmark
 
 SETUP_CACHE_SIZE = 50_000
-"""Episode setups (plans) kept per process; bounds memory whatever the number of tasks."""
+"""Episode setups (plans), and episodes ready to replay, kept per process; bounds memory
+whatever the number of tasks."""
 _IMAGE_CACHE_SIZE = 128
 _SSM_CACHE_SIZE = 256
 _BENCHES = 4
@@ -41,12 +43,24 @@ def _remember(cache: dict, key: object, value: object, limit: int) -> None:
     cache[key] = value
 
 
+class Ready(NamedTuple):
+    """An episode that passed every check of its lines (its task, its device's SSM, its
+    setup): what a line of it needs besides the line."""
+
+    machine: Machine
+    task: Task
+    setup: EpisodeSetup
+
+
 @dataclass
 class WorkerState:
-    """Per-process caches (bounded): the benchmark, episode setups, SSM bytes, view images."""
+    """Per-process caches (bounded): the benchmark, episode setups, the episodes ready to
+    replay (by id; an episode that failed a check is not kept, so each of its lines is
+    checked and reported again), SSM bytes, view images."""
 
     bench: Benchmark
     setups: dict[str, EpisodeSetup | TaskError] = field(default_factory=dict)
+    ready: dict[str, Ready] = field(default_factory=dict)
     ssm_bytes: dict[str, bytes] = field(default_factory=dict)
     images: dict[tuple[str, str], ViewImage | None] = field(default_factory=dict)
 
@@ -61,6 +75,9 @@ class WorkerState:
         if isinstance(got, TaskError):
             raise got
         return got
+
+    def remember_ready(self, ready: Ready) -> None:
+        _remember(self.ready, ready.task.episode_id, ready, SETUP_CACHE_SIZE)
 
     def image(self, source: ImageSource, machine: Machine, view: str) -> ViewImage | None:
         key = (machine.device_id, view)
