@@ -69,7 +69,7 @@ def _pass(data: Path, scratch: Path, state, got: dict[str, float], write: bool) 
     """One pass over every batch, each piece timed into `got`; the steps replayed. What it
     does to a line is what `replay_batch` does to a good one (the checks that quarantine a
     bad one are look-ups that find nothing wrong here)."""
-    from replay.io import ROW_GROUP_ROWS, decode_episode_line, location, write_part
+    from replay.io import ROW_GROUP_ROWS, Ready, decode_episode_line, location, write_part
     from replay.kernel import EpisodeInput, replay_kernel
     from replay.semantics import episode_lambda
 
@@ -78,15 +78,19 @@ def _pass(data: Path, scratch: Path, state, got: dict[str, float], write: bool) 
     for index, (run, lines) in enumerate(_batches(data, got)):
         c0 = time.process_time()
         logs = []
-        for _, raw in lines:  # as a batch reads a line (`_batch._prepare_line`)
+        for _, raw in lines:  # as a batch reads a line (`_batch._prepare_lines`)
             logs.append(decode_episode_line(raw))
         c1 = time.process_time()
         episodes = []
-        for log in logs:
-            task = bench.tasks[log.episode_id].task
-            bench.no_machine(task.device_id)
-            machine = bench.machine(task.device_id)
-            setup = state.setup(machine, task)
+        for log in logs:  # the checks once per episode and process, as in a batch
+            ready = state.ready.get(log.episode_id)
+            if ready is None:
+                task = bench.tasks[log.episode_id].task
+                bench.no_machine(task.device_id)
+                machine = bench.machine(task.device_id)
+                ready = Ready(machine, task, state.setup(machine, task))
+                state.remember_ready(ready)
+            machine, task, setup = ready
             lam = episode_lambda(task, None, None)
             episodes.append(EpisodeInput(machine, task, setup, log, lam))
         c2 = time.process_time()

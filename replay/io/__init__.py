@@ -121,7 +121,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._rundir import RunDirectory, keep_aside
     from ._runner import replay_runs
     from ._schemas import schema_documents, write_schemas
-    from ._worker import worker_state
+    from ._worker import Ready, worker_state
 
 __all__ = [
     # the runner and its output
@@ -237,6 +237,7 @@ __all__ = [
     "replay_lambdas",
     "safe_file_name",
     "worker_state",
+    "Ready",
     # the JSON Schemas
     "schema_documents",
     "write_schemas",

@@ -85,9 +85,9 @@ class WorkerProcesses:
     has started (a pending future can be cancelled). So no process idles while another has
     a queue.
 
-    Given BENCH, the workers start at once and get ready for their first batch (the batch
-    function imported, BENCH opened: `_lifetime.start_worker`) while this process goes on;
-    otherwise a pool starts a worker when a task needs one."""
+    Given BENCH, the workers start at once and open it (importing what a batch needs:
+    `_lifetime.start_worker`) while this process goes on; otherwise a pool starts a worker
+    when a task needs one."""
 
     def __init__(self, workers: int, bench: str | None = None) -> None:
         context = multiprocessing.get_context("spawn")

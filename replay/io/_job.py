@@ -15,7 +15,6 @@ from .._errors import InputError, OutputError, RecordTooLarge
 from .._version import ENGINE_VERSION
 from ..semantics import arrow_schema
 from ._batch import (
-    SKIPPED,
     BatchCounts,
     BatchFailure,
     BatchReport,
@@ -153,54 +152,50 @@ class RunJob:
         cannot know that (it sees one batch), so a batch holding a replayed duplicate is
         replayed again (`redo`, rare) with those lines skipped, which rewrites its parts."""
         result = self._checked(result)
-        seen = dict(self.seen)
-        duplicates: dict[int, int] = {}  # line -> the line that first had its id
-        for o in result.outcomes:
-            if o.decoded and o.episode_id is not None:
-                first = seen.get(o.episode_id)
-                if first is None:
-                    seen[o.episode_id] = o.line
-                else:
-                    duplicates[o.line] = first
-        first_try = result
-        if any(o.kind is None and o.line in duplicates for o in result.outcomes):
+        duplicates = self._duplicates(result)
+        if not duplicates.keys() <= {o.line for o in result.others}:  # one was replayed
+            first_try = result
             result = self._checked(redo(task.skipping(frozenset(duplicates))))
-        mcap_of = {o.line: o.mcap_tmp for o in first_try.outcomes}
-        by_line = {o.line: o for o in first_try.outcomes}
-        for o in result.outcomes:
-            self.lines_read += 1
-            if o.kind == SKIPPED:
-                o = by_line[o.line]  # what the first try knew of it (the id, the decoding)
+            for line in duplicates.keys() & first_try.mcap.keys():
+                (self.staging / MCAP_DIR / first_try.mcap[line][1]).unlink(missing_ok=True)
+        self.lines_read += result.lines
+        self.replayed += result.lines - len(result.others)
+        self.devices.update(dict.fromkeys(result.devices))
+        for o in result.others:
             if o.line in duplicates:
+                episode_id, first = duplicates[o.line]
                 self.quarantine(
                     o.line,
-                    o.episode_id,
+                    episode_id,
                     "duplicate_episode",
-                    f"episode {o.episode_id!r} already appeared on line {duplicates[o.line]}; "
+                    f"episode {episode_id!r} already appeared on line {first}; "
                     "only the first occurrence is replayed",
                 )
-                if mcap_of.get(o.line) is not None:
-                    (self.staging / MCAP_DIR / mcap_of[o.line]).unlink(missing_ok=True)
-                continue
-            if o.decoded and o.episode_id is not None:
-                entry = self.bench.tasks.get(o.episode_id)
-                if entry is not None:
-                    self.devices.setdefault(entry.task.device_id)
-            if o.kind is None:
-                self.replayed += 1
-                if o.mcap_tmp is not None:
-                    self.counts.mcap_files += 1
-                    (self.staging / MCAP_DIR / o.mcap_tmp).replace(
-                        self.staging / MCAP_DIR / mcap_file_name(o.episode_id or "")
-                    )
             else:
                 self.quarantine(o.line, o.episode_id, o.kind, o.reason or "")
-        self.seen = seen
+        self._publish_mcaps(result)
         self.counts.add(result.counts)
         for name, rows in result.parts.items():
             if rows:
                 self.parts[name].append(part_name(task.index))
-        return len(result.outcomes)
+        return result.lines
+
+    def _duplicates(self, result: BatchReport) -> dict[int, tuple[str, int]]:
+        """The batch's lines whose episode id an earlier line of the run had (line -> the
+        id, the line that first had it); the ids first seen here are marked seen."""
+        seen = self.seen
+        return {
+            line: (eid, first)
+            for eid, line in zip(result.episode_ids, result.episode_lines, strict=True)
+            if (first := seen.setdefault(eid, line)) != line
+        }
+
+    def _publish_mcaps(self, result: BatchReport) -> None:
+        """The MCAP files of the replayed lines, renamed from their temporary names."""
+        mcap = self.staging / MCAP_DIR
+        for episode_id, mcap_tmp in result.mcap.values():
+            self.counts.mcap_files += 1
+            (mcap / mcap_tmp).replace(mcap / mcap_file_name(episode_id))
 
     def _checked(self, result: BatchReport | BatchFailure) -> BatchReport:
         if isinstance(result, BatchFailure):

@@ -1,14 +1,15 @@
 """A worker process of `vge replay`: what it keeps between batches.
 
 `WorkerState`: the caches of a process, all bounded (the benchmark opened once, episode
-setups, SSM bytes and view images for the MCAP files); `worker_state(bench)` is this
-process's, whichever executor runs the batches here. How long a worker lives is
-`_lifetime`'s.
+setups, the episodes that passed their checks, SSM bytes and view images for the MCAP
+files); `worker_state(bench)` is this process's, whichever executor runs the batches here.
+How long a worker lives is `_lifetime`'s.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from .._errors import TaskError
 from ..semantics import EpisodeSetup, Machine, Task, setup_episode
@@ -16,7 +17,8 @@ from ._images import ImageSource, ViewImage, as_view_image
 from ._load import Benchmark
 
 SETUP_CACHE_SIZE = 50_000
-"""Episode setups (plans) kept per process; bounds memory whatever the number of tasks."""
+"""Episode setups (plans), and episodes ready to replay, kept per process; bounds memory
+whatever the number of tasks."""
 _IMAGE_CACHE_SIZE = 128
 _SSM_CACHE_SIZE = 256
 _BENCHES = 4
@@ -29,12 +31,24 @@ def _remember(cache: dict, key: object, value: object, limit: int) -> None:
     cache[key] = value
 
 
+class Ready(NamedTuple):
+    """An episode that passed every check of its lines (its task, its device's SSM, its
+    setup): what a line of it needs besides the line."""
+
+    machine: Machine
+    task: Task
+    setup: EpisodeSetup
+
+
 @dataclass
 class WorkerState:
-    """Per-process caches (bounded): the benchmark, episode setups, SSM bytes, view images."""
+    """Per-process caches (bounded): the benchmark, episode setups, the episodes ready to
+    replay (by id; an episode that failed a check is not kept, so each of its lines is
+    checked and reported again), SSM bytes, view images."""
 
     bench: Benchmark
     setups: dict[str, EpisodeSetup | TaskError] = field(default_factory=dict)
+    ready: dict[str, Ready] = field(default_factory=dict)
     ssm_bytes: dict[str, bytes] = field(default_factory=dict)
     images: dict[tuple[str, str], ViewImage | None] = field(default_factory=dict)
 
@@ -49,6 +63,9 @@ class WorkerState:
         if isinstance(got, TaskError):
             raise got
         return got
+
+    def remember_ready(self, ready: Ready) -> None:
+        _remember(self.ready, ready.task.episode_id, ready, SETUP_CACHE_SIZE)
 
     def image(self, source: ImageSource, machine: Machine, view: str) -> ViewImage | None:
         key = (machine.device_id, view)

@@ -26,27 +26,23 @@ def test_this_process_keeps_batch_k_when_k_mod_n_is_n_minus_1(
         executor.close()
 
 
-def _ready_here() -> tuple[bool, list[str]]:
-    """In a worker: whether the batch function is imported, and the benchmarks it opened."""
-    import sys
-
+def _opened_here() -> list[str]:
+    """In a worker: the benchmarks it has opened."""
     from replay.io import _worker
 
-    return "replay.io._batch" in sys.modules, sorted(_worker._states)
+    return sorted(_worker._states)
 
 
 @pytest.mark.parametrize("bench_given", [False, True])
-def test_given_bench_the_workers_start_at_once_ready_for_a_batch(
-    sample, bench_given: bool
-) -> None:
+def test_given_bench_the_workers_start_at_once_and_open_it(sample, bench_given: bool) -> None:
     """Without BENCH a pool starts a worker when a task needs one; with it, `vge replay`'s
-    workers start as the executor is made, import the batch function and open BENCH."""
+    workers start as the executor is made, and open BENCH before any task."""
     bench = str(sample.bench)
     before = len(multiprocessing.active_children())
     executor = WorkerProcesses(3, bench if bench_given else None)
     try:
         assert len(multiprocessing.active_children()) - before == (2 if bench_given else 0)
-        ready = executor.pool.submit(_ready_here).result()
-        assert ready == ((True, [bench]) if bench_given else (False, []))
+        opened = executor.pool.submit(_opened_here).result()
+        assert opened == ([bench] if bench_given else [])
     finally:
         executor.close()
