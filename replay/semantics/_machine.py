@@ -343,6 +343,8 @@ def _coordinate_problems(coord: list[float]) -> list[str]:
         return [f"coordinate must be [x, y, w, h, W, H], got {len(coord)} numbers"]
     x, y, w, h, width, height = coord
     m = MAX_PIXELS  # -m <= v <= m holds for no NaN and no infinity
+    if x >= 0 and y >= 0 and w > 0 and h > 0 and x + w <= width <= m and y + h <= height <= m:
+        return []  # the usual box, tested at once: this implies every test below passes
     if not (
         -m <= x <= m
         and -m <= y <= m
@@ -377,7 +379,9 @@ def compile_machine(
 
     names = tuple(ssm.states)
     index = {n: i for i, n in enumerate(names)}
-    error_states = frozenset(i for i, nm in enumerate(names) if _is_error_state(nm, ssm.states[nm]))
+    error_states = frozenset(
+        i for i, (nm, sdef) in enumerate(ssm.states.items()) if _is_error_state(nm, sdef)
+    )
     chains, ends = _immediate_chains(ssm, names, index)
     views, regions = _offered_views(ssm)
     transitions, by_state, wait = _compile_transitions(ssm, index, chains, ends, error_states)
@@ -394,19 +398,18 @@ def compile_machine(
         source=source,
         states=names,
         state_index=index,
-        descriptions=tuple(ssm.states[nm].description for nm in names),
+        descriptions=tuple([sdef.description for sdef in ssm.states.values()]),
         initial=index[ssm.initial_state],
         error_states=error_states,
         views=views,
         immediate_chain=tuple(chains),
         chain_end=tuple(ends),
         transitions=tuple(transitions),
-        by_state=tuple(tuple(x) for x in by_state),
+        by_state=tuple(map(tuple, by_state)),
         wait=tuple(wait),
         by_state_view={k: tuple(v) for k, v in by_state_view.items()},
-        component_rects={
-            v: tuple(sorted(d, key=lambda cr: (cr[0], cr[1]))) for v, d in component_rects.items()
-        },
+        # sorted by (component, rect)
+        component_rects={v: tuple(sorted(d)) for v, d in component_rects.items()},
         state_component_rects={
             k: {c: tuple(rs) for c, rs in sorted(d.items())}
             for k, d in state_component_rects.items()

@@ -78,7 +78,7 @@ class _Graph:
             machine.by_state[s] + ((w,) if (w := machine.wait[s]) is not None else ())
             for s in range(len(machine.states))
         )
-        # stable state -> the sources of the transitions ending there / entering it
+        # the sources (stable states) of the transitions ending in a state, and entering it
         self.before: dict[int, list[int]] = {}
         self.entering: dict[int, list[int]] = {}
         for s, transitions in enumerate(self.agent):
@@ -305,7 +305,9 @@ class _Solver:
                 stack.append(self._node(child))
         return memo[key]
 
-    def _node(self, node: tuple[int, int, str, bool]) -> Generator[tuple[int, int, str, bool]]:
+    def _node(
+        self, node: tuple[int, int, str, bool]
+    ) -> Generator[tuple[int, int, str, bool], None, None]:
         """Evaluate one node into the memo: the best over its options, each option's rest
         taken from the memo once there, asked for by yielding its node if not (an option
         that cannot beat the best so far is skipped unasked). The options come in order of
