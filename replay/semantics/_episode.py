@@ -48,18 +48,19 @@ def setup_episode(machine: Machine, task: Task) -> EpisodeSetup:
     where = f"episode {task.episode_id!r}: "
     if not task.goals:
         raise TaskError(f"{where}no goals")
-    unknown = [g for g in task.goals if g not in machine.state_index]
-    if unknown:
+    index = machine.state_index
+    goals = tuple(map(index.get, task.goals))
+    if None in goals:
+        unknown = [g for g in task.goals if g not in index]
         raise TaskError(f"{where}unknown goal state(s) {', '.join(map(repr, unknown))}")
     init_name = task.initial_state or machine.states[machine.initial]
-    if init_name not in machine.state_index:
+    init = index.get(init_name)
+    if init is None:
         raise TaskError(f"{where}unknown initial_state {init_name!r}")
     view = task.initial_view.lower()
     if view not in machine.views or view == DASHBOARD:
         offered = ", ".join(v for v in machine.views if v != DASHBOARD)
         raise TaskError(f"{where}initial_view {task.initial_view!r} is not one of: {offered}")
-    goals = tuple(machine.state_index[g] for g in task.goals)
-    init = machine.state_index[init_name]
     sim, reset_states = reset(machine, init, view)
     plan = plan_goals(machine, sim.state, view, False, goals, where=where)
     return EpisodeSetup(goals, init, reset_states, sim.state, view, plan)

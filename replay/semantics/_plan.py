@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Generator
 from dataclasses import dataclass
+from operator import add, itemgetter
 
 from .._errors import TaskError
 from ._machine import CompiledTransition, Machine, Rect, rect_contains
@@ -36,43 +37,65 @@ def distances(machine: Machine, goal: int) -> tuple[int, ...]:
     cached = machine._cache.get(key)
     if cached is not None:
         return cached
-    n = len(machine.states)
-    dist = [INF] * n
+    graph = _graph(machine)
+    dist = [INF] * len(machine.states)
     dist[goal] = 0
-    reverse: dict[int, list[int]] = {}
-    layer: list[int] = []
-    for s in range(n):
-        if machine.immediate_chain[s]:
-            continue  # the agent never stands in a transient state
-        for tr in _agent_transitions(machine, s):
-            if goal in tr.entered:
-                if dist[s] > 1:
-                    dist[s] = 1
-                    layer.append(s)
-            else:
-                reverse.setdefault(tr.end, []).append(s)
-    frontier = layer
+    frontier: list[int] = []
+    for s in graph.entering.get(goal, ()):
+        if dist[s] > 1:
+            dist[s] = 1
+            frontier.append(s)
+    # Breadth first back from the states one transition away. A transition entering the goal
+    # is among `before` too: its source is at 1 (or the goal) already, so it sets nothing.
+    before = graph.before
     while frontier:
         nxt: list[int] = []
         for s in frontier:
             d = dist[s] + 1
-            for p in reverse.get(s, ()):
+            for p in before.get(s, ()):
                 if dist[p] == INF:
                     dist[p] = d
                     nxt.append(p)
         frontier = nxt
-    for s in range(n):
-        chain = machine.immediate_chain[s]
+    chain_end = machine.chain_end
+    for s, chain in enumerate(machine.immediate_chain):
         if chain and s != goal:
-            dist[s] = 0 if goal in chain else dist[machine.chain_end[s]]
+            dist[s] = 0 if goal in chain else dist[chain_end[s]]
     result = tuple(dist)
     machine._cache[key] = result
     return result
 
 
-def _agent_transitions(machine: Machine, s: int) -> tuple[CompiledTransition, ...]:
-    wait = machine.wait[s]
-    return machine.by_state[s] + ((wait,) if wait is not None else ())
+class _Graph:
+    """The agent's transition graph of a machine, which every goal's distances walk: built
+    once per machine rather than once per goal."""
+
+    __slots__ = ("m", "agent", "before", "entering", "options")
+
+    def __init__(self, machine: Machine) -> None:
+        self.m = machine
+        self.agent: tuple[tuple[CompiledTransition, ...], ...] = tuple(
+            machine.by_state[s] + ((w,) if (w := machine.wait[s]) is not None else ())
+            for s in range(len(machine.states))
+        )
+        # the sources (stable states) of the transitions ending in a state, and entering it
+        self.before: dict[int, list[int]] = {}
+        self.entering: dict[int, list[int]] = {}
+        for s, transitions in enumerate(self.agent):
+            if machine.immediate_chain[s]:
+                continue  # the agent never stands in a transient state
+            for tr in transitions:
+                self.before.setdefault(tr.end, []).append(s)
+                for x in tr.entered:
+                    self.entering.setdefault(x, []).append(s)
+        self.options: dict[tuple[int, str, bool], tuple[_Option, ...]] = {}  # _state_options
+
+
+def _graph(machine: Machine) -> _Graph:
+    graph = machine._cache.get("graph")
+    if graph is None:
+        graph = machine._cache["graph"] = _Graph(machine)
+    return graph
 
 
 def progressing(machine: Machine, s: int, goal: int) -> tuple[CompiledTransition, ...]:
@@ -83,9 +106,7 @@ def progressing(machine: Machine, s: int, goal: int) -> tuple[CompiledTransition
         return cached
     dist = distances(machine, goal)
     ds = dist[s]
-    out = tuple(
-        tr for tr in _agent_transitions(machine, s) if goal in tr.entered or dist[tr.end] < ds
-    )
+    out = tuple(tr for tr in _graph(machine).agent[s] if goal in tr.entered or dist[tr.end] < ds)
     machine._cache[key] = out
     return out
 
@@ -179,57 +200,66 @@ class Plan:
         )
 
 
-class _Option:
-    """One way to take a tight transition from (view, unlocked): switches first, then act."""
+_Option = tuple[tuple, int, CompiledTransition, str, bool, tuple[tuple[str, str | None], ...]]
+"""One way to take a tight transition from (view, unlocked), its view switches first:
+(preference, switches, transition, view after, unlocked after, the switches to emit as
+(view, the region's view for an active unlock or None)). The preference is PROTOCOL §4.3's
+order among options of equal cost, smallest first. A plain tuple rather than an object:
+planning a benchmark makes some 50,000 of them, and a tuple is made in half the time."""
 
-    __slots__ = ("tr", "switches", "view", "unlocked", "pre")
-
-    def __init__(self, tr, switches, view, unlocked, pre):
-        self.tr = tr
-        self.switches = switches
-        self.view = view
-        self.unlocked = unlocked
-        self.pre = pre  # tuple of (view, via_region_view or None) switches to emit
+_INTERACTABLE_RANK = {v: VIEW_RANK[v] for v in (*ORTHOGRAPHIC_VIEWS, DASHBOARD)}
+"""The views an interaction can happen in, with their rank in the preference."""
 
 
 def _region_views(machine: Machine) -> tuple[str, ...]:
     return tuple(v for v in VIEW_ORDER if v in machine.dashboard_regions)
 
 
-def _options(
-    machine: Machine, tr: CompiledTransition, view: str, unlocked: bool
-) -> tuple[_Option, ...]:
-    """The ways to take `tr` from (view, unlocked), memoised per machine."""
-    key = ("options", tr.source, tr.component, tr.index, view, unlocked)
-    got = machine._cache.get(key)
+def _state_options(graph: _Graph, s: int, view: str, unlocked: bool) -> tuple[_Option, ...]:
+    """The options of every agent transition from `s` when in (view, unlocked), in order of
+    preference: memoised per machine, for every goal (the planner keeps the tight ones, in
+    the same order)."""
+    key = (s, view, unlocked)
+    got = graph.options.get(key)
     if got is None:
-        got = machine._cache[key] = tuple(_find_options(machine, tr, view, unlocked))
+        found: list[_Option] = []
+        for tr in graph.agent[s]:
+            _add_options(found, graph.m, tr, view, unlocked)
+        found.sort(key=_PREFERENCE)  # stable: options of equal preference keep file order
+        got = graph.options[key] = tuple(found)
     return got
 
 
-def _find_options(
-    machine: Machine, tr: CompiledTransition, view: str, unlocked: bool
-) -> list[_Option]:
-    if tr.action is None:  # timed_wait needs no view
-        return [_Option(tr, 0, view, unlocked, ())]
-    opts: list[_Option] = []
+_PREFERENCE = itemgetter(0)
+
+
+def _add_options(
+    found: list[_Option], machine: Machine, tr: CompiledTransition, view: str, unlocked: bool
+) -> None:
+    """Add the ways to take `tr` from (view, unlocked) to `found`."""
+    if tr.action is None:  # timed_wait needs no view, and is preferred to any view
+        found.append(((tr.dangerous, 0, -1, tr.component, tr.index), 0, tr, view, unlocked, ()))
+        return
     for w in tr.rects:
-        if w not in ORTHOGRAPHIC_VIEWS and w != DASHBOARD:
+        rank = _INTERACTABLE_RANK.get(w)
+        if rank is None:
             continue
         if w == view:
-            opts.append(_Option(tr, 0, w, unlocked, ()))
+            switches, after, pre = 0, unlocked, ()
         elif w != DASHBOARD:
-            opts.append(_Option(tr, 1, w, unlocked, ((w, None),)))
+            switches, after, pre = 1, unlocked, ((w, None),)
         elif unlocked:
-            opts.append(_Option(tr, 1, w, True, ((DASHBOARD, None),)))
+            switches, after, pre = 1, True, ((DASHBOARD, None),)
         elif view in machine.dashboard_regions:
-            opts.append(_Option(tr, 1, w, True, ((DASHBOARD, view),)))
+            switches, after, pre = 1, True, ((DASHBOARD, view),)
         else:
             regions = _region_views(machine)
-            if regions:
-                r = regions[0]
-                opts.append(_Option(tr, 2, w, True, ((r, None), (DASHBOARD, r))))
-    return opts
+            if not regions:
+                continue
+            r = regions[0]
+            switches, after, pre = 2, True, ((r, None), (DASHBOARD, r))
+        preference = (tr.dangerous, switches, rank, tr.component, tr.index)
+        found.append((preference, switches, tr, w, after, pre))
 
 
 def _advance(goals: tuple[int, ...], i: int, tr: CompiledTransition) -> int:
@@ -242,18 +272,22 @@ def _advance(goals: tuple[int, ...], i: int, tr: CompiledTransition) -> int:
 
 
 class _Solver:
-    """Memoised minimum-switch values J(i, s, view, unlocked) over tight transitions."""
+    """Memoised minimum-switch values J(i, s, view, unlocked) over tight transitions, and
+    the optimal option at each node evaluated (by the tie-breaks of PROTOCOL §4.3)."""
 
     def __init__(self, machine: Machine, goals: tuple[int, ...]) -> None:
-        self.m = machine
+        self.graph = _graph(machine)
+        self.options = self.graph.options
         self.goals = goals
+        self.dists = tuple([distances(machine, g) for g in goals])
         self.memo: dict[tuple, int] = {}
+        self.chosen: dict[tuple, tuple[_Option, int]] = {}  # node -> (option, next goal index)
 
     def value(self, i: int, s: int, view: str, unlocked: bool) -> int:
         """J(i, s, view, unlocked), depth first on an explicit stack rather than Python's
         (a plan may take as many transitions as the machine has states): each node is a
-        generator that yields the nodes it needs and is sent their values, so nodes are
-        evaluated exactly in the order, and with the pruning, of the plain recursion."""
+        generator that yields the nodes it needs, each evaluated before it resumes, so nodes
+        are evaluated exactly in the order, and with the pruning, of the plain recursion."""
         memo = self.memo
         key = (i, s, view, unlocked)
         if i >= len(self.goals):
@@ -261,69 +295,60 @@ class _Solver:
         got = memo.get(key)
         if got is not None:
             return got
-        stack = [(key, self._node(*key))]
-        sent: int | None = None
+        stack = [self._node(key)]
         while stack:
-            node, frame = stack[-1]
-            try:
-                child = frame.send(sent)
-            except StopIteration as done:
-                memo[node] = sent = done.value
+            # next()'s default, not StopIteration: a generator returning None raises none
+            child = next(stack[-1], None)
+            if child is None:
                 stack.pop()
-                continue
-            sent = None
-            stack.append((child, self._node(*child)))
+            else:
+                stack.append(self._node(child))
         return memo[key]
 
     def _node(
-        self, i: int, s: int, view: str, unlocked: bool
-    ) -> Generator[tuple[int, int, str, bool], int, int]:
-        """The value of one node: the best over its options, each option's rest taken from
-        the memo or asked for by yielding its node (an option that cannot beat the best so
-        far is skipped unasked)."""
-        goals, memo, m = self.goals, self.memo, self.m
+        self, node: tuple[int, int, str, bool]
+    ) -> Generator[tuple[int, int, str, bool], None, None]:
+        """Evaluate one node into the memo: the best over its options, each option's rest
+        taken from the memo once there, asked for by yielding its node if not (an option
+        that cannot beat the best so far is skipped unasked). The options come in order of
+        preference, so the first to reach the best is the optimal one: one skipped unasked
+        can tie only with an earlier one that reached the best already."""
+        goals, memo = self.goals, self.memo
+        i, s, view, unlocked = node
         n = len(goals)
-        best = INF
         goal = goals[i]
+        best = INF
         if s == goal:  # goals complete when entered (PROTOCOL §3.4)
-            return best
-        for tr in progressing(m, s, goal):
-            j = _advance(goals, i, tr)
-            end = tr.end
-            for opt in _options(m, tr, view, unlocked):
-                switches = opt.switches
-                if switches >= best:
-                    continue
-                child = (j, end, opt.view, opt.unlocked)
-                rest = 0 if j >= n else memo.get(child)
-                if rest is None:
-                    rest = yield child
-                if switches + rest < best:
-                    best = switches + rest
-        return best
-
-    def choose(self, i: int, s: int, view: str, unlocked: bool) -> tuple[_Option, int]:
-        """The optimal option at a node, by the tie-breaks of PROTOCOL §4.3."""
-        target = self.value(i, s, view, unlocked)
-        goals, memo, m = self.goals, self.memo, self.m
-        n = len(goals)
-        best: tuple | None = None
+            memo[node] = best
+            return
+        dist = self.dists[i]
+        ds = dist[s]
         chosen: tuple[_Option, int] | None = None
-        for tr in progressing(m, s, goals[i]):
-            j = _advance(goals, i, tr)
-            end = tr.end
-            for opt in _options(m, tr, view, unlocked):
-                rest = 0 if j >= n else memo.get((j, end, opt.view, opt.unlocked))
-                if rest is None:  # a node the value's pruning never asked for
-                    rest = self.value(j, end, opt.view, opt.unlocked)
-                if opt.switches + rest != target:
-                    continue
-                rank = -1 if tr.action is None else VIEW_RANK.get(opt.view, len(VIEW_RANK))
-                key = (tr.dangerous, opt.switches, rank, tr.component, tr.index)
-                if best is None or key < best:
-                    best, chosen = key, (opt, j)
-        assert chosen is not None
-        return chosen
+        options = self.options.get((s, view, unlocked))  # `_state_options`, looked up inline
+        if options is None:
+            options = _state_options(self.graph, s, view, unlocked)
+        for opt in options:
+            _, switches, tr, to_view, to_unlocked, _ = opt
+            if switches >= best:
+                continue
+            # a tight transition, as `progressing` has it (inline: the planner's hot loop)
+            if goal in tr.entered:
+                j = _advance(goals, i, tr)
+            elif dist[tr.end] < ds:
+                j = i
+            else:
+                continue
+            child = (j, tr.end, to_view, to_unlocked)
+            rest = 0 if j >= n else memo.get(child)
+            if rest is None:
+                yield child
+                rest = memo[child]
+            if switches + rest < best:
+                best = switches + rest
+                chosen = (opt, j)
+        memo[node] = best
+        if chosen is not None:
+            self.chosen[node] = chosen
 
 
 def _click_point(machine: Machine, tr: CompiledTransition, view: str) -> tuple[float, float]:
@@ -393,25 +418,26 @@ def plan_goals(
     where: str = "",
 ) -> Plan:
     """The optimal plan for `goals` from (start, view, unlocked); raises TaskError if none."""
-    _check_goals(machine, start, goals, where)
     solver = _solver(machine, goals)
+    _check_goals(machine, start, goals, solver.dists, where)
     n = len(goals)
     if solver.value(0, start, view, unlocked) >= INF:
         raise TaskError(f"{where}the goals need a component that no interactable view shows")
+    chosen = solver.chosen  # every node of the optimal path was evaluated, its choice kept
     c_trans = [0] * n
     c_switch = [0] * n
     path: list[tuple[int, _Option]] = []
     states: list[int] = []
     i, s, v, u = 0, start, view, unlocked
     while i < n:
-        opt, j = solver.choose(i, s, v, u)
-        tr = opt.tr
+        opt, j = chosen[i, s, v, u]
+        _, _, tr, v, u, pre = opt
         path.append((i, opt))
-        c_switch[i] += len(opt.pre)  # a Switch_view each
+        c_switch[i] += len(pre)  # a Switch_view each
         c_trans[i] += 1
-        states.extend(tr.entered)
-        i, s, v, u = j, tr.end, opt.view, opt.unlocked
-    c_opt = tuple(t + w for t, w in zip(c_trans, c_switch, strict=True))
+        states += tr.entered
+        i, s = j, tr.end
+    c_opt = tuple(map(add, c_trans, c_switch))
     return Plan(c_opt, tuple(c_trans), tuple(c_switch), tuple(states), machine, tuple(path))
 
 
@@ -420,22 +446,28 @@ def _planned_steps(
 ) -> tuple[PlannedStep, ...]:
     """The responses of a plan's options: each one's view switches, then its action."""
     steps: list[PlannedStep] = []
-    for i, opt in path:
-        tr = opt.tr
-        for target_view, via in opt.pre:
+    for i, (_, _, tr, view, _, pre) in path:
+        for target_view, via in pre:
             coord = _region_point(machine, via) if via is not None else None
             steps.append(PlannedStep(i, Action(SWITCH_VIEW, coord, (target_view,)), None))
         if tr.action is None:
             act = Action(TIMED_WAIT, None, ())
         else:
-            act = Action(tr.action, _click_point(machine, tr, opt.view), _concrete_params(tr))
+            act = Action(tr.action, _click_point(machine, tr, view), _concrete_params(tr))
         steps.append(PlannedStep(i, act, tr))
     return tuple(steps)
 
 
-def _check_goals(machine: Machine, start: int, goals: tuple[int, ...], where: str) -> None:
-    """Static checks with a message naming the goal: reachability, and no goal equal to the
-    state in which it becomes current (which is fixed: the chain end of the previous goal)."""
+def _check_goals(
+    machine: Machine,
+    start: int,
+    goals: tuple[int, ...],
+    dists: tuple[tuple[int, ...], ...],
+    where: str,
+) -> None:
+    """Static checks with a message naming the goal: reachability (`dists`: each goal's
+    distances), and no goal equal to the state in which it becomes current (which is fixed:
+    the chain end of the previous goal)."""
     s = start
     i = 0
     n = len(goals)
@@ -446,7 +478,7 @@ def _check_goals(machine: Machine, start: int, goals: tuple[int, ...], where: st
                 f"{where}goal {i + 1} {machine.states[g]!r} is the state in which it becomes "
                 "current; goals complete when entered"
             )
-        if distances(machine, g)[s] >= INF:
+        if dists[i][s] >= INF:
             raise TaskError(
                 f"{where}goal {i + 1} {machine.states[g]!r} is unreachable from {machine.states[s]!r}"
             )
