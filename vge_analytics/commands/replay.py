@@ -145,8 +145,8 @@ def started_workers(
     """The local worker processes, started before anything else (None with `--ray`: the
     runner makes its cluster only when it has runs to replay), closed at the end. They
     import the engine and open BENCH while this process does the same and reads the first
-    lines: on the full synthetic benchmark a worker's first batch began 0.1 to 0.15 s
-    sooner."""
+    lines (docs/PERFORMANCE.md, "Replay", seventh part: the second core, idle for most of
+    the first half second before, now busy from the start)."""
     executor = None if ray is not None else replay.io.make_executor(workers, bench=bench)
     try:
         yield executor
