@@ -10,7 +10,6 @@ same command on three good records.
 
 from __future__ import annotations
 
-import functools
 import gzip
 import hashlib
 import json
@@ -389,32 +388,6 @@ def test_cycle_check_matches_the_walk_from_every_state(successors, rng) -> None:
     assert got == _cycles_by_walking_from_every_state(ssm)
 
 
-def _recursive_value(self, i: int, s: int, view: str, unlocked: bool) -> int:
-    """The planner's J(i, s, view, unlocked) as it was, recursive: the oracle."""
-    from replay.semantics._plan import INF, _advance, _options, progressing
-
-    goals = self.goals
-    if i >= len(goals):
-        return 0
-    key = (i, s, view, unlocked)
-    got = self.memo.get(key)
-    if got is not None:
-        return got
-    best = INF
-    if s == goals[i]:
-        self.memo[key] = best
-        return best
-    for tr in progressing(self.m, s, goals[i]):
-        j = _advance(goals, i, tr)
-        for opt in _options(self.m, tr, view, unlocked):
-            if opt.switches >= best:
-                continue
-            total = opt.switches + _recursive_value(self, j, tr.end, opt.view, opt.unlocked)
-            best = min(best, total)
-    self.memo[key] = best
-    return best
-
-
 VIEWS = ("front", "back", "left", "right", "top", "bottom", "dashboard")
 
 
@@ -452,29 +425,31 @@ def _random_machine(rng: random.Random) -> dict:
 @settings(max_examples=150, deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_planner_matches_the_recursion(seed: int) -> None:
-    """Plans, C_opt and every value the solver memoised (in the same order) are those of
-    the recursive planner it replaces, tie-breaks included."""
-    from replay.semantics import _plan
+    """On random machines (every kind of option the planner weighs): the plan, or its
+    absence, is the one a plain recursion over every option picks with PROTOCOL §4.3's
+    tie-breaks (`tests/replay/plan_oracle.py`), and C_opt from every state is the distance
+    plus that recursion's fewest switches."""
+    from replay.semantics import INF, c_opt_dynamic, distances, plan_goals
+
+    from ..replay.plan_oracle import NONE, oracle_plan, oracle_switches, plan_steps
 
     rng = random.Random(seed)
     doc = _random_machine(rng)
     goals = tuple(rng.randrange(len(doc["states"])) for _ in range(rng.randint(1, 3)))
     view = rng.choice(VIEWS[:6])
-    results = []
-    for value in (_plan._Solver.value, _recursive_value):
-        machine = replay.compile_machine(msgspec.convert(doc, replay.StateMachine))
-        solver = _plan._solver(machine, goals)
-        solver.value = functools.partial(value, solver)  # type: ignore[method-assign]
-        try:
-            plan: object = _plan.plan_goals(machine, 0, view, False, goals)
-        except replay.TaskError as exc:
-            plan = str(exc)
-        dyn = [
-            _plan.c_opt_dynamic(machine, s, view, False, goals[0])
-            for s in range(len(doc["states"]))
-        ]
-        results.append((plan, dyn, list(solver.memo.items())))
-    assert results[0] == results[1]
+    machine = replay.compile_machine(msgspec.convert(doc, replay.StateMachine))
+    want = oracle_plan(machine, goals, 0, view, False)
+    if want is None:
+        with pytest.raises(replay.TaskError):
+            plan_goals(machine, 0, view, False, goals)
+    else:
+        assert plan_steps(plan_goals(machine, 0, view, False, goals)) == want
+    for s in range(len(doc["states"])):
+        d = distances(machine, goals[0])[s]
+        fewest = oracle_switches(machine, (goals[0],), 0, s, view, False)
+        unreachable = d >= INF or fewest >= NONE  # a transient state may end out of reach
+        expected = 0 if s == goals[0] else None if unreachable else d + fewest
+        assert c_opt_dynamic(machine, s, view, False, goals[0]) == expected, s
 
 
 # ------------------------------------------------------------------------------ names

@@ -12,12 +12,12 @@ from replay.semantics import (
     c_opt_dynamic,
     distances,
     plan_goals,
-    progressing,
     setup_episode,
     target_components,
 )
 
 from ..machines import box, machine, tr
+from ..plan_oracle import oracle_plan, plan_steps
 
 KETTLE = load_machine(Path(__file__).resolve().parents[2] / "data" / "kettle_ssm.json", "kettle")
 
@@ -205,11 +205,6 @@ def test_the_optimal_next_step_follows_the_plan_from_wherever_the_episode_is() -
 
 # ----------------------------------------------------------------------- exhaustive oracle
 
-_PREFERRED_VIEWS = (
-    "front", "back", "left", "right", "top", "bottom", "dashboard", "front_top", "back_bottom"
-)  # fmt: skip
-"""PROTOCOL §4.3's order of views, as it reads there."""
-
 _PANEL = [box("dashboard", 400, 400, 100, 100)]
 _POWER = [box("front", 10, 10, 50, 50), box("top", 10, 10, 50, 50)]
 MIXED = machine(
@@ -244,96 +239,6 @@ MIXED = machine(
 """Ties of every kind: two components alike but for their names, safe and dangerous ways,
 boxes in several views, a dashboard unlocked from two views, a wait, an immediate chain."""
 
-_NONE = 1 << 40
-
-
-def _oracle_options(m, t, view: str, unlocked: bool) -> list[tuple]:
-    """(switches, view after, unlocked after, the views switched to) of each way to take `t`."""
-    if t.action is None:
-        return [(0, view, unlocked, ())]
-    regions = [v for v in _PREFERRED_VIEWS if v in m.dashboard_regions]
-    out = []
-    for w in t.rects:
-        if w in ("front_top", "back_bottom"):
-            continue  # not interactable
-        if w == view:
-            out.append((0, w, unlocked, ()))
-        elif w != "dashboard":
-            out.append((1, w, unlocked, (w,)))
-        elif unlocked or view in m.dashboard_regions:
-            out.append((1, w, True, ("dashboard",)))
-        elif regions:
-            out.append((2, w, True, (regions[0], "dashboard")))
-    return out
-
-
-def _oracle_moves(m, goals, i: int, s: int, view: str, unlocked: bool) -> list[tuple]:
-    """(transition, switches, view after, unlocked after, views switched to, goal index
-    after) of every way to take a tight transition at a node."""
-    moves = []
-    for t in progressing(m, s, goals[i]):
-        j = i
-        for x in t.entered:
-            if j < len(goals) and x == goals[j]:
-                j += 1
-        moves += [(t, *option, j) for option in _oracle_options(m, t, view, unlocked)]
-    return moves
-
-
-def _oracle_switches(m, goals, i: int, s: int, view: str, unlocked: bool) -> int:
-    """The fewest switches from a node on, by plain recursion over every option."""
-    if i == len(goals):
-        return 0
-    if s == goals[i]:
-        return _NONE
-    rests = [
-        sw + _oracle_switches(m, goals, j, t.end, v, u)
-        for t, sw, v, u, _, j in _oracle_moves(m, goals, i, s, view, unlocked)
-    ]
-    return min(rests, default=_NONE)
-
-
-def _oracle_plan(m, goals, s: int, view: str, unlocked: bool) -> list[tuple] | None:
-    """(views switched to, transition) per step of the optimal plan, each step the optimal
-    option least in (danger, switches now, view, component, file order); None if none."""
-    if _oracle_switches(m, goals, 0, s, view, unlocked) >= _NONE:
-        return None
-    steps, i = [], 0
-    while i < len(goals):
-        best = _oracle_switches(m, goals, i, s, view, unlocked)
-        optimal = [
-            move
-            for move in _oracle_moves(m, goals, i, s, view, unlocked)
-            if move[1] + _oracle_switches(m, goals, move[5], move[0].end, move[2], move[3]) == best
-        ]
-        t, sw, v, u, pre, j = min(
-            optimal,
-            key=lambda mv: (
-                mv[0].dangerous,
-                mv[1],
-                -1 if mv[0].action is None else _PREFERRED_VIEWS.index(mv[2]),
-                mv[0].component,
-                mv[0].index,
-            ),
-        )
-        steps.append((pre, (t.source, t.component, t.index)))
-        i, s, view, unlocked = j, t.end, v, u
-    return steps
-
-
-def _plan_steps(plan) -> list[tuple]:
-    """A plan's steps as the oracle writes them."""
-    steps, pre = [], []
-    for step in plan.steps:
-        if step.transition is None:
-            pre.append(step.action.params[0])
-        else:
-            t = step.transition
-            steps.append((tuple(pre), (t.source, t.component, t.index)))
-            pre = []
-    return steps
-
-
 @pytest.mark.parametrize("m", [KETTLE, TWO_VIEWS, MIXED], ids=["kettle", "two_views", "mixed"])
 def test_every_plan_is_the_exhaustive_optimum_with_its_tie_breaks(m) -> None:
     """From every state, view and dashboard state, for every sequence of one or two goals:
@@ -348,13 +253,13 @@ def test_every_plan_is_the_exhaustive_optimum_with_its_tie_breaks(m) -> None:
                 continue  # the agent never stands in a transient state
             for view in m.views:
                 for unlocked in (False, True):
-                    want = _oracle_plan(m, goals, s, view, unlocked)
+                    want = oracle_plan(m, goals, s, view, unlocked)
                     if want is None:
                         with pytest.raises(TaskError):
                             plan_goals(m, s, view, unlocked, goals)
                         continue
                     plan = plan_goals(m, s, view, unlocked, goals)
-                    assert _plan_steps(plan) == want, (goals, s, view, unlocked)
+                    assert plan_steps(plan) == want, (goals, s, view, unlocked)
                     assert sum(plan.switches) == sum(len(pre) for pre, _ in want)
                     planned += 1
     assert planned > 100
