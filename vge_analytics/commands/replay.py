@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
@@ -96,7 +97,7 @@ def replay_command(
     console = Console(highlight=False)
     if not console.is_terminal:  # logs and pipes: do not squeeze the table into 80 columns
         console = Console(highlight=False, width=120)
-    with started_workers(workers, ray, bench) as executor:
+    with started_workers(workers, ray, bench, out, force) as executor:
         chosen, images = _mcap_inputs(bench, mcap, mcap_episodes)
         manifest = replay.replay_runs(
             runs,
@@ -140,14 +141,18 @@ def _mcap_inputs(
 
 @contextmanager
 def started_workers(
-    workers: int, ray: str | None, bench: str
+    workers: int, ray: str | None, bench: str, out: str, force: bool
 ) -> Iterator[replay.io.Executor | None]:
-    """The local worker processes, started before anything else (None with `--ray`: the
-    runner makes its cluster only when it has runs to replay), closed at the end. They
-    import the engine and open BENCH while this process does the same and reads the first
-    lines (docs/PERFORMANCE.md, "Replay", seventh part: the second core, idle for most of
-    the first half second before, now busy from the start)."""
-    executor = None if ray is not None else replay.io.make_executor(workers, bench=bench)
+    """The local worker processes, started before anything else when every run given is to
+    be replayed (`--force`, or no replay in a local OUT yet), closed at the end. They import
+    the engine and open BENCH while this process does the same and reads the first lines
+    (docs/PERFORMANCE.md, "Replay", seventh part: the second core, idle for most of the
+    first half second before, now busy from the start). None otherwise: with `--ray`, or
+    where the runs may all be up to date, the runner starts its workers only if it has runs
+    to replay (started for nothing, they cost a no-op replay 0.4 s)."""
+    fresh = force or not (replay.io.is_uri(out) or Path(out, replay.io.MANIFEST).exists())
+    local = ray is None and fresh
+    executor = replay.io.make_executor(workers, bench=bench) if local else None
     try:
         yield executor
     finally:
