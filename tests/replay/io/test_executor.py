@@ -5,6 +5,8 @@ the pool, and the results come back whole wherever they ran."""
 from __future__ import annotations
 
 import multiprocessing
+import tempfile
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -46,3 +48,23 @@ def test_given_bench_the_workers_start_at_once_and_open_it(sample, bench_given: 
         assert opened == ([bench] if bench_given else [])
     finally:
         executor.close()
+
+
+def test_tasks_reach_the_workers_through_files_deleted_once_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A task for a worker goes through a file of the executor's private directory (the
+    pipe carries its name); each file is gone once its task ran, wherever it ran (a worker
+    deletes what it read; this process what it took back), and the directory at the close."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    executor = WorkerProcesses(2)
+    try:
+        (spool,) = tmp_path.iterdir()
+        tasks = [SimpleNamespace(index=k) for k in range(6)]
+        shares = [executor.submit(repr, task) for task in tasks]
+        assert sum(share.spooled is not None for share in shares) == 3  # batches 0, 2, 4
+        assert [executor.result(share) for share in shares] == [repr(t) for t in tasks]
+        assert list(spool.iterdir()) == []
+    finally:
+        executor.close()
+    assert list(tmp_path.iterdir()) == []
