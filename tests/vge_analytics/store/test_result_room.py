@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import resource
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -239,7 +240,10 @@ def test_a_panic_in_polars_under_the_cap_raises_instead_of_hanging(tmp_path: Pat
     """With RUST_BACKTRACE=1, a panic in polars' threads under the cap (the CSV writer's
     Python string could not be made) loaded the library's symbols to print a backtrace,
     failed to allocate, and waited for ever on the printer's own lock; the cap now runs
-    without RUST_BACKTRACE (and puts it back after)."""
+    without RUST_BACKTRACE (and puts it back after), and the process ends at once. It
+    raises, or, when another of polars' threads fails to allocate while the panic unwinds
+    (polars 2.x, now and then, as `process_memory_cap` says of any allocation polars cannot
+    make), polars aborts it: never a hang."""
     done = subprocess.run(
         [sys.executable, "-c", PANIC],
         capture_output=True,
@@ -248,7 +252,8 @@ def test_a_panic_in_polars_under_the_cap_raises_instead_of_hanging(tmp_path: Pat
         cwd=tmp_path,
         env={**os.environ, "RUST_BACKTRACE": "1", "PYTHONPATH": str(Path(va.__file__).parents[1])},
     )
-    assert done.stdout == "raised\n", done.stderr[-2000:]
+    aborted = done.returncode == -signal.SIGABRT and "memory allocation of" in done.stderr
+    assert done.stdout == "raised\n" or aborted, done.stderr[-2000:]
 
 
 def test_the_cap_puts_rust_backtrace_back(monkeypatch):
