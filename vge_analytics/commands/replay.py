@@ -150,7 +150,7 @@ def started_workers(
     first half second before, now busy from the start). None otherwise: with `--ray`, or
     where the runs may all be up to date, the runner starts its workers only if it has runs
     to replay (started for nothing, they cost a no-op replay 0.4 s)."""
-    fresh = force or not (replay.io.is_uri(out) or Path(out, replay.io.MANIFEST).exists())
+    fresh = force or not (replay.io.is_uri(out) or replay.io.manifest_path(Path(out)).exists())
     local = ray is None and fresh
     executor = replay.io.make_executor(workers, bench=bench) if local else None
     try:

@@ -29,7 +29,7 @@ def test_workers_start_first_only_when_every_run_is_to_be_replayed(
     out = tmp_path / "out"
     if replayed_before:
         out.mkdir()
-        (out / replay.io.MANIFEST).write_text("{}")
+        replay.io.manifest_path(out).write_text("{}")
     with started_workers(2, ray, str(LOGS / "bench"), str(out), force) as executor:
         assert (executor is not None) == started
         assert executor is None or executor.slots == 2
