@@ -12,7 +12,9 @@ import multiprocessing
 import os
 import pickle
 import shutil
+import sys
 import tempfile
+import threading
 from collections import Counter, deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -101,8 +103,16 @@ def _run_spooled(fn: Batch, path: str) -> Any:
     return fn(pickle.loads(data))
 
 
+def start_method(fork: bool) -> str:
+    """How `WorkerProcesses` starts its workers: "fork" when asked for, on Linux, while this
+    process runs no thread but the main one; else "spawn"."""
+    if fork and sys.platform == "linux" and threading.active_count() == 1:
+        return "fork"
+    return "spawn"
+
+
 class WorkerProcesses:
-    """N workers: this process and N - 1 spawned ones. The task of batch k stays here when
+    """N workers: this process and N - 1 worker processes. The task of batch k stays here when
     k mod N is N - 1 and goes to the pool otherwise (runs that list the same episodes in the
     same order then find each task's plan in the same process's cache). So the first batch
     of every run goes to a worker, and with it every run of one batch, and this process,
@@ -121,12 +131,24 @@ class WorkerProcesses:
     synthetic benchmark with 2 workers, 3.94 and 3.98 s of wall time against 4.03 and 4.05
     (two sets of 8 alternations, the same CPU).
 
-    Given BENCH, the workers start at once and open it (importing what a batch needs:
-    `_lifetime.start_worker`) while this process goes on; otherwise a pool starts a worker
-    when a task needs one."""
+    How the workers start (`start_method`): forked where `fork` asks for it, on Linux, while
+    this process runs no other thread; spawned otherwise. A forked worker begins with what
+    this process has imported and opened, BENCH included (`_worker.adopt`): `replay_runs`
+    makes its pool once it has opened BENCH and before it starts a thread of its own, and a
+    worker is ready at once, where a spawned one spends 0.3 s of CPU importing the engine and
+    opening BENCH again (docs/PERFORMANCE.md, "Replay", eighth part). A fork copies the
+    locks of this process's other threads as they are, held ones included, so with another
+    thread running the workers are spawned; the native threads of the libraries the engine
+    loads (jemalloc's, Arrow's, OpenBLAS's) are prepared for a fork by the libraries
+    themselves. macOS's system libraries are not fork-safe at all.
 
-    def __init__(self, workers: int, bench: str | None = None) -> None:
-        context = multiprocessing.get_context("spawn")
+    Given BENCH, the workers start at once and open it if they have not got it
+    (`_lifetime.start_worker`); otherwise a spawned pool starts a worker when a task needs
+    one."""
+
+    def __init__(self, workers: int, bench: str | None = None, *, fork: bool = False) -> None:
+        self.start_method = start_method(fork)
+        context = multiprocessing.get_context(self.start_method)
         self.slots = workers
         self.nodes: Counter[str] = Counter()
         self.pool = ProcessPoolExecutor(
@@ -195,19 +217,24 @@ class WorkerProcesses:
         shutil.rmtree(self._spool, ignore_errors=True)  # what no worker read (one that died)
 
 
-def make_executor(workers: int = 1, ray: str | None = None, bench: str | None = None) -> Executor:
+def make_executor(
+    workers: int = 1, ray: str | None = None, bench: str | None = None, *, fork: bool = False
+) -> Executor:
     """This process (`workers=1`), `workers` processes, or the Ray cluster at `ray`
     (`auto`: the cluster this host belongs to or `RAY_ADDRESS`; `local`: a cluster started
     in this process; else an address). Worker processes end with this process; on Linux
     also with the thread that first submits to them, which must outlive the executor. Given
-    `bench` (as the tasks will name it), worker processes start now and open it."""
+    `bench` (as the tasks will name it), worker processes start now and open it unless they
+    have it. `fork`: fork the workers where that is safe (`WorkerProcesses`), for a caller
+    whose workers use nothing it has loaded but the engine (not polars, not DuckDB, whose
+    thread pools a fork leaves behind)."""
     if ray is not None:
         from ._ray import RayCluster
 
         return RayCluster(ray)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers must be a positive integer, not {workers!r}")
-    return InProcess() if workers == 1 else WorkerProcesses(workers, bench)
+    return InProcess() if workers == 1 else WorkerProcesses(workers, bench, fork=fork)
 
 
 class _Pending(Generic[T]):

@@ -9,8 +9,8 @@
   (`PR_SET_PDEATHSIG`); elsewhere a thread of the worker notices, within `WATCH_SECONDS`,
   that it has another parent. Ray's workers end with their job as Ray ends them.
 
-Light on purpose (the standard library only): the executor imports it, and `vge replay`
-starts its workers before it imports the rest of the engine.
+Light on purpose (the standard library only): the executor imports it, and a caller may
+make an executor before it imports the rest of the engine.
 """
 
 from __future__ import annotations
@@ -30,11 +30,11 @@ WATCH_SECONDS = 1.0
 
 
 def start_worker(parent: int, bench: str | None = None) -> None:
-    """A pool worker's initializer: end with process `parent` and, given BENCH, open it now,
-    in step with the main process's own start-up, rather than when the first batch arrives.
-    Opening it imports nearly all a batch needs (the rules, the kernel, pyarrow, msgspec:
-    0.17 of the 0.18 s the batch module takes), and the imports are most of a worker's
-    start."""
+    """A pool worker's initializer: end with process `parent` and, given BENCH, open it now
+    rather than when the first batch arrives (a forked worker has it already, from its
+    parent). Opening it imports nearly all a batch needs (the rules, the kernel, pyarrow,
+    msgspec: 0.17 of the 0.18 s the batch module takes), and the imports are most of a
+    spawned worker's start."""
     end_with_parent(parent)
     if bench is not None:
         from .._errors import VGEError

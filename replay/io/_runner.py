@@ -194,11 +194,14 @@ def _running(
     given: Executor | None, todo: list[RunInput], workers: int, ray: str | None, bench: str
 ) -> Iterator[Executor]:
     """The executor given, else one made here (this process alone when nothing is to be
-    replayed; its workers open `bench` as they start) and closed when the batches are done."""
+    replayed) and closed when the batches are done. Made once this process has opened
+    `bench` and before it starts a thread (the reader, the progress bar), so that its
+    workers are forked with the engine imported and `bench` open (`WorkerProcesses`); they
+    use nothing else of this process."""
     if given is not None:
         yield given
         return
-    executor = make_executor(workers, ray, bench) if todo else InProcess()
+    executor = make_executor(workers, ray, bench, fork=True) if todo else InProcess()
     try:
         yield executor
     finally:

@@ -7,9 +7,6 @@ Exit codes: 0 every record replayed; 2 something was quarantined (see OUT/quaran
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
-from contextlib import contextmanager
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
@@ -97,23 +94,21 @@ def replay_command(
     console = Console(highlight=False)
     if not console.is_terminal:  # logs and pipes: do not squeeze the table into 80 columns
         console = Console(highlight=False, width=120)
-    with started_workers(workers, ray, bench, out, force) as executor:
-        chosen, images = _mcap_inputs(bench, mcap, mcap_episodes)
-        manifest = replay.replay_runs(
-            runs,
-            bench,
-            out,
-            lam=lam,
-            workers=workers,
-            mcap=mcap,
-            mcap_episodes=chosen,
-            force=force,
-            progress=progress,
-            image_source=images,
-            ray=ray,
-            max_record_bytes=max_record_bytes,
-            executor=executor,
-        )
+    chosen, images = _mcap_inputs(bench, mcap, mcap_episodes)
+    manifest = replay.replay_runs(
+        runs,
+        bench,
+        out,
+        lam=lam,
+        workers=workers,
+        mcap=mcap,
+        mcap_episodes=chosen,
+        force=force,
+        progress=progress,
+        image_source=images,
+        ray=ray,
+        max_record_bytes=max_record_bytes,
+    )
     console.print(_summary(manifest))
     for run_id in manifest.skipped:
         console.print(f"{escape(run_id)}: up to date, skipped (--force redoes it)", soft_wrap=True)
@@ -137,27 +132,6 @@ def _mcap_inputs(
     from ..synth import image_source  # the renderer (PIL, 0.08 s) only for MCAP's pictures
 
     return chosen, image_source(bench)
-
-
-@contextmanager
-def started_workers(
-    workers: int, ray: str | None, bench: str, out: str, force: bool
-) -> Iterator[replay.io.Executor | None]:
-    """The local worker processes, started before anything else when every run given is to
-    be replayed (`--force`, or no replay in a local OUT yet), closed at the end. They import
-    the engine and open BENCH while this process does the same and reads the first lines
-    (docs/PERFORMANCE.md, "Replay", seventh part: the second core, idle for most of the
-    first half second before, now busy from the start). None otherwise: with `--ray`, or
-    where the runs may all be up to date, the runner starts its workers only if it has runs
-    to replay (started for nothing, they cost a no-op replay 0.4 s)."""
-    fresh = force or not (replay.io.is_uri(out) or replay.io.manifest_path(Path(out)).exists())
-    local = ray is None and fresh
-    executor = replay.io.make_executor(workers, bench=bench) if local else None
-    try:
-        yield executor
-    finally:
-        if executor is not None:
-            executor.close()
 
 
 def one_blas_thread() -> None:

@@ -4,6 +4,9 @@ quarantine, manifest), with small batches, row groups and parts so every boundar
 from __future__ import annotations
 
 import hashlib
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pyarrow as pa
@@ -60,6 +63,49 @@ def test_identical_across_repeats_and_workers(
         )
         rows += meta.num_rows
     assert rows == 240
+
+
+FORKED = """
+import json, sys
+import replay
+import replay.io._job, replay.io._files, replay.io._runner as runner
+replay.io._job.BATCH_LINES = 5
+replay.io._files.ROW_GROUP_ROWS = 40
+made = []
+make = runner.make_executor
+def recording(*args, **kwargs):
+    executor = make(*args, **kwargs)
+    made.append(getattr(executor, "start_method", None))
+    return executor
+runner.make_executor = recording
+bench, out, *runs = sys.argv[1:]
+images = replay.BenchImages(bench)
+replay.replay_runs(runs, bench, out, workers=2, mcap=True, progress=False, image_source=images)
+print(json.dumps(made))
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="workers are forked on Linux only")
+def test_identical_with_forked_workers(
+    sample: Sample, tmp_path: Path, small_boundaries: None
+) -> None:
+    """`replay_runs` in a process of one thread (as `vge replay` is) forks its workers once
+    BENCH is open; they write what one process writes. (pytest-xdist's test processes run
+    threads, where the workers are spawned, as above.)"""
+    runs = [str(r) for r in sample.runs]
+    done = subprocess.run(
+        [sys.executable, "-c", FORKED, str(sample.bench), str(tmp_path / "forked"), *runs],
+        capture_output=True, text=True, timeout=300, cwd=Path(__file__).parents[3],
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.splitlines()[-1]) == ["fork"]
+    images = replay.BenchImages(str(sample.bench))
+    replay.replay_runs(
+        sample.runs, sample.bench, tmp_path / "one", mcap=True, progress=False, image_source=images
+    )
+    forked = _digests(tmp_path / "forked")
+    assert forked == _digests(tmp_path / "one")
+    assert sum(n.endswith(".mcap") for n in forked) == 52
 
 
 def _rows(out: Path, table: str) -> pa.Table:

@@ -4,7 +4,10 @@ the pool, and the results come back whole wherever they ran."""
 
 from __future__ import annotations
 
+import json
 import multiprocessing
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 from types import SimpleNamespace
@@ -12,6 +15,8 @@ from types import SimpleNamespace
 import pytest
 
 from replay.io._executor import WorkerProcesses
+
+ROOT = Path(__file__).parents[3]
 
 
 @pytest.mark.parametrize(("workers", "kept"), [(2, [1, 3, 5]), (3, [2, 5])])
@@ -68,3 +73,54 @@ def test_tasks_reach_the_workers_through_files_deleted_once_read(
     finally:
         executor.close()
     assert list(tmp_path.iterdir()) == []
+
+
+FORK_PROBE = """
+import json, sys, threading
+from replay.io import _worker
+from replay.io._executor import WorkerProcesses
+
+def state_id(bench):
+    return id(_worker._states[bench])
+
+bench = sys.argv[1]
+state = _worker.worker_state(bench)
+seen = {}
+executor = WorkerProcesses(2, bench, fork=True)
+try:
+    seen["asked"] = executor.start_method
+    seen["inherited"] = executor.pool.submit(state_id, bench).result() == id(state)
+finally:
+    executor.close()
+executor = WorkerProcesses(2, fork=False)
+seen["not_asked"] = executor.start_method
+executor.close()
+release = threading.Event()
+other = threading.Thread(target=release.wait)
+other.start()
+executor = WorkerProcesses(2, fork=True)
+seen["another_thread"] = executor.start_method
+executor.close()
+release.set()
+other.join()
+print(json.dumps(seen))
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="workers are forked on Linux only")
+def test_workers_are_forked_when_asked_and_no_other_thread_runs(sample) -> None:
+    """In a fresh interpreter (one thread): asked to fork, the pool forks, and its worker
+    has this process's opened BENCH (the very object); not asked, or with another thread
+    running, it spawns. (A test process of pytest-xdist runs threads of its own, so this
+    is checked in a subprocess.)"""
+    done = subprocess.run(
+        [sys.executable, "-c", FORK_PROBE, str(sample.bench)],
+        capture_output=True, text=True, timeout=300, cwd=ROOT,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.splitlines()[-1]) == {
+        "asked": "fork",
+        "inherited": True,
+        "not_asked": "spawn",
+        "another_thread": "spawn",
+    }
