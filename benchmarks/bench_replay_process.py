@@ -11,7 +11,10 @@ Usage (on the full synthetic benchmark):
 Each round runs, for each worker count, `vge replay RUNS --bench BENCH --out OUT --workers N
 --no-progress` under `/usr/bin/time -v` with the base checkout's `vge` (`BASE/.venv/bin/vge`)
 and with this one's, one after the other (which goes first alternates from round to round),
-so that both sides see the same load. Time
+so that both sides see the same load. Each side keeps its compiled modules (`.pyc`) in a
+folder of SCRATCH, written by an unmeasured replay before the rounds, as an installed package
+has them (`--no-pyc`: compiled in every process, as where the environment sets
+`PYTHONDONTWRITEBYTECODE=1` and no `.pyc` was ever written, this machine's case). Time
 measures the whole process tree (interpreter start, imports, the worker processes, the
 commit): wall seconds, CPU seconds (user + sys of the process and the workers it waited
 for) and peak RSS (of the largest single process); the command itself reports the CPU of
@@ -105,12 +108,20 @@ if __name__ == "__main__":  # what the `vge` script does, then the CPU of this p
 
 
 def replay_process(
-    vge: Path, data: Path, out: Path, workers: int, tree: Path | None = None
+    vge: Path,
+    data: Path,
+    out: Path,
+    workers: int,
+    tree: Path | None = None,
+    pycache: Path | None = None,
 ) -> dict[str, float]:
     """One `vge replay` of every run into a fresh `out`, under /usr/bin/time -v; `tree`, a
     checkout without a virtualenv of its own, is put first on the module path. The command
     runs as the `vge` script does, from a script (`SPLIT`) that also reports the CPU of the
-    main process apart from that of its workers."""
+    main process apart from that of its workers. With `pycache`, Python keeps its compiled
+    modules there (`PYTHONPYCACHEPREFIX`), as an installed package keeps its `.pyc` files,
+    even where the environment says `PYTHONDONTWRITEBYTECODE`; without, it follows the
+    environment."""
     shutil.rmtree(out, ignore_errors=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     split = out.parent / "vge_split.py"
@@ -122,6 +133,9 @@ def replay_process(
         "--workers", str(workers), "--no-progress",
     ]  # fmt: skip
     env = dict(os.environ)
+    if pycache is not None:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(pycache)
     if tree is not None:  # the workers inherit it
         env["PYTHONPATH"] = os.pathsep.join(filter(None, (str(tree), env.get("PYTHONPATH"))))
     cwd = tree if tree is not None else vge.parents[2]
@@ -142,13 +156,18 @@ def replay_process(
     }
 
 
-def pieces_process(python: Path, data: Path) -> dict[str, float]:
+def pieces_process(python: Path, data: Path, pycache: Path | None) -> dict[str, float]:
     """The replay's pieces in one fresh process of this checkout, one cold pass without the
-    runner (`bench_replay_floor.py --one-pass`): CPU seconds per piece and in all."""
+    runner (`bench_replay_floor.py --one-pass`): CPU seconds per piece and in all (compiled
+    modules kept in `pycache`, as for `replay_process`)."""
     floor = Path(__file__).with_name("bench_replay_floor.py")
+    env = dict(os.environ)
+    if pycache is not None:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(pycache)
     done = subprocess.run(
         [str(python), str(floor), str(data), "--one-pass"],
-        capture_output=True, text=True, check=True, cwd=floor.parents[1],
+        capture_output=True, text=True, check=True, cwd=floor.parents[1], env=env,
     )  # fmt: skip
     return json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -273,6 +292,14 @@ def main() -> None:
         action="store_true",
         help="also run the pieces of a 1-worker replay without the runner, once per round",
     )
+    parser.add_argument(
+        "--no-pyc",
+        dest="pyc",
+        action="store_false",
+        help="compile the modules in every process, as PYTHONDONTWRITEBYTECODE=1 without "
+        ".pyc files does (default: each side keeps its compiled modules under SCRATCH, "
+        "written by an unmeasured replay first, as an installed package has them)",
+    )
     args = parser.parse_args()
     here = Path(__file__).parents[1] / ".venv/bin/vge"
     # a base checkout without a virtualenv (a `git worktree add` of a commit, its kernel
@@ -286,16 +313,20 @@ def main() -> None:
     floors: list[dict[str, float]] = []
     load0 = " / ".join(f"{x:.1f}" for x in os.getloadavg())
     pieces: list[dict[str, float]] = []
+    pycache = {side: args.scratch / f"pycache-{side}" if args.pyc else None for side in sides}
+    if args.pyc:  # written once, unmeasured
+        for side, vge in sides.items():
+            replay_process(vge, args.data, args.scratch / "warm", 2, trees[side], pycache[side])
     for round_ in range(args.rounds):
         floors.append(bare_decode(args.data))
         if args.pieces:
-            pieces.append(pieces_process(here.parent / "python", args.data))
+            pieces.append(pieces_process(here.parent / "python", args.data, pycache["this"]))
         for w in workers:
             order = list(sides.items())
             for side, vge in order if round_ % 2 == 0 else order[::-1]:  # who goes first alternates
                 out = args.scratch / f"out-{side}-{w}"
                 results.setdefault((side, w), []).append(
-                    replay_process(vge, args.data, out, w, trees[side])
+                    replay_process(vge, args.data, out, w, trees[side], pycache[side])
                 )
     steps = int(floors[0]["steps"])
     identical = all(
@@ -305,7 +336,8 @@ def main() -> None:
     print(f"## `vge replay`, whole process: {args.data}, base {args.base}\n")
     print(
         f"- {steps:,} steps; {args.rounds} rounds, base and this alternating; {os.cpu_count()}"
-        f" CPUs; load average at the start {load0}, at the end "
+        f" CPUs; compiled modules {'kept (.pyc)' if args.pyc else 'compiled in every process'};"
+        f" load average at the start {load0}, at the end "
         + " / ".join(f"{x:.1f}" for x in os.getloadavg())
         + "\n"
     )

@@ -1,10 +1,10 @@
 """How long a worker process of `vge replay` lives, and how it starts.
 
 - `start_worker` (a pool's initializer) ties a worker to the process that started it and,
-  given BENCH, opens it at once (`WorkerProcesses`).
+  given BENCH, opens it at once unless it has it from its parent (`WorkerProcesses`).
 - `end_with_parent` does the tying. Killed with `kill -9`, a parent leaves its pool's
-  workers waiting for tasks that will never come, and with them the multiprocessing
-  resource tracker, which lives until the last process holding its pipe has gone: on Linux
+  workers waiting for tasks that will never come, and with them a spawned pool's
+  multiprocessing resource tracker, which lives until the last process holding its pipe has gone: on Linux
   the kernel kills the worker when the parent thread that started it ends
   (`PR_SET_PDEATHSIG`); elsewhere a thread of the worker notices, within `WATCH_SECONDS`,
   that it has another parent. Ray's workers end with their job as Ray ends them.
