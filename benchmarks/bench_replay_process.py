@@ -107,6 +107,16 @@ if __name__ == "__main__":  # what the `vge` script does, then the CPU of this p
 """
 
 
+def _environment(pycache: Path | None) -> dict[str, str]:
+    """This process's environment; with `pycache`, Python keeps its compiled modules there
+    (`PYTHONPYCACHEPREFIX`) even where the environment says `PYTHONDONTWRITEBYTECODE`."""
+    env = dict(os.environ)
+    if pycache is not None:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(pycache)
+    return env
+
+
 def replay_process(
     vge: Path,
     data: Path,
@@ -118,10 +128,8 @@ def replay_process(
     """One `vge replay` of every run into a fresh `out`, under /usr/bin/time -v; `tree`, a
     checkout without a virtualenv of its own, is put first on the module path. The command
     runs as the `vge` script does, from a script (`SPLIT`) that also reports the CPU of the
-    main process apart from that of its workers. With `pycache`, Python keeps its compiled
-    modules there (`PYTHONPYCACHEPREFIX`), as an installed package keeps its `.pyc` files,
-    even where the environment says `PYTHONDONTWRITEBYTECODE`; without, it follows the
-    environment."""
+    main process apart from that of its workers. With `pycache`, the compiled modules are
+    kept there, as an installed package keeps its `.pyc` files (`_environment`)."""
     shutil.rmtree(out, ignore_errors=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     split = out.parent / "vge_split.py"
@@ -132,10 +140,7 @@ def replay_process(
         "--bench", str(data / BENCH_DIR), "--out", str(out),
         "--workers", str(workers), "--no-progress",
     ]  # fmt: skip
-    env = dict(os.environ)
-    if pycache is not None:
-        env.pop("PYTHONDONTWRITEBYTECODE", None)
-        env["PYTHONPYCACHEPREFIX"] = str(pycache)
+    env = _environment(pycache)
     if tree is not None:  # the workers inherit it
         env["PYTHONPATH"] = os.pathsep.join(filter(None, (str(tree), env.get("PYTHONPATH"))))
     cwd = tree if tree is not None else vge.parents[2]
@@ -161,13 +166,10 @@ def pieces_process(python: Path, data: Path, pycache: Path | None) -> dict[str, 
     runner (`bench_replay_floor.py --one-pass`): CPU seconds per piece and in all (compiled
     modules kept in `pycache`, as for `replay_process`)."""
     floor = Path(__file__).with_name("bench_replay_floor.py")
-    env = dict(os.environ)
-    if pycache is not None:
-        env.pop("PYTHONDONTWRITEBYTECODE", None)
-        env["PYTHONPYCACHEPREFIX"] = str(pycache)
     done = subprocess.run(
         [str(python), str(floor), str(data), "--one-pass"],
-        capture_output=True, text=True, check=True, cwd=floor.parents[1], env=env,
+        capture_output=True, text=True, check=True, cwd=floor.parents[1],
+        env=_environment(pycache),
     )  # fmt: skip
     return json.loads(done.stdout.strip().splitlines()[-1])
 
