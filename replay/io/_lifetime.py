@@ -4,10 +4,11 @@
   given BENCH, opens it at once unless it has it from its parent (`WorkerProcesses`).
 - `end_with_parent` does the tying. Killed with `kill -9`, a parent leaves its pool's
   workers waiting for tasks that will never come, and with them a spawned pool's
-  multiprocessing resource tracker, which lives until the last process holding its pipe has gone: on Linux
-  the kernel kills the worker when the parent thread that started it ends
-  (`PR_SET_PDEATHSIG`); elsewhere a thread of the worker notices, within `WATCH_SECONDS`,
-  that it has another parent. Ray's workers end with their job as Ray ends them.
+  multiprocessing resource tracker, which lives until the last process holding its pipe
+  has gone: on Linux the kernel kills the worker when the parent thread that started it
+  ends (`PR_SET_PDEATHSIG`); elsewhere a thread of the worker notices, within
+  `WATCH_SECONDS`, that it has another parent. Ray's workers end with their job as Ray
+  ends them.
 
 Light on purpose (the standard library only): the executor imports it, and a caller may
 make an executor before it imports the rest of the engine.
