@@ -142,9 +142,9 @@ class WorkerProcesses:
     loads (jemalloc's, Arrow's, OpenBLAS's) are prepared for a fork by the libraries
     themselves. macOS's system libraries are not fork-safe at all.
 
-    Given BENCH, the workers start at once and open it if they have not got it
-    (`_lifetime.start_worker`); otherwise a spawned pool starts a worker when a task needs
-    one."""
+    Forked workers start at once, while this process still runs no other thread. Given
+    BENCH, spawned ones start at once too and open it (`_lifetime.start_worker`); otherwise
+    a spawned pool starts a worker when a task needs one."""
 
     def __init__(self, workers: int, bench: str | None = None, *, fork: bool = False) -> None:
         self.start_method = start_method(fork)
@@ -159,7 +159,7 @@ class WorkerProcesses:
         )
         self._open: deque[_Share] = deque()  # submitted, result not taken yet
         self._spool = tempfile.mkdtemp(prefix="vge-tasks-")  # private (0700), removed at close
-        if bench is not None:
+        if bench is not None or self.start_method == "fork":  # a fork: now, before any thread
             for _ in range(workers - 1):  # a pool starts a worker per task it is given
                 self.pool.submit(os.getpid)
 

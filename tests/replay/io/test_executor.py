@@ -76,7 +76,7 @@ def test_tasks_reach_the_workers_through_files_deleted_once_read(
 
 
 FORK_PROBE = """
-import json, sys, threading
+import json, multiprocessing, sys, threading
 from replay.io import _worker
 from replay.io._executor import WorkerProcesses
 
@@ -92,6 +92,9 @@ try:
     seen["inherited"] = executor.pool.submit(state_id, bench).result() == id(state)
 finally:
     executor.close()
+executor = WorkerProcesses(2, fork=True)  # no BENCH: forked at once all the same
+seen["without_bench"] = [executor.start_method, len(multiprocessing.active_children())]
+executor.close()
 executor = WorkerProcesses(2, fork=False)
 seen["not_asked"] = executor.start_method
 executor.close()
@@ -109,9 +112,9 @@ print(json.dumps(seen))
 
 @pytest.mark.skipif(sys.platform != "linux", reason="workers are forked on Linux only")
 def test_workers_are_forked_when_asked_and_no_other_thread_runs(sample) -> None:
-    """In a fresh interpreter (one thread): asked to fork, the pool forks, and its worker
-    has this process's opened BENCH (the very object); not asked, or with another thread
-    running, it spawns. (A test process of pytest-xdist runs threads of its own, so this
+    """In a fresh interpreter (one thread): asked to fork, the pool forks at once (BENCH
+    given or not: later this process may run threads), and its worker has this process's
+    opened BENCH (the very object); not asked, or with another thread running, it spawns. (A test process of pytest-xdist runs threads of its own, so this
     is checked in a subprocess.)"""
     done = subprocess.run(
         [sys.executable, "-c", FORK_PROBE, str(sample.bench)],
@@ -121,6 +124,7 @@ def test_workers_are_forked_when_asked_and_no_other_thread_runs(sample) -> None:
     assert json.loads(done.stdout.splitlines()[-1]) == {
         "asked": "fork",
         "inherited": True,
+        "without_bench": ["fork", 1],
         "not_asked": "spawn",
         "another_thread": "spawn",
     }
