@@ -120,7 +120,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
     from ._rows import TABLE_ROWS
     from ._rundir import RunDirectory, keep_aside
     from ._runner import replay_runs
-    from ._schemas import schema_documents, write_schemas
+    from ._schemas import record_schema, schema_documents, write_schemas
     from ._worker import Ready, worker_state
 
 __all__ = [
@@ -239,6 +239,7 @@ __all__ = [
     "worker_state",
     "Ready",
     # the JSON Schemas
+    "record_schema",
     "schema_documents",
     "write_schemas",
 ]

@@ -50,6 +50,7 @@ from ._file_names import mcap_file_name
 from ._fs import Location, location
 from ._images import ViewImage
 from ._layout import mcap_dir
+from ._schemas import record_schema
 
 if TYPE_CHECKING:
     from ..semantics import EpisodeResult
@@ -103,7 +104,7 @@ def _proto_schema(message_type: type) -> tuple[str, bytes]:
 
 @cache
 def _step_json_schema() -> bytes:
-    return msgspec.json.encode(msgspec.json.schema(StepRow), order="deterministic")
+    return msgspec.json.encode(record_schema(StepRow), order="deterministic")
 
 
 _json = msgspec.json.Encoder(order="deterministic")

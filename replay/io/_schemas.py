@@ -6,7 +6,9 @@ differ from what the classes generate, so the schemas cannot drift.
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
+from typing import Any
 
 import msgspec
 
@@ -19,6 +21,18 @@ OTHER_OUTPUTS: dict[str, type] = {"manifest": ManifestFile, "quarantine": Quaran
 """`OUT/manifest.json` and a line of `OUT/quarantine.jsonl`."""
 
 
+def record_schema(record: type) -> dict[str, Any]:
+    """msgspec's JSON Schema of a record type, each class's description (its docstring)
+    cleaned as `inspect.cleandoc` does: Python 3.13 strips a docstring's indentation when it
+    compiles it, 3.11 keeps it, and the schema (in `schemas/` and in every MCAP file) must
+    not depend on the Python that wrote it."""
+    schema = msgspec.json.schema(record)
+    for definition in schema.get("$defs", {}).values():
+        if "description" in definition:
+            definition["description"] = inspect.cleandoc(definition["description"])
+    return schema
+
+
 def schema_documents() -> dict[str, bytes]:
     """File name -> pretty JSON bytes, for every record type."""
     docs: dict[str, bytes] = {}
@@ -28,11 +42,10 @@ def schema_documents() -> dict[str, bytes]:
         **OTHER_OUTPUTS,
     }
     for name, record in records.items():
-        schema = msgspec.json.schema(record)
         schema = {
             "$schema": "https://json-schema.org/draft/2020-12/schema",
             "title": name,
-            **schema,
+            **record_schema(record),
         }
         docs[f"{name}.schema.json"] = (
             msgspec.json.format(msgspec.json.encode(schema), indent=2) + b"\n"

@@ -6,8 +6,9 @@ import json
 from pathlib import Path
 
 import jsonschema
+import msgspec
 
-from replay.io import schema_documents
+from replay.io import record_schema, schema_documents
 
 SCHEMAS = Path(__file__).resolve().parents[3] / "schemas"
 DATA = Path(__file__).resolve().parents[2] / "data"
@@ -24,6 +25,24 @@ def test_committed_schemas_match_the_records() -> None:
     assert not (missing or stale or extra), (
         f"schemas/ drifted from the records (missing {missing}, stale {stale}, extra {extra}); "
         "run `python -m replay.schemas` and commit"
+    )
+
+
+class _Indented(msgspec.Struct):
+    """First line.
+
+    Second paragraph, indented in the source.
+        Deeper still."""
+
+    x: int
+
+
+def test_a_class_description_is_its_docstring_cleaned_whatever_the_python() -> None:
+    """Python 3.11 keeps a docstring's indentation, 3.13 strips it as it compiles: the schema
+    holds the cleaned form either way, so the files are the same bytes from both."""
+    (definition,) = record_schema(_Indented)["$defs"].values()
+    assert definition["description"] == (
+        "First line.\n\nSecond paragraph, indented in the source.\n    Deeper still."
     )
 
 
