@@ -30,7 +30,7 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         write_all,
         write_atomic,
     )
-    from ._executor import Executor, in_order, make_executor
+    from ._executor import Executor, in_order, make_executor, start_method
     from ._file_names import mcap_file_name, safe_file_name
     from ._files import ROW_GROUP_ROWS, write_part
     from ._fs import Location, is_uri, location
@@ -117,10 +117,11 @@ if TYPE_CHECKING:  # the names, imported when first used (`lazy_names`)
         write_episode_mcap,
     )
     from ._quarantine import QUARANTINE_KINDS, QuarantineRecord
+    from ._record_schema import record_schema
     from ._rows import TABLE_ROWS
     from ._rundir import RunDirectory, keep_aside
     from ._runner import replay_runs
-    from ._schemas import record_schema, schema_documents, write_schemas
+    from ._schemas import schema_documents, write_schemas
     from ._worker import Ready, worker_state
 
 __all__ = [
@@ -233,6 +234,7 @@ __all__ = [
     "LambdaTask",
     "in_order",
     "make_executor",
+    "start_method",
     "replay_batch",
     "replay_lambdas",
     "safe_file_name",

@@ -50,7 +50,7 @@ from ._file_names import mcap_file_name
 from ._fs import Location, location
 from ._images import ViewImage
 from ._layout import mcap_dir
-from ._schemas import record_schema
+from ._record_schema import record_schema
 
 if TYPE_CHECKING:
     from ..semantics import EpisodeResult

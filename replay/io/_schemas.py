@@ -6,9 +6,7 @@ differ from what the classes generate, so the schemas cannot drift.
 
 from __future__ import annotations
 
-import inspect
 from pathlib import Path
-from typing import Any
 
 import msgspec
 
@@ -16,21 +14,10 @@ from ..semantics import INPUT_RECORDS, OUTPUT_RECORDS
 from ._durable import write_atomic
 from ._manifest import ManifestFile
 from ._quarantine import QuarantineRecord
+from ._record_schema import record_schema
 
 OTHER_OUTPUTS: dict[str, type] = {"manifest": ManifestFile, "quarantine": QuarantineRecord}
 """`OUT/manifest.json` and a line of `OUT/quarantine.jsonl`."""
-
-
-def record_schema(record: type) -> dict[str, Any]:
-    """msgspec's JSON Schema of a record type, each class's description (its docstring)
-    cleaned as `inspect.cleandoc` does: Python 3.13 strips a docstring's indentation when it
-    compiles it, 3.11 keeps it, and the schema (in `schemas/` and in every MCAP file) must
-    not depend on the Python that wrote it."""
-    schema = msgspec.json.schema(record)
-    for definition in schema.get("$defs", {}).values():
-        if "description" in definition:
-            definition["description"] = inspect.cleandoc(definition["description"])
-    return schema
 
 
 def schema_documents() -> dict[str, bytes]:

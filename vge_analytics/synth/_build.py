@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import multiprocessing
 import os
 import shutil
 import tempfile
@@ -241,7 +242,11 @@ def _results(jobs: list[DeviceJob], ctx: _Context, workers: int) -> Iterator[Dev
         for job in jobs:
             yield build_device(job, ctx)
         return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    # Forked where that is safe (no other thread here: the CLI), else spawned: a fork of a
+    # process running other threads (a test process's, a notebook's) copies their locks as
+    # they are, and its children died under Python 3.13 (replay.io.start_method).
+    context = multiprocessing.get_context(replay.io.start_method(fork=True))
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
         yield from pool.map(_build_star, [(job, ctx) for job in jobs], chunksize=2)
 
 
