@@ -126,8 +126,14 @@ wait status and peak resident memory (KB) on the descriptor it is given."""
 
 
 def _children(pid: int) -> list[int]:
+    """The children of process `pid`; none once it has ended (its /proc entry, or one of its
+    threads', can go while it is read)."""
     found = []
-    for task in Path(f"/proc/{pid}/task").glob("*/children"):
+    try:
+        tasks = list(Path(f"/proc/{pid}/task").glob("*/children"))
+    except OSError:
+        return found
+    for task in tasks:
         try:
             found += [int(c) for c in task.read_text().split()]
         except (OSError, ValueError):
