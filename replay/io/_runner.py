@@ -122,7 +122,6 @@ def replay_runs(
     image_source: ImageSource | None = None,
     ray: str | None = None,
     max_record_bytes: int = MAX_RECORD_BYTES,
-    executor: Executor | None = None,
 ) -> Manifest:
     """Replay run directories against a benchmark into `out_dir` (PROTOCOL §7).
 
@@ -137,8 +136,6 @@ def replay_runs(
     every node must reach `bench_dir`, `out_dir` and the image source (docs/SCALE.md).
     `max_record_bytes` bounds an episode line: a longer one is quarantined as
     `record_too_large` and ends the reading of its file (PROTOCOL §1.5).
-    `executor` (`make_executor`, made and closed by the caller) runs the batches instead of
-    one made here from `workers` and `ray`.
     Run directories, `bench_dir` and `out_dir` are local paths or URIs of pyarrow's
     filesystems (`s3://bucket/out`, `gs://...`, `file:///...`); in an object store the
     manifest is the commit marker and the writer lock is a lease object (docs/SCALE.md).
@@ -162,7 +159,7 @@ def replay_runs(
 
         bar = _make_progress(progress, cluster=ray is not None)
         try:
-            with _running(executor, todo, workers, ray, bench_given) as executor:
+            with _running(todo, workers, ray, bench_given) as executor:
                 if bar is not None:
                     bar.start()
                     for run_id in skipped:
@@ -190,17 +187,12 @@ def replay_runs(
 
 
 @contextmanager
-def _running(
-    given: Executor | None, todo: list[RunInput], workers: int, ray: str | None, bench: str
-) -> Iterator[Executor]:
-    """The executor given, else one made here (this process alone when nothing is to be
-    replayed) and closed when the batches are done. Made once this process has opened
-    `bench` and before it starts a thread (the reader, the progress bar), so that its
-    workers are forked with the engine imported and `bench` open (`WorkerProcesses`); they
-    use nothing else of this process."""
-    if given is not None:
-        yield given
-        return
+def _running(todo: list[RunInput], workers: int, ray: str | None, bench: str) -> Iterator[Executor]:
+    """The executor of the batches (this process alone when nothing is to be replayed),
+    closed when they are done. Made once this process has opened `bench` and before it
+    starts a thread (the reader, the progress bar), so that its workers are forked with the
+    engine imported and `bench` open (`WorkerProcesses`); they use nothing else of this
+    process."""
     executor = make_executor(workers, ray, bench, fork=True) if todo else InProcess()
     try:
         yield executor

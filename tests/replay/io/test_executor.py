@@ -114,8 +114,9 @@ print(json.dumps(seen))
 def test_workers_are_forked_when_asked_and_no_other_thread_runs(sample) -> None:
     """In a fresh interpreter (one thread): asked to fork, the pool forks at once (BENCH
     given or not: later this process may run threads), and its worker has this process's
-    opened BENCH (the very object); not asked, or with another thread running, it spawns. (A test process of pytest-xdist runs threads of its own, so this
-    is checked in a subprocess.)"""
+    opened BENCH (the very object); not asked, or with another thread running, it spawns.
+    (A test process of pytest-xdist runs threads of its own, so this is checked in a
+    subprocess.)"""
     done = subprocess.run(
         [sys.executable, "-c", FORK_PROBE, str(sample.bench)],
         capture_output=True, text=True, timeout=300, cwd=ROOT,
