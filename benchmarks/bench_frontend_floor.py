@@ -12,6 +12,8 @@ waits of `tests/app/streamlit_browser.py`):
 - *text*: a Streamlit app of a title, a line of text and the end-of-run marker, nothing else;
 - *chart*: the same with one small Altair chart (the charts' code is a part of the frontend
   loaded when the first chart is drawn);
+- *table*: the same with one small table (`st.dataframe`, three rows; the tables' grid is
+  another part loaded when the first table is drawn), as every page of ours has;
 - *Leaderboard*: `vge app OUT`'s first page, the server already warm (its queries answered
   once before the rounds, by another browser), so what is timed is the new browser;
 - *Leaderboard, same browser*: the same page loaded again in that browser (its cache warm).
@@ -58,6 +60,14 @@ st.title("Floor")
 st.write("A line of text.")
 data = pl.DataFrame({{"x": [1, 2, 3], "y": [3, 1, 2]}})
 st.altair_chart(alt.Chart(data).mark_line().encode(x="x", y="y"), use_container_width=True)
+st.markdown('<div id="{END_MARKER}" data-run="1"></div>', unsafe_allow_html=True)
+"""
+TABLE_APP = f"""
+import polars as pl
+import streamlit as st
+st.title("Floor")
+st.write("A line of text.")
+st.dataframe(pl.DataFrame({{"x": [1, 2, 3], "y": [3.5, 1.25, 2.0]}}), hide_index=True)
 st.markdown('<div id="{END_MARKER}" data-run="1"></div>', unsafe_allow_html=True)
 """
 
@@ -115,12 +125,14 @@ def main() -> None:
         with (
             Floor("text", TEXT_APP, folder) as text,
             Floor("chart", CHART_APP, folder) as chart,
+            Floor("table", TABLE_APP, folder) as table,
             AppServer(args.out, log=log) as app,
         ):
             first_visit(pw, app.url, "", "Per metric")  # the server's first visit: its queries
             for round_ in range(args.rounds):
                 kinds = [("text", text.url, "A line of text."),
                          ("chart", chart.url, "A line of text."),
+                         ("table", table.url, "A line of text."),
                          ("Leaderboard", app.url, "Per metric")]  # fmt: skip
                 if round_ % 2:
                     kinds.reverse()
