@@ -21,21 +21,23 @@ ENTRY_FILE = Path(__file__).resolve().with_name("streamlit_app.py")
 """The file `streamlit run` serves."""
 
 
-def warm() -> None:
+def warm(out: str) -> None:
     """Import what every page imports (Streamlit, Altair, pandas, polars, the analytics), in
     the server process before it listens: the pages' scripts then find the modules loaded.
     Then fork the SQL page's standby query process for the app's OUT
-    (`_settings.keep_sql_standby`), which opens OUT while the server warms up; a bad OUT is
-    left to the pages to report."""
+    (`_settings.keep_sql_standby`), which opens OUT while the server warms up, and open OUT
+    here as the pages will (`_data.open_as_the_pages_do`); a bad OUT is left to the pages to
+    report."""
     import contextlib
 
     from vge_analytics import AnalyticsError
 
-    from . import _charts, _lifecycle, _links, _pages, _pickers, _settings, _sidebar, _tables
+    from . import _charts, _data, _lifecycle, _links, _pages, _pickers, _settings, _sidebar, _tables
 
     del _charts, _lifecycle, _links, _pages, _pickers, _sidebar, _tables
     with contextlib.suppress(AnalyticsError):
         _settings.keep_sql_standby()
+    _data.open_as_the_pages_do(out)
 
 
 __all__ = ["ENTRY_FILE", "warm"]

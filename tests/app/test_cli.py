@@ -150,3 +150,40 @@ def test_the_sql_memory_limit_is_sized_from_out(tiny_out, monkeypatch):
     limits = [cmd[cmd.index("--sql-memory-limit") + 1] for cmd in served]
     assert limits == [str(expected), str(1024**3)]
     assert _settings.sql_settings(served[0][served[0].index("--") + 1 :])[0].memory == expected
+
+
+def test_the_warm_up_opens_the_store_the_pages_use(tiny_out, monkeypatch):
+    """The server's warm-up opens OUT within the pages' query bounds (the script arguments
+    `vge app` passes): the pages' first data call then finds that store and opens none. A
+    store is kept per memory limits, and the pages' (sized from OUT) are not the default's,
+    so a warm-up outside them left the first page to open OUT again (0.5 s at 100x)."""
+    import sys
+
+    import vge_analytics as va
+    from vge_analytics.commands import app as app_command
+    from vge_analytics.store import _store, clear_cache
+
+    served = []
+    monkeypatch.setattr(app_command, "serve", lambda cmd, *a, **k: served.append(cmd))
+    assert main(["app", str(tiny_out), "--headless", "--port", "1"]) == 0
+    cmd = served[0]
+    monkeypatch.setattr(sys, "argv", [cmd[2], *cmd[3:]])  # as the server's process sees them
+    page_memory = int(cmd[cmd.index("--sql-memory-limit") + 1])
+    assert page_memory != SqlLimits.make().memory  # the default's store would not do
+    opened = []
+    real_open = _store._open
+
+    def counted_open(where, limits):
+        opened.append(limits.memory)
+        return real_open(where, limits)
+
+    monkeypatch.setattr(_store, "_open", counted_open)
+    clear_cache()
+    try:
+        _data.open_as_the_pages_do(str(tiny_out))  # what `app.warm` does last
+        assert opened == [page_memory]
+        with _data.query_bounds():  # what a page's data call runs within
+            va.runs(str(tiny_out))
+        assert opened == [page_memory]
+    finally:
+        clear_cache()
